@@ -1,0 +1,5 @@
+"""``python -m dronetrack``."""
+
+from dronetrack.cli import main
+
+main()

@@ -1,0 +1,204 @@
+"""The ``dronetrack`` command line: parse, build, call, report, exit code.
+
+Errors the user can fix (bad names, files, values) print one ``error:`` line
+and exit with code 2.
+"""
+
+from __future__ import annotations
+
+import sys
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+
+from dronetrack import __version__
+from dronetrack.errors import DronetrackError
+
+__all__ = ["app", "main", "run"]
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="rich",
+    help="Detect and track small drones with LiDAR on a pan-tilt turret.",
+)
+err_console = Console(stderr=True)
+
+
+class TurretMode(StrEnum):
+    truth = "truth"
+    fixed = "fixed"
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"dronetrack {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
+    """Detect and track small drones with LiDAR on a pan-tilt turret."""
+
+
+@app.command()
+def scenarios(
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="Add each scenario's description.")
+    ] = False,
+) -> None:
+    """List the named scenarios, one per line."""
+    from dronetrack.sim.scenarios import SCENARIOS
+
+    width = max(len(n) for n in SCENARIOS)
+    for name, cfg in SCENARIOS.items():
+        typer.echo(f"{name:<{width}}  {cfg.description}" if verbose else name)
+
+
+@app.command()
+def pattern(
+    sensor: Annotated[
+        str, typer.Argument(help="avia, mid40, mid360, vlp16, or file:PATH (Livox CSV / .npy)")
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="CSV file to write.")],
+    duration: Annotated[
+        float, typer.Option("--duration", "-d", min=0.0, help="Seconds of pattern.")
+    ] = 0.1,
+    start: Annotated[float, typer.Option("--start", min=0.0, help="Start time [s].")] = 0.0,
+    rate: Annotated[
+        float | None, typer.Option("--rate", min=1.0, help="Point rate of a file: pattern [1/s].")
+    ] = None,
+    lines: Annotated[
+        int | None, typer.Option("--lines", min=1, help="Line count of a file: pattern.")
+    ] = None,
+    rpm: Annotated[float | None, typer.Option("--rpm", help="VLP-16 spin rate, 300-1200.")] = None,
+) -> None:
+    """Write a sensor's scan directions (sensor frame: x forward, y left, z up) as CSV.
+
+    Columns: t_s, azimuth_deg, elevation_deg, line.
+    """
+    from dronetrack.geometry import azimuth_elevation
+    from dronetrack.sim.sensors import make_sensor
+
+    model = make_sensor(sensor, rpm=rpm, rate_hz=rate, lines=lines)
+    pulses = model.pattern.pulses(start, start + duration)
+    az, el = azimuth_elevation(pulses.dirs)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    table = np.column_stack([pulses.t, np.degrees(az), np.degrees(el), pulses.line])
+    np.savetxt(
+        out,
+        table,
+        delimiter=",",
+        fmt=("%.9f", "%.6f", "%.6f", "%d"),
+        header="t_s,azimuth_deg,elevation_deg,line",
+        comments="",
+    )
+    err_console.print(f"wrote {len(pulses)} directions of {model.name} to {out}")
+
+
+@app.command()
+def render(
+    scenario: Annotated[
+        str, typer.Argument(help="A scenario name (see 'dronetrack scenarios') or a .toml file.")
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    duration: Annotated[
+        float | None,
+        typer.Option(
+            "--duration", "-d", min=0.01, help="Seconds to simulate (default: the scenario's)."
+        ),
+    ] = None,
+    seed: Annotated[int | None, typer.Option("--seed", help="Random seed.")] = None,
+    turret: Annotated[
+        TurretMode, typer.Option("--turret", help="Follow the true target, or hold still.")
+    ] = TurretMode.truth,
+    trajectory: Annotated[
+        Path | None, typer.Option("--trajectory", help="CSV with columns t,x,y,z.")
+    ] = None,
+    visibility: Annotated[
+        float | None, typer.Option("--visibility", help="Meteorological visibility [m].")
+    ] = None,
+    drone: Annotated[str | None, typer.Option("--drone", help="Target model.")] = None,
+    sensor: Annotated[str | None, typer.Option("--sensor", help="Sensor model.")] = None,
+    noise: Annotated[
+        bool, typer.Option("--noise/--no-noise", help="Sensor noise and false alarms.")
+    ] = True,
+) -> None:
+    """Simulate a scenario and write its frames, ground truth and a PNG preview.
+
+    Writes frames.npz (points x, y, z in the sensor frame, t, line, intensity,
+    hit_target, frame, world points, sensor poses, target pose), frames.csv
+    (one row per frame), scenario.toml (the resolved scenario) and preview.png.
+    """
+    from rich.progress import Progress
+
+    from dronetrack.render import render_scenario, write_rendering
+    from dronetrack.sim.scenario import apply_overrides
+    from dronetrack.sim.scenarios import get_scenario
+
+    cfg = apply_overrides(
+        get_scenario(scenario),
+        seed=seed,
+        trajectory=trajectory,
+        visibility=visibility,
+        drone=drone,
+        sensor=sensor,
+        noise=noise,
+    )
+    length = cfg.duration_s if duration is None else duration
+    with Progress(console=err_console, transient=True) as bar:
+        task = bar.add_task(f"rendering {cfg.name}", total=None)
+        rendering = render_scenario(
+            cfg, length, turret.value, progress=lambda i, n: bar.update(task, completed=i, total=n)
+        )
+    paths = write_rendering(rendering, out)
+    n_points = sum(len(f) for f in rendering.frames)
+    n_target = sum(t.n_target_points for t in rendering.truths)
+    err_console.print(
+        f"{len(rendering.frames)} frames, {n_points} points, {n_target} on the target"
+    )
+    for p in paths:
+        typer.echo(str(p))
+
+
+def run(argv: list[str] | None = None) -> int:
+    """Run the command line with ``argv``; return the exit code."""
+    command = typer.main.get_command(app)
+    try:
+        result = command.main(args=argv, prog_name="dronetrack", standalone_mode=False)
+    except typer.Exit as stop:
+        return int(stop.exit_code)
+    except typer.Abort:
+        err_console.print("aborted")
+        return 130
+    except typer.TyperException as err:  # usage errors: unknown option, missing argument, ...
+        show = getattr(err, "show", None)
+        if callable(show):
+            show()
+        else:
+            err_console.print(f"error: {err}", markup=False, highlight=False)
+        return 2
+    except DronetrackError as err:
+        err_console.print(f"error: {err}", markup=False, highlight=False, soft_wrap=True)
+        return 2
+    except OSError as err:
+        err_console.print(f"error: {err}", markup=False, highlight=False, soft_wrap=True)
+        return 2
+    return int(result) if isinstance(result, int) else 0
+
+
+def main() -> None:
+    """Console-script entry point."""
+    sys.exit(run(sys.argv[1:]))

@@ -1,0 +1,1 @@
+"""Turret control: aiming the sensor and scanning patterns."""

@@ -1,0 +1,40 @@
+"""The exceptions of dronetrack.
+
+Library code raises these with a message that names the bad value; it never prints
+or exits.  The command line turns them into one error line and exit code 2.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ConfigError",
+    "DronetrackError",
+    "InputError",
+    "ScenarioError",
+    "SensorError",
+    "TrajectoryError",
+]
+
+
+class DronetrackError(Exception):
+    """Base class of every error dronetrack raises on purpose."""
+
+
+class ConfigError(DronetrackError):
+    """A configuration value or file is invalid."""
+
+
+class ScenarioError(ConfigError):
+    """A scenario name or scenario file is invalid."""
+
+
+class SensorError(ConfigError):
+    """A sensor name, scan-pattern file or sensor parameter is invalid."""
+
+
+class TrajectoryError(ConfigError):
+    """A trajectory definition or trajectory file is invalid."""
+
+
+class InputError(DronetrackError):
+    """Input data (arrays, files) do not have the expected shape or content."""

@@ -1,0 +1,298 @@
+"""Rigid-body geometry on numpy arrays.
+
+Conventions (REP-103): right-handed frames, x forward, y left, z up; angles in
+radians; poses are 4x4 homogeneous matrices ``parent_T_child``.  Functions take
+one pose ``(4, 4)`` or a stack ``(N, 4, 4)``.
+
+Azimuth is ``atan2(y, x)`` and elevation is ``atan2(z, hypot(x, y))``.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from dronetrack.errors import InputError
+
+FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "FloatArray",
+    "apply_interpolated_poses",
+    "azimuth_elevation",
+    "direction_from_azimuth_elevation",
+    "interpolate_poses",
+    "make_pose",
+    "matrix_to_quaternion",
+    "quaternion_to_matrix",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "transform_points",
+    "unit",
+    "wrap_angle",
+]
+
+
+def _axis_rotation(angle: ArrayLike, i: int, j: int) -> FloatArray:
+    """Rotation by ``angle`` in the (i, j) plane; shape (3, 3) or (N, 3, 3)."""
+    a = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros((*a.shape, 3, 3))
+    k = 3 - i - j
+    R[..., k, k] = 1.0
+    R[..., i, i] = c
+    R[..., j, j] = c
+    R[..., i, j] = -s
+    R[..., j, i] = s
+    return R
+
+
+def rot_x(angle: ArrayLike) -> FloatArray:
+    """Rotation about x: y turns towards z for a positive angle."""
+    return _axis_rotation(angle, 1, 2)
+
+
+def rot_y(angle: ArrayLike) -> FloatArray:
+    """Rotation about y: z turns towards x, so a positive angle tips +x down."""
+    return _axis_rotation(angle, 2, 0)
+
+
+def rot_z(angle: ArrayLike) -> FloatArray:
+    """Rotation about z: x turns towards y (counter-clockwise seen from above)."""
+    return _axis_rotation(angle, 0, 1)
+
+
+def make_pose(R: ArrayLike, p: ArrayLike) -> FloatArray:
+    """Homogeneous pose from rotation ``R`` (..., 3, 3) and translation ``p`` (..., 3)."""
+    Rm = np.asarray(R, dtype=np.float64)
+    pv = np.asarray(p, dtype=np.float64)
+    shape = np.broadcast_shapes(Rm.shape[:-2], pv.shape[:-1])
+    T = np.zeros((*shape, 4, 4))
+    T[..., :3, :3] = Rm
+    T[..., :3, 3] = pv
+    T[..., 3, 3] = 1.0
+    return T
+
+
+def transform_points(T: ArrayLike, points: ArrayLike) -> FloatArray:
+    """Apply pose ``T`` (4, 4) or per-point poses (N, 4, 4) to points (N, 3).
+
+    p' = R p + t
+    """
+    Tm = np.asarray(T, dtype=np.float64)
+    P = np.asarray(points, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise InputError(f"points must have shape (N, 3), got {P.shape}")
+    if Tm.shape == (4, 4):
+        return P @ Tm[:3, :3].T + Tm[:3, 3]
+    if Tm.shape != (len(P), 4, 4):
+        raise InputError(f"poses must have shape (4, 4) or ({len(P)}, 4, 4), got {Tm.shape}")
+    out: FloatArray = np.einsum("nij,nj->ni", Tm[:, :3, :3], P) + Tm[:, :3, 3]
+    return out
+
+
+def unit(v: ArrayLike) -> FloatArray:
+    """Normalise vectors along the last axis."""
+    a = np.asarray(v, dtype=np.float64)
+    out: FloatArray = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    return out
+
+
+def wrap_angle(angle: ArrayLike) -> FloatArray:
+    """Wrap angles to [-π, π)."""
+    a = np.asarray(angle, dtype=np.float64)
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def azimuth_elevation(d: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Azimuth atan2(y, x) and elevation atan2(z, hypot(x, y)) of directions (..., 3)."""
+    v = np.asarray(d, dtype=np.float64)
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    return np.arctan2(y, x), np.arctan2(z, np.hypot(x, y))
+
+
+def direction_from_azimuth_elevation(az: ArrayLike, el: ArrayLike) -> FloatArray:
+    """Unit directions (..., 3) from azimuth and elevation [rad]."""
+    a = np.asarray(az, dtype=np.float64)
+    e = np.asarray(el, dtype=np.float64)
+    ce = np.cos(e)
+    return np.stack([ce * np.cos(a), ce * np.sin(a), np.sin(e)], axis=-1)
+
+
+def matrix_to_quaternion(R: ArrayLike) -> FloatArray:
+    """Unit quaternions (..., 4) as (w, x, y, z) from rotation matrices (..., 3, 3).
+
+    Shepperd's method: take the largest of 4w², 4x², 4y², 4z² from the diagonal,
+    then the other components from the off-diagonal terms, which keeps full
+    precision for every rotation.
+    """
+    M = np.asarray(R, dtype=np.float64)
+    m00, m01, m02 = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
+    m10, m11, m12 = M[..., 1, 0], M[..., 1, 1], M[..., 1, 2]
+    m20, m21, m22 = M[..., 2, 0], M[..., 2, 1], M[..., 2, 2]
+    # 4w² = 1 + tr,         4x² = 1 + m00 − m11 − m22,
+    # 4y² = 1 − m00 + m11 − m22,  4z² = 1 − m00 − m11 + m22
+    four_sq = np.stack(
+        [1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22],
+        axis=-1,
+    )
+    k = np.argmax(four_sq, axis=-1)
+    # s = 4 · (the largest component)
+    s = 2.0 * np.sqrt(
+        np.maximum(np.take_along_axis(four_sq, k[..., None], axis=-1)[..., 0], 1e-300)
+    )
+    wx, wy, wz = m21 - m12, m02 - m20, m10 - m01  # 4w·(x, y, z)
+    xy, xz, yz = m01 + m10, m02 + m20, m12 + m21  # 4x·y, 4x·z, 4y·z
+    candidates = np.stack(
+        [
+            np.stack([0.25 * s, wx / s, wy / s, wz / s], axis=-1),
+            np.stack([wx / s, 0.25 * s, xy / s, xz / s], axis=-1),
+            np.stack([wy / s, xy / s, 0.25 * s, yz / s], axis=-1),
+            np.stack([wz / s, xz / s, yz / s, 0.25 * s], axis=-1),
+        ],
+        axis=-2,
+    )
+    q = np.take_along_axis(candidates, k[..., None, None], axis=-2)[..., 0, :]
+    # One sign convention: w ≥ 0.
+    return unit(np.where(q[..., :1] < 0, -q, q))
+
+
+def quaternion_to_matrix(q: ArrayLike) -> FloatArray:
+    """Rotation matrices (..., 3, 3) from quaternions (..., 4) as (w, x, y, z)."""
+    Q = unit(q)
+    w, x, y, z = Q[..., 0], Q[..., 1], Q[..., 2], Q[..., 3]
+    R = np.empty((*Q.shape[:-1], 3, 3))
+    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    R[..., 0, 1] = 2 * (x * y - w * z)
+    R[..., 0, 2] = 2 * (x * z + w * y)
+    R[..., 1, 0] = 2 * (x * y + w * z)
+    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    R[..., 1, 2] = 2 * (y * z - w * x)
+    R[..., 2, 0] = 2 * (x * z - w * y)
+    R[..., 2, 1] = 2 * (y * z + w * x)
+    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def _aligned_quaternions(poses: FloatArray) -> FloatArray:
+    """Quaternions of the pose rotations, each in the hemisphere of its predecessor."""
+    q = matrix_to_quaternion(poses[:, :3, :3])
+    flips = np.sum(q[1:] * q[:-1], axis=1) < 0
+    sign = np.concatenate([[1.0], np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)])
+    out: FloatArray = q * sign[:, None]
+    return out
+
+
+def interpolate_poses(
+    pose_t: ArrayLike, poses: ArrayLike, t: ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """Poses at times ``t`` from samples ``poses`` (K, 4, 4) taken at ``pose_t`` (K,).
+
+    Translation is interpolated linearly, rotation by normalised quaternion
+    interpolation (nlerp), which matches slerp to second order in the angle
+    between neighbouring samples.  Times outside the samples are clamped.
+
+    Returns rotations (N, 3, 3) and translations (N, 3).
+    """
+    ts, T = _check_pose_samples(pose_t, poses)
+    tq = np.atleast_1d(np.asarray(t, dtype=np.float64))
+    if len(ts) == 1:
+        n = len(tq)
+        return np.broadcast_to(T[0, :3, :3], (n, 3, 3)).copy(), np.tile(T[0, :3, 3], (n, 1))
+    i = np.clip(np.searchsorted(ts, tq, side="right") - 1, 0, len(ts) - 2)
+    span = ts[i + 1] - ts[i]
+    u = np.clip((tq - ts[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+    p = T[i, :3, 3] + u[:, None] * (T[i + 1, :3, 3] - T[i, :3, 3])
+    q = _aligned_quaternions(T)
+    qi = q[i] + u[:, None] * (q[i + 1] - q[i])
+    return quaternion_to_matrix(qi), p
+
+
+def _check_pose_samples(pose_t: ArrayLike, poses: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    ts = np.asarray(pose_t, dtype=np.float64)
+    T = np.asarray(poses, dtype=np.float64)
+    if ts.ndim != 1 or len(ts) == 0 or T.shape != (len(ts), 4, 4):
+        raise InputError(
+            f"pose samples must be (K,) times and (K, 4, 4) poses, got {ts.shape}, {T.shape}"
+        )
+    return ts, T
+
+
+def apply_interpolated_poses(
+    pose_t: ArrayLike,
+    poses: ArrayLike,
+    t: ArrayLike,
+    vectors: ArrayLike,
+    points: ArrayLike | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """Rotate ``vectors`` (N, 3) and transform ``points`` (N, 3) by the pose at each time.
+
+    The same interpolation as ``interpolate_poses`` (linear translation, nlerp
+    rotation), computed point by point without forming N matrices.  ``points``
+    defaults to the origin, so the second result is then the pose translation.
+    Returns (R v, R p + t).
+    """
+    ts, T = _check_pose_samples(pose_t, poses)
+    tq = np.ascontiguousarray(np.atleast_1d(np.asarray(t, dtype=np.float64)))
+    V = np.ascontiguousarray(vectors, dtype=np.float64)
+    P = np.zeros_like(V) if points is None else np.ascontiguousarray(points, dtype=np.float64)
+    if V.shape != (len(tq), 3) or P.shape != V.shape:
+        raise InputError(f"vectors and points must be ({len(tq)}, 3), got {V.shape}, {P.shape}")
+    q = np.ascontiguousarray(_aligned_quaternions(T))
+    return _apply_poses_kernel(ts, q, np.ascontiguousarray(T[:, :3, 3]), tq, V, P)
+
+
+@nb.njit(cache=True)
+def _apply_poses_kernel(
+    ts: FloatArray, q: FloatArray, pos: FloatArray, t: FloatArray, V: FloatArray, P: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    n = t.shape[0]
+    k = ts.shape[0]
+    out_v = np.empty((n, 3))
+    out_p = np.empty((n, 3))
+    i = 0
+    for j in range(n):
+        # Segment i with ts[i] ≤ t < ts[i+1] (clamped to [0, k − 2]).  Times are
+        # usually sorted: walk on from the previous segment, else bisect.
+        tj = t[j]
+        if tj < ts[i]:
+            lo, hi = 0, i
+            while lo < hi:
+                mid = (lo + hi + 1) // 2
+                if ts[mid] <= tj:
+                    lo = mid
+                else:
+                    hi = mid - 1
+            i = lo
+        while i < k - 2 and ts[i + 1] <= tj:
+            i += 1
+        u = 0.0
+        if k > 1 and ts[i + 1] > ts[i]:
+            u = min(max((t[j] - ts[i]) / (ts[i + 1] - ts[i]), 0.0), 1.0)
+        i1 = min(i + 1, k - 1)
+        w = q[i, 0] + u * (q[i1, 0] - q[i, 0])
+        x = q[i, 1] + u * (q[i1, 1] - q[i, 1])
+        y = q[i, 2] + u * (q[i1, 2] - q[i, 2])
+        z = q[i, 3] + u * (q[i1, 3] - q[i, 3])
+        s = 1.0 / np.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w * s, x * s, y * s, z * s
+        r00 = 1 - 2 * (y * y + z * z)
+        r01 = 2 * (x * y - w * z)
+        r02 = 2 * (x * z + w * y)
+        r10 = 2 * (x * y + w * z)
+        r11 = 1 - 2 * (x * x + z * z)
+        r12 = 2 * (y * z - w * x)
+        r20 = 2 * (x * z - w * y)
+        r21 = 2 * (y * z + w * x)
+        r22 = 1 - 2 * (x * x + y * y)
+        a, b, c = V[j, 0], V[j, 1], V[j, 2]
+        out_v[j, 0] = r00 * a + r01 * b + r02 * c
+        out_v[j, 1] = r10 * a + r11 * b + r12 * c
+        out_v[j, 2] = r20 * a + r21 * b + r22 * c
+        a, b, c = P[j, 0], P[j, 1], P[j, 2]
+        out_p[j, 0] = r00 * a + r01 * b + r02 * c + pos[i, 0] + u * (pos[i1, 0] - pos[i, 0])
+        out_p[j, 1] = r10 * a + r11 * b + r12 * c + pos[i, 1] + u * (pos[i1, 1] - pos[i, 1])
+        out_p[j, 2] = r20 * a + r21 * b + r22 * c + pos[i, 2] + u * (pos[i1, 2] - pos[i, 2])
+    return out_v, out_p

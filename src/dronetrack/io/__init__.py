@@ -1,0 +1,1 @@
+"""Reading and writing files: recordings in, run folders out."""

@@ -1,0 +1,339 @@
+"""One LiDAR integration period: fire the pattern, cast the rays, decide the returns.
+
+Per pulse, in order:
+
+1. the pulse's direction and origin in the world, from the sensor pose at its
+   firing time (the turret moves during a frame);
+2. the static scene along the central ray (a beam-filling echo, F = 1);
+3. the target: pulses whose footprint can touch it are split into K sub-rays
+   spread over the elliptical footprint (full divergence θ_h × θ_v; K grows
+   with the footprint's area, about one ray per 2 × 2 cm, from 4 to 32), cast
+   against the target's shapes at its position at the firing time.  The echo's
+   beam-averaged reflectivity is Σ ρ_k cos θ_k / K over the sub-rays that hit it
+   before the scene does, and its range the mean of their ranges; the scene
+   behind keeps the unfilled fraction of the beam;
+4. first return: the nearer echo is detected with probability P_d
+   (``physics.detection_probability``), else the farther one is tried;
+5. noise: range σ_R and angular σ per axis; false alarms at a rate per pulse.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+from dronetrack.geometry import FloatArray, apply_interpolated_poses
+from dronetrack.sim.cubemap import CubeMapIndex, build_cube_map
+from dronetrack.sim.drones import DroneModel, attitude_from_acceleration
+from dronetrack.sim.patterns import Pulses
+from dronetrack.sim.physics import detection_probability, signal_ratio
+from dronetrack.sim.raycast import cast_rays
+from dronetrack.sim.scene import Scene
+from dronetrack.sim.sensors import SensorModel
+from dronetrack.sim.trajectories import Trajectory
+
+__all__ = ["LidarSimulator", "Scan", "footprint_samples"]
+
+LIVOX_DIFFUSE_MAX = 150.0  # Livox reflectivity byte for 100 % diffuse
+INDEX_SLACK_M = 0.5  # how far ray origins may wander before the scene is indexed again
+SUBRAY_SPACING_M = 0.02  # footprint sampling: the thinnest target parts (arms, legs) are 1-4 cm
+
+
+def footprint_samples(k: int) -> FloatArray:
+    """K points spread evenly over the unit disc (a sunflower / Vogel spiral), (K, 2)."""
+    i = np.arange(k) + 0.5
+    r = np.sqrt(i / k)
+    phi = i * np.pi * (3.0 - np.sqrt(5.0))  # golden angle
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi)])
+
+
+@dataclass(frozen=True, slots=True)
+class Scan:
+    """The returns of one integration period, with their ground truth."""
+
+    points: FloatArray  # (M, 3) sensor frame [m]
+    t: FloatArray  # (M,) [s]
+    line: NDArray[np.uint8]  # (M,)
+    intensity: NDArray[np.float32]  # (M,) Livox reflectivity encoding
+    hit_target: NDArray[np.bool_]  # (M,) ground truth: the return came from the target
+    n_pulses: int
+
+
+@dataclass(frozen=True, slots=True)
+class _TargetEcho:
+    """Target echoes of the candidate pulses."""
+
+    index: NDArray[np.int64]  # (C,) pulse indices
+    reflectivity: FloatArray  # (C,) Σ ρ cos θ / K
+    fill: FloatArray  # (C,) fraction of sub-rays on the target
+    range_m: FloatArray  # (C,) mean range of the sub-rays on the target (inf if none)
+
+
+@nb.njit(cache=True, fastmath=True)
+def _noisy_points(
+    dirs: FloatArray,
+    origins: FloatArray,
+    ranges: FloatArray,
+    noise: FloatArray,
+    sigma_angle: float,
+    sigma_range: float,
+) -> FloatArray:
+    """Returns o + (R + σ_R n₂) · unit(d + σ_θ (n₀ h + n₁ v)), with the beam axes h, v of d."""
+    n = dirs.shape[0]
+    out = np.empty((n, 3))
+    for i in range(n):
+        dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        # h = unit(ẑ × d), v = d × h (see _beam_axes)
+        norm = np.sqrt(dx * dx + dy * dy)
+        if norm > 1e-9:
+            hx, hy = -dy / norm, dx / norm
+        else:
+            hx, hy = 0.0, 1.0
+        vx, vy, vz = -dz * hy, dz * hx, dx * hy - dy * hx
+        a = sigma_angle * noise[i, 0]
+        b = sigma_angle * noise[i, 1]
+        ex, ey, ez = dx + a * hx + b * vx, dy + a * hy + b * vy, dz + b * vz
+        scale = (ranges[i] + sigma_range * noise[i, 2]) / np.sqrt(ex * ex + ey * ey + ez * ez)
+        out[i, 0] = origins[i, 0] + scale * ex
+        out[i, 1] = origins[i, 1] + scale * ey
+        out[i, 2] = origins[i, 2] + scale * ez
+    return out
+
+
+def _beam_axes(d: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Unit horizontal and vertical axes across beams d (N, 3) in the sensor frame.
+
+    h = unit(ẑ × d) lies in the sensor's horizontal plane; v = d × h.
+    """
+    h = np.column_stack([-d[:, 1], d[:, 0], np.zeros(len(d))])
+    norm = np.linalg.norm(h, axis=1)
+    h = np.where(
+        norm[:, None] > 1e-9, h / np.maximum(norm, 1e-12)[:, None], np.array([0.0, 1.0, 0.0])
+    )
+    return h, np.cross(d, h)
+
+
+class LidarSimulator:
+    """Casts a sensor's pulses into a scene with one moving target."""
+
+    def __init__(
+        self,
+        sensor: SensorModel,
+        scene: Scene,
+        drone: DroneModel,
+        trajectory: Trajectory,
+        extinction: float,
+    ) -> None:
+        self.sensor = sensor
+        self.scene = scene
+        self.drone = drone
+        self.trajectory = trajectory
+        self.extinction = extinction
+        self._scene_rho = np.append(scene.prims.reflectivity, 0.0)  # index -1 → no echo
+        self._index: CubeMapIndex | None = None
+
+    def _subray_count(self, range_m: float) -> int:
+        """Sub-rays per pulse at this range: about one per (SUBRAY_SPACING_M)² of footprint.
+
+        The elliptical footprint (π/4)(θ_h R)(θ_v R) is sampled finely enough to
+        resolve the target's thinnest parts, between 4 and ``beam_samples`` rays.
+        """
+        s = self.sensor
+        area = 0.25 * np.pi * (s.divergence_h * range_m) * (s.divergence_v * range_m)
+        return int(np.clip(np.ceil(area / SUBRAY_SPACING_M**2), 4, s.beam_samples))
+
+    def _signal(self, reflectivity: FloatArray, range_m: FloatArray) -> FloatArray:
+        s = self.sensor
+        return signal_ratio(
+            reflectivity, range_m, s.rated_range_m, s.rated_reflectivity, s.gamma, self.extinction
+        )
+
+    def target_attitude(self, t: float) -> FloatArray:
+        """world_R_body of the target at time t."""
+        acc = self.trajectory.acceleration(t)[0]
+        yaw = 0.0
+        if self.drone.faces_sensor:
+            p = self.trajectory.position(t)[0]
+            yaw = float(np.arctan2(-p[1], -p[0]))
+        return attitude_from_acceleration(acc, yaw)
+
+    def _target_echo(
+        self,
+        pulses: Pulses,
+        pose_t: FloatArray,
+        poses: FloatArray,
+        orig: FloatArray,
+        D: FloatArray,
+        o_mean: FloatArray,
+        slack: float,
+        scene_range: FloatArray,
+    ) -> _TargetEcho:
+        sensor = self.sensor
+        t0, t1 = float(pulses.t[0]), float(pulses.t[-1])
+        tm = 0.5 * (t0 + t1)
+        ends = self.trajectory.position(np.array([t0, tm, t1]))
+        center = ends[1]
+        # A sphere that holds the target over the whole frame, plus a margin for curvature.
+        radius = self.drone.radius + np.max(np.linalg.norm(ends - center, axis=1)) * 1.2 + 0.05
+        v = center - o_mean
+        dist = float(np.linalg.norm(v))
+        half_beam = 0.5 * max(sensor.divergence_h, sensor.divergence_v)
+        if dist <= radius + slack:
+            idx = np.arange(len(D))
+        else:
+            cone = np.arcsin(min(1.0, (radius + slack) / dist)) + half_beam
+            idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
+        if len(idx) == 0:
+            empty = np.empty(0)
+            return _TargetEcho(idx, empty, empty, empty)
+        # Rays in the target's body frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
+        Rb = self.target_attitude(tm)
+        o_b = (orig[idx] - self.trajectory.position(pulses.t[idx])) @ Rb
+        d_b = D[idx] @ Rb
+        # Keep the pulses whose footprint can reach the target where it is at their own
+        # firing time: the central ray passes within r + |o_b| θ/2 of the body origin,
+        # |o_b × d_b| ≤ r + |o_b| θ/2, in front of the sensor (−o_b · d_b > 0).
+        miss = np.linalg.norm(np.cross(o_b, d_b), axis=1)
+        near = (miss <= self.drone.radius + half_beam * np.linalg.norm(o_b, axis=1)) & (
+            np.einsum("ij,ij->i", o_b, d_b) < 0
+        )
+        idx, o_b, d_b = idx[near], o_b[near], d_b[near]
+        if len(idx) == 0:
+            empty = np.empty(0)
+            return _TargetEcho(idx, empty, empty, empty)
+        h_s, v_s = _beam_axes(pulses.dirs[idx])
+        t_idx = pulses.t[idx]
+        axes_w, _ = apply_interpolated_poses(
+            pose_t, poses, np.concatenate([t_idx, t_idx]), np.concatenate([h_s, v_s])
+        )
+        h_b, v_b = np.split(axes_w @ Rb, 2)
+        # Sub-ray k: d + u_k (θ_h/2) h + v_k (θ_v/2) v
+        samples = footprint_samples(self._subray_count(float(np.linalg.norm(v))))
+        u = samples[:, 0] * 0.5 * sensor.divergence_h
+        w = samples[:, 1] * 0.5 * sensor.divergence_v
+        sub = (
+            d_b[:, None, :]
+            + u[None, :, None] * h_b[:, None, :]
+            + w[None, :, None] * v_b[:, None, :]
+        )
+        sub /= np.linalg.norm(sub, axis=2, keepdims=True)
+        k = len(samples)
+        t_k, hit_k, cos_k = cast_rays(
+            self.drone.body, np.repeat(o_b, k, axis=0), sub.reshape(-1, 3)
+        )
+        t_k = t_k.reshape(-1, k)
+        hit_k = hit_k.reshape(-1, k)
+        on = (hit_k >= 0) & (t_k < scene_range[idx][:, None])
+        rho_k = np.where(
+            on, self.drone.body.reflectivity[np.maximum(hit_k, 0)] * cos_k.reshape(-1, k), 0.0
+        )
+        count = on.sum(axis=1)
+        with np.errstate(invalid="ignore"):
+            mean_range = np.where(count > 0, np.where(on, t_k, 0.0).sum(axis=1) / count, np.inf)
+        return _TargetEcho(idx, rho_k.sum(axis=1) / k, count / k, mean_range)
+
+    def _cast_scene(
+        self, orig: FloatArray, D: FloatArray, o_mean: FloatArray, slack: float
+    ) -> tuple[FloatArray, NDArray[np.int64], FloatArray]:
+        """Central rays against the static scene, through a cube-map index of it.
+
+        The index holds while the rays start within its slack of its origin (a
+        turret moves the sensor by centimetres); a sensor that travels further
+        gets a new index.
+        """
+        index = self._index
+        if index is None or not index.covers(o_mean, slack):
+            index = build_cube_map(
+                self.scene.prims, o_mean, max(2.0 * slack, INDEX_SLACK_M), self.sensor.max_range_m
+            )
+            self._index = index
+        return cast_rays(self.scene.prims, orig, D, self.sensor.max_range_m, index)
+
+    def scan(
+        self,
+        t_start: float,
+        t_end: float,
+        pose_t: FloatArray,
+        poses: FloatArray,
+        rng: np.random.Generator,
+    ) -> Scan:
+        """Simulate the returns of pulses fired in [t_start, t_end) with the given sensor poses."""
+        sensor = self.sensor
+        pulses = sensor.pattern.pulses(t_start, t_end)
+        n = len(pulses)
+        if n == 0:
+            return Scan(
+                np.empty((0, 3)),
+                np.empty(0),
+                np.empty(0, np.uint8),
+                np.empty(0, np.float32),
+                np.empty(0, bool),
+                0,
+            )
+        D, orig = apply_interpolated_poses(pose_t, poses, pulses.t, pulses.dirs, pulses.origins)
+        # Every ray starts within `slack` of `o_mean`: the sensor origin's path during
+        # the frame, plus the beam origins' offsets from it.
+        path = poses[:, :3, 3]
+        o_mean = path.mean(axis=0)
+        slack = float(np.max(np.linalg.norm(path - o_mean, axis=1))) + pulses.max_origin_offset
+        t_s, hit_s, cos_s = self._cast_scene(orig, D, o_mean, slack)
+        echo = self._target_echo(pulses, pose_t, poses, orig, D, o_mean, slack, t_s)
+        pd_target = np.zeros(n)
+        pd_target[echo.index] = detection_probability(
+            self._signal(echo.reflectivity, echo.range_m), sensor.pd_width_db
+        )
+        scene_hit = np.flatnonzero(hit_s >= 0)
+        fill = np.ones(n)
+        fill[echo.index] -= echo.fill
+        pd_scene = np.zeros(n)
+        pd_scene[scene_hit] = detection_probability(
+            self._signal(
+                self._scene_rho[hit_s[scene_hit]] * cos_s[scene_hit] * fill[scene_hit],
+                t_s[scene_hit],
+            ),
+            sensor.pd_width_db,
+        )
+
+        # The same uniform draws every frame whatever is hit, so a run depends on its seed only.
+        u = rng.random((n, 3))
+        from_target = u[:, 0] < pd_target
+        from_scene = ~from_target & (u[:, 1] < pd_scene)
+        range_m = t_s.copy()
+        range_m[echo.index] = np.where(from_target[echo.index], echo.range_m, t_s[echo.index])
+        returned = (from_target | from_scene) & (range_m >= sensor.min_range_m)
+        # False alarms on pulses that returned nothing, uniform in range: given
+        # u < p_fa, u / p_fa is uniform on [0, 1).
+        false_alarm = ~returned & (u[:, 2] < sensor.false_alarm_rate)
+        keep = np.flatnonzero(returned | false_alarm)
+        fa = false_alarm[keep]
+        r = range_m[keep]
+        r[fa] = sensor.min_range_m + (sensor.max_range_m - sensor.min_range_m) * (
+            u[keep[fa], 2] / sensor.false_alarm_rate
+        )
+        rho = self._scene_rho[hit_s[keep]]
+        target_rho = echo.reflectivity / np.maximum(echo.fill, 1e-12)
+        rho_by_pulse = np.zeros(n)
+        rho_by_pulse[echo.index] = target_rho
+        rho = np.where(from_target[keep], rho_by_pulse[keep], rho)
+        rho[fa] = 0.0
+
+        noise = rng.standard_normal((len(keep), 3))
+        points = _noisy_points(
+            pulses.dirs[keep],
+            pulses.origins[keep],
+            r,
+            noise,
+            sensor.angular_sigma,
+            sensor.range_sigma_m,
+        )
+        return Scan(
+            points=points,
+            t=pulses.t[keep],
+            line=pulses.line[keep],
+            intensity=np.clip(LIVOX_DIFFUSE_MAX * rho, 0.0, LIVOX_DIFFUSE_MAX).astype(np.float32),
+            hit_target=from_target[keep],
+            n_pulses=n,
+        )

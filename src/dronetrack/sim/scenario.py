@@ -1,0 +1,339 @@
+"""Scenarios: a scene, a target and its trajectory, a sensor on a turret, and the weather.
+
+A scenario is a validated configuration (TOML at the edge, degrees where humans
+type angles) that builds a ``SimWorld``.  Named scenarios live in
+``scenarios.py``; a TOML file can start from one with ``base = "name"`` and
+override any key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomli_w
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from dronetrack.errors import ScenarioError
+from dronetrack.kinematics import MountGeometry
+from dronetrack.sim.drones import make_drone
+from dronetrack.sim.flights import make_flight
+from dronetrack.sim.physics import extinction_coefficient
+from dronetrack.sim.scene import make_scene
+from dronetrack.sim.sensors import SensorModel, make_sensor
+from dronetrack.sim.trajectories import Trajectory, load_csv_trajectory
+from dronetrack.sim.turret import AxisSpec, TurretSpec, make_turret
+from dronetrack.sim.world import SimWorld
+
+__all__ = [
+    "DroneConfig",
+    "ScenarioConfig",
+    "SceneConfig",
+    "SensorConfig",
+    "TrajectoryConfig",
+    "TurretConfig",
+    "WeatherConfig",
+    "apply_overrides",
+    "build_world",
+    "dump_scenario",
+    "format_validation_error",
+    "load_scenario_file",
+    "resolve_scenario",
+]
+
+Vec3 = tuple[float, float, float]
+Pair = tuple[float, float]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SceneConfig(_Strict):
+    name: str = "outdoor"
+    layout_seed: int = 0
+
+
+class DroneConfig(_Strict):
+    model: str = "phantom4"
+    reflectivity_scale: float = Field(1.0, gt=0)
+
+
+class TrajectoryConfig(_Strict):
+    name: str | None = "horizontal-fast"
+    file: str | None = None  # CSV with columns t,x,y,z
+    hold_s: float = Field(0.0, ge=0)  # on the ground (or at the first sample) before it starts
+
+    @model_validator(mode="after")
+    def _one_source(self) -> TrajectoryConfig:
+        if self.file is not None and self.name is not None:
+            raise ValueError("give either trajectory.name or trajectory.file, not both")
+        if self.file is None and self.name is None:
+            raise ValueError("give trajectory.name or trajectory.file")
+        return self
+
+
+class SensorConfig(_Strict):
+    model: str = "avia"  # avia, mid40, mid360, vlp16 or file:PATH
+    integration_time_s: float = Field(0.1, gt=0, le=1.0)
+    noise: bool = True
+    rpm: float | None = None  # vlp16 spin rate
+    rate_hz: float | None = Field(None, gt=0)  # file: patterns
+    lines: int | None = Field(None, ge=1)  # file: patterns
+    physics: str = "avia"  # whose range physics a file: pattern uses
+    range_sigma_m: float | None = Field(None, ge=0)
+    angular_sigma_deg: float | None = Field(None, ge=0)
+    false_alarm_rate: float | None = Field(None, ge=0, le=1)
+
+
+class TurretConfig(_Strict):
+    model: str = "widowx"
+    pan_deg: float = 0.0  # initial angles
+    tilt_deg: float = 0.0
+    base_height_m: float | None = None
+    pan_to_tilt_m: Vec3 | None = None
+    tilt_to_sensor_m: Vec3 | None = None
+    latency_s: float | None = Field(None, ge=0)
+    rate_deg_s: float | None = Field(None, gt=0)
+    accel_deg_s2: float | None = Field(None, gt=0)
+    resolution_deg: float | None = Field(None, ge=0)
+    pan_limits_deg: Pair | None = None
+    tilt_limits_deg: Pair | None = None
+    profile_time_s: float | None = Field(None, ge=0)
+
+
+class WeatherConfig(_Strict):
+    visibility_m: float = Field(math.inf, gt=0)  # meteorological visibility; inf is clear air
+
+
+class ScenarioConfig(_Strict):
+    name: str = "custom"
+    description: str = ""
+    duration_s: float = Field(60.0, gt=0)
+    seed: int = 0
+    scene: SceneConfig = SceneConfig()
+    drone: DroneConfig = DroneConfig()
+    trajectory: TrajectoryConfig = TrajectoryConfig()
+    sensor: SensorConfig = SensorConfig()
+    turret: TurretConfig = TurretConfig()
+    weather: WeatherConfig = WeatherConfig()
+
+
+def format_validation_error(err: ValidationError, source: str) -> str:
+    """One line naming the first bad key and why."""
+    first = err.errors()[0]
+    key = ".".join(str(p) for p in first["loc"]) or "(top level)"
+    if first["type"] == "extra_forbidden":
+        msg = f"{source}: unknown key '{key}'"
+    else:
+        msg = f"{source}: {key}: {first['msg']}"
+    more = len(err.errors()) - 1
+    return msg + (f" (and {more} more problem{'s' if more > 1 else ''})" if more else "")
+
+
+def _merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def validate_scenario(data: dict[str, Any], source: str) -> ScenarioConfig:
+    """Validate a scenario mapping, raising ScenarioError with a one-line message."""
+    try:
+        return ScenarioConfig.model_validate(data)
+    except ValidationError as err:
+        raise ScenarioError(format_validation_error(err, source)) from None
+
+
+def load_scenario_file(path: Path, named: dict[str, ScenarioConfig]) -> ScenarioConfig:
+    """Read a scenario TOML file; ``base = "name"`` starts from a named scenario."""
+    try:
+        with path.open("rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise ScenarioError(f"scenario file not found: {path}") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ScenarioError(f"{path}: invalid TOML: {err}") from None
+    base_name = data.pop("base", None)
+    if base_name is not None:
+        if base_name not in named:
+            raise ScenarioError(f"{path}: unknown base scenario {base_name!r}")
+        data = _merge(named[base_name].model_dump(), {"name": path.stem, **data})
+    return validate_scenario(data, str(path))
+
+
+def apply_overrides(
+    cfg: ScenarioConfig,
+    *,
+    seed: int | None = None,
+    duration: float | None = None,
+    trajectory: Path | None = None,
+    visibility: float | None = None,
+    drone: str | None = None,
+    sensor: str | None = None,
+    noise: bool | None = None,
+) -> ScenarioConfig:
+    """The scenario with command-line overrides applied (None leaves a value alone)."""
+    data = cfg.model_dump()
+    if seed is not None:
+        data["seed"] = seed
+    if duration is not None:
+        data["duration_s"] = duration
+    if trajectory is not None:
+        data["trajectory"] = {
+            "name": None,
+            "file": str(trajectory),
+            "hold_s": cfg.trajectory.hold_s,
+        }
+    if visibility is not None:
+        data["weather"]["visibility_m"] = visibility
+    if drone is not None:
+        data["drone"]["model"] = drone
+    if sensor is not None:
+        data["sensor"]["model"] = sensor
+    if noise is not None:
+        data["sensor"]["noise"] = noise
+    return validate_scenario(data, "command line")
+
+
+def dump_scenario(config: ScenarioConfig) -> str:
+    """The scenario as TOML (keys left unset are omitted)."""
+    return tomli_w.dumps(config.model_dump(exclude_none=True))
+
+
+def _sensor(cfg: SensorConfig) -> SensorModel:
+    overrides: dict[str, Any] = {}
+    if cfg.range_sigma_m is not None:
+        overrides["range_sigma_m"] = cfg.range_sigma_m
+    if cfg.angular_sigma_deg is not None:
+        overrides["angular_sigma"] = math.radians(cfg.angular_sigma_deg)
+    if cfg.false_alarm_rate is not None:
+        overrides["false_alarm_rate"] = cfg.false_alarm_rate
+    return make_sensor(
+        cfg.model,
+        noise=cfg.noise,
+        rpm=cfg.rpm,
+        rate_hz=cfg.rate_hz,
+        lines=cfg.lines,
+        physics=cfg.physics,
+        **overrides,
+    )
+
+
+def _axis(preset: AxisSpec, cfg: TurretConfig, limits: Pair | None) -> AxisSpec:
+    lo, hi = (
+        (math.radians(limits[0]), math.radians(limits[1]))
+        if limits
+        else (preset.lower, preset.upper)
+    )
+    return AxisSpec(
+        rate=math.radians(cfg.rate_deg_s) if cfg.rate_deg_s is not None else preset.rate,
+        accel=math.radians(cfg.accel_deg_s2) if cfg.accel_deg_s2 is not None else preset.accel,
+        resolution=(
+            math.radians(cfg.resolution_deg)
+            if cfg.resolution_deg is not None
+            else preset.resolution
+        ),
+        lower=lo,
+        upper=hi,
+    )
+
+
+def _turret(cfg: TurretConfig) -> TurretSpec:
+    preset = make_turret(cfg.model)
+    m = preset.mount
+    base = m.base if cfg.base_height_m is None else (m.base[0], m.base[1], cfg.base_height_m)
+    mount = MountGeometry(
+        base=base,
+        pan_to_tilt=cfg.pan_to_tilt_m or m.pan_to_tilt,
+        tilt_to_sensor=cfg.tilt_to_sensor_m or m.tilt_to_sensor,
+    )
+    return TurretSpec(
+        name=preset.name,
+        pan=_axis(preset.pan, cfg, cfg.pan_limits_deg),
+        tilt=_axis(preset.tilt, cfg, cfg.tilt_limits_deg),
+        latency_s=preset.latency_s if cfg.latency_s is None else cfg.latency_s,
+        mount=mount,
+        profile_time_s=preset.profile_time_s if cfg.profile_time_s is None else cfg.profile_time_s,
+    )
+
+
+def _trajectory(cfg: ScenarioConfig, rng: np.random.Generator) -> Trajectory:
+    t = cfg.trajectory
+    if t.file is not None:
+        return load_csv_trajectory(Path(t.file).expanduser(), t0=t.hold_s)
+    assert t.name is not None
+    return make_flight(t.name, t.hold_s, cfg.duration_s, rng)
+
+
+def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
+    """The scenario with every preset value written out, so a re-run needs nothing else."""
+    sensor = _sensor(cfg.sensor)
+    turret = _turret(cfg.turret)
+    deg = math.degrees
+    sensor_cfg = cfg.sensor.model_copy(
+        update={
+            "range_sigma_m": sensor.range_sigma_m,
+            "angular_sigma_deg": deg(sensor.angular_sigma),
+            "false_alarm_rate": sensor.false_alarm_rate,
+        }
+    )
+    if not cfg.sensor.noise:
+        sensor_cfg = sensor_cfg.model_copy(
+            update={"range_sigma_m": None, "angular_sigma_deg": None, "false_alarm_rate": None}
+        )
+    turret_cfg = cfg.turret.model_copy(
+        update={
+            "base_height_m": turret.mount.base[2],
+            "pan_to_tilt_m": turret.mount.pan_to_tilt,
+            "tilt_to_sensor_m": turret.mount.tilt_to_sensor,
+            "latency_s": turret.latency_s,
+            "pan_limits_deg": (deg(turret.pan.lower), deg(turret.pan.upper)),
+            "tilt_limits_deg": (deg(turret.tilt.lower), deg(turret.tilt.upper)),
+            "profile_time_s": turret.profile_time_s,
+        }
+    )
+    same_axes = (turret.pan.rate, turret.pan.accel, turret.pan.resolution) == (
+        turret.tilt.rate,
+        turret.tilt.accel,
+        turret.tilt.resolution,
+    )
+    if same_axes:
+        turret_cfg = turret_cfg.model_copy(
+            update={
+                "rate_deg_s": deg(turret.pan.rate),
+                "accel_deg_s2": deg(turret.pan.accel),
+                "resolution_deg": deg(turret.pan.resolution),
+            }
+        )
+    return cfg.model_copy(update={"sensor": sensor_cfg, "turret": turret_cfg})
+
+
+def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> SimWorld:
+    """The simulator for a scenario; ``rng`` defaults to one seeded with ``cfg.seed``."""
+    rng = np.random.default_rng(cfg.seed) if rng is None else rng
+    sensor = _sensor(cfg.sensor)
+    turret = _turret(cfg.turret)
+    scene = make_scene(cfg.scene.name, cfg.scene.layout_seed)
+    drone = make_drone(cfg.drone.model, cfg.drone.reflectivity_scale)
+    trajectory = _trajectory(cfg, rng)
+    return SimWorld(
+        sensor=sensor,
+        scene=scene,
+        drone=drone,
+        trajectory=trajectory,
+        turret=turret,
+        mount=turret.mount,
+        extinction=extinction_coefficient(cfg.weather.visibility_m),
+        rng=rng,
+        integration_time=cfg.sensor.integration_time_s,
+        pan=math.radians(cfg.turret.pan_deg),
+        tilt=math.radians(cfg.turret.tilt_deg),
+    )

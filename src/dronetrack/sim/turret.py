@@ -1,0 +1,271 @@
+"""The pan-tilt unit as a plant: per-axis rate and acceleration limits, latency, resolution.
+
+Per axis, every dt (sensor_physics.md §4.1):
+
+    θ_ref(t) = θ_c(t − L)                                   (command latency L)
+    e = θ_ref − θ
+    v_des = sign(e) · min(ω_max, √(2 α_max |e|), |e| / dt)  (brake in time, no overshoot)
+    v ← v + clip(v_des − v, −α_max dt, α_max dt)
+    θ ← clip(θ + v dt, θ_min, θ_max)
+    pointing = q · round(θ / q)                             (position resolution q)
+
+In velocity mode v_des is the commanded rate, clipped to ±ω_max.  A Dynamixel
+"time-based profile" (the Interbotix default) turns each goal into a triangular
+move of fixed duration; set ``profile_time_s`` to model it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numba as nb
+import numpy as np
+
+from dronetrack.errors import ConfigError
+from dronetrack.geometry import FloatArray
+from dronetrack.kinematics import MountGeometry
+from dronetrack.types import TurretCommand, TurretState
+
+__all__ = ["TURRET_NAMES", "AxisSpec", "TurretPlant", "TurretSpec", "make_turret"]
+
+
+@dataclass(frozen=True, slots=True)
+class AxisSpec:
+    """One joint: rate limit [rad/s], acceleration limit [rad/s²], resolution and range [rad]."""
+
+    rate: float
+    accel: float
+    resolution: float
+    lower: float
+    upper: float
+
+    def __post_init__(self) -> None:
+        if self.rate <= 0 or self.accel <= 0 or self.resolution < 0:
+            raise ConfigError("turret rate and acceleration must be positive, resolution ≥ 0")
+        if not self.lower < self.upper:
+            raise ConfigError(
+                f"turret axis limits must satisfy lower < upper, got {self.lower}, {self.upper}"
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class TurretSpec:
+    """A pan-tilt unit: its two axes, command latency and default mount geometry."""
+
+    name: str
+    pan: AxisSpec
+    tilt: AxisSpec
+    latency_s: float
+    mount: MountGeometry
+    profile_time_s: float = 0.0  # > 0: time-based profile, each goal is one move of this duration
+
+
+def _deg(x: float) -> float:
+    return math.radians(x)
+
+
+def _widowx() -> TurretSpec:
+    # Trossen WidowX Dual XM430 (wxxmd): 180°/s (Velocity_Limit 131 × 0.229 rpm),
+    # 0.088° (4096 ticks/rev), pan ±180°, tilt ±68°; α_max 360°/s² and L = 20 ms [A].
+    # Mount: tilt link → sensor 0.025 m forward, 0.086 m up (LiVOX_MAV_track TF tree);
+    # pan → tilt axis 0.05 m up [A].
+    pan = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-180.0), _deg(180.0))
+    tilt = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-68.0), _deg(68.0))
+    mount = MountGeometry(
+        base=(0.0, 0.0, 1.0), pan_to_tilt=(0.0, 0.0, 0.05), tilt_to_sensor=(0.025, 0.0, 0.086)
+    )
+    return TurretSpec("widowx", pan, tilt, 0.020, mount)
+
+
+def _ptu_e46() -> TurretSpec:
+    # FLIR PTU-E46: "speeds higher than 300°/s" (seed 003), 0.0129° per step
+    # (the D46's 0.0514° at a 4× finer step mode; seed 003 quotes "about 0.129°"),
+    # pan ±159°, tilt 31° up / 47° down (D46 family); α_max 300°/s² and L = 20 ms [A].
+    pan = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-159.0), _deg(159.0))
+    tilt = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-31.0), _deg(47.0))
+    mount = MountGeometry(
+        base=(0.0, 0.0, 1.0), pan_to_tilt=(0.0, 0.0, 0.07), tilt_to_sensor=(0.0, 0.0, 0.12)
+    )
+    return TurretSpec("ptu-e46", pan, tilt, 0.020, mount)
+
+
+_BUILDERS = {"widowx": _widowx, "ptu-e46": _ptu_e46}
+TURRET_NAMES = tuple(_BUILDERS)
+
+
+def make_turret(name: str) -> TurretSpec:
+    """A turret preset by name: ``widowx`` or ``ptu-e46``."""
+    key = name.strip().lower()
+    if key not in _BUILDERS:
+        raise ConfigError(f"unknown turret {name!r}; choose one of {', '.join(TURRET_NAMES)}")
+    return _BUILDERS[key]()
+
+
+@dataclass(slots=True)
+class _Axis:
+    spec: AxisSpec
+    theta: float
+    omega: float = 0.0
+    mode: str = "position"
+    ref: float = 0.0
+    # Time-based profile move: start time, start angle, displacement.
+    move_t0: float = 0.0
+    move_from: float = 0.0
+    move_delta: float = 0.0
+
+    def set_goal(self, mode: str, ref: float, t: float) -> None:
+        self.mode = mode
+        self.ref = min(max(ref, self.spec.lower), self.spec.upper) if mode == "position" else ref
+        self.move_t0, self.move_from, self.move_delta = t, self.theta, self.ref - self.theta
+
+    def run(self, n: int, dt: float, t0: float, profile_time: float) -> FloatArray:
+        """Advance n steps of dt from time t0; return the pointing after each step."""
+        s = self.spec
+        pointing, self.theta, self.omega = _integrate_axis(
+            self.theta,
+            self.omega,
+            self.mode == "position",
+            self.ref,
+            s.rate,
+            s.accel,
+            s.lower,
+            s.upper,
+            s.resolution,
+            dt,
+            n,
+            t0,
+            profile_time,
+            self.move_t0,
+            self.move_from,
+            self.move_delta,
+        )
+        return pointing
+
+    @property
+    def pointing(self) -> float:
+        return _quantise(self.theta, self.spec.resolution)
+
+
+@nb.njit(cache=True)
+def _quantise(theta: float, q: float) -> float:
+    """pointing = q · round(θ / q)"""
+    return q * np.round(theta / q) if q > 0 else theta
+
+
+@nb.njit(cache=True)
+def _integrate_axis(
+    theta: float,
+    omega: float,
+    position_mode: bool,
+    ref: float,
+    rate: float,
+    accel: float,
+    lower: float,
+    upper: float,
+    q: float,
+    dt: float,
+    n: int,
+    t0: float,
+    profile_time: float,
+    move_t0: float,
+    move_from: float,
+    move_delta: float,
+) -> tuple[FloatArray, float, float]:
+    """n steps of one axis (module docstring); returns pointing after each step, θ and ω."""
+    out = np.empty(n)
+    for i in range(n):
+        if position_mode and profile_time > 0:
+            # Triangular move: s(u) = 2u² for u < ½, 1 − 2(1 − u)² after, u = (t − t0) / T.
+            u = min(max((t0 + (i + 1) * dt - move_t0) / profile_time, 0.0), 1.0)
+            s = 2.0 * u * u if u < 0.5 else 1.0 - 2.0 * (1.0 - u) ** 2
+            ds = 4.0 * u if u < 0.5 else 4.0 * (1.0 - u)
+            theta = min(max(move_from + move_delta * s, lower), upper)
+            omega = move_delta * ds / profile_time
+        else:
+            if position_mode:
+                e = ref - theta
+                v_des = math.copysign(min(rate, math.sqrt(2.0 * accel * abs(e)), abs(e) / dt), e)
+            else:
+                v_des = min(max(ref, -rate), rate)
+            omega += min(max(v_des - omega, -accel * dt), accel * dt)
+            theta += omega * dt
+            if theta <= lower or theta >= upper:
+                theta = min(max(theta, lower), upper)
+                omega = 0.0
+        out[i] = _quantise(theta, q)
+    return out, theta, omega
+
+
+class TurretPlant:
+    """The simulated turret: takes commands, advances in time, reports its state."""
+
+    def __init__(
+        self,
+        spec: TurretSpec,
+        mount: MountGeometry | None = None,
+        pan: float = 0.0,
+        tilt: float = 0.0,
+        dt: float = 1e-3,
+        t0: float = 0.0,
+    ) -> None:
+        self.spec = spec
+        self.mount = mount or spec.mount
+        self.dt = dt
+        self.time = t0
+        self._pan = _Axis(spec.pan, min(max(pan, spec.pan.lower), spec.pan.upper))
+        self._tilt = _Axis(spec.tilt, min(max(tilt, spec.tilt.lower), spec.tilt.upper))
+        self._pan.set_goal("position", self._pan.theta, t0)
+        self._tilt.set_goal("position", self._tilt.theta, t0)
+        self._pending: list[tuple[float, TurretCommand]] = []
+
+    def command(self, cmd: TurretCommand) -> None:
+        """Queue a command; it takes effect ``latency_s`` after its stamp."""
+        if cmd.mode not in ("position", "velocity"):
+            raise ConfigError(f"unknown turret command mode {cmd.mode!r}")
+        if not (math.isfinite(cmd.pan) and math.isfinite(cmd.tilt)):
+            raise ConfigError("turret command angles must be finite")
+        self._pending.append((cmd.stamp + self.spec.latency_s, cmd))
+        self._pending.sort(key=lambda item: item[0])
+
+    def _apply_due(self, t: float) -> None:
+        while self._pending and self._pending[0][0] <= t + 1e-12:
+            t_apply, cmd = self._pending.pop(0)
+            self._pan.set_goal(cmd.mode, cmd.pan, t_apply)
+            self._tilt.set_goal(cmd.mode, cmd.tilt, t_apply)
+
+    def advance(self, t_end: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Run to ``t_end``; return sample times and pan/tilt pointing, both ends included."""
+        n = max(1, math.ceil((t_end - self.time) / self.dt - 1e-9))
+        dt = (t_end - self.time) / n
+        times: FloatArray = self.time + dt * np.arange(n + 1, dtype=np.float64)
+        pan = np.empty(n + 1)
+        tilt = np.empty(n + 1)
+        pan[0], tilt[0] = self._pan.pointing, self._tilt.pointing
+        profile = self.spec.profile_time_s
+        i = 0
+        while i < n:
+            self._apply_due(float(times[i]))
+            # Run up to the step at whose start the next queued command falls due.
+            j = n
+            if self._pending:
+                due = int(np.searchsorted(times[:n], self._pending[0][0] - 1e-12, side="left"))
+                j = min(n, max(due, i + 1))
+            t_i = float(times[i])
+            pan[i + 1 : j + 1] = self._pan.run(j - i, dt, t_i, profile)
+            tilt[i + 1 : j + 1] = self._tilt.run(j - i, dt, t_i, profile)
+            i = j
+        self.time = float(t_end)
+        self._apply_due(self.time)
+        return times, pan, tilt
+
+    def state(self) -> TurretState:
+        """The measured joint state now."""
+        return TurretState(
+            self.time, self._pan.pointing, self._tilt.pointing, self._pan.omega, self._tilt.omega
+        )
+
+
+def with_overrides(spec: TurretSpec, **changes: object) -> TurretSpec:
+    """A copy of ``spec`` with some fields replaced."""
+    return replace(spec, **changes)  # type: ignore[arg-type]

@@ -1,0 +1,121 @@
+"""The turret plant: limits, latency, resolution, modes; and aiming through the mount."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from dronetrack.control.aiming import aim_angles
+from dronetrack.errors import ConfigError
+from dronetrack.kinematics import MountGeometry, sensor_poses
+from dronetrack.sim.turret import TurretPlant, make_turret
+from dronetrack.types import TurretCommand
+
+WIDOWX = make_turret("widowx")
+
+
+def _move(plant: TurretPlant, pan: float, tilt: float, until: float, mode: str = "position"):
+    plant.command(TurretCommand(plant.time, pan, tilt, mode))  # type: ignore[arg-type]
+    return plant.advance(until)
+
+
+def test_rate_and_acceleration_limits_hold() -> None:
+    plant = TurretPlant(WIDOWX)
+    t, pan, tilt = _move(plant, math.radians(150), math.radians(-60), 2.0)
+    dt = np.diff(t)
+    rate = np.diff(pan) / dt
+    q = WIDOWX.pan.resolution
+    # Quantised angles: allow one resolution step per sample.
+    assert np.max(np.abs(rate)) <= WIDOWX.pan.rate + q / dt[0] + 1e-9
+    smooth = np.convolve(rate, np.ones(20) / 20, mode="valid")
+    accel = np.diff(smooth) / dt[0]
+    assert np.max(np.abs(accel)) <= WIDOWX.pan.accel * 1.05 + 2 * q / dt[0] ** 2 / 20
+    # It gets there and stays: 150° at 180°/s with 360°/s² takes about 1.33 s.
+    assert pan[-1] == pytest.approx(math.radians(150), abs=q)
+    assert tilt[-1] == pytest.approx(math.radians(-60), abs=q)
+    reached = t[np.argmax(np.abs(pan - math.radians(150)) <= q)]
+    assert reached == pytest.approx(150 / 180 + 180 / 360 + WIDOWX.latency_s, abs=0.05)
+
+
+def test_latency_delays_the_response() -> None:
+    plant = TurretPlant(WIDOWX)
+    t, pan, _ = _move(plant, 0.5, 0.0, 0.1)
+    moving = t[np.flatnonzero(pan != 0.0)[0]]
+    # From rest at α_max the pointing leaves zero at ½ α τ² = q/2, i.e. τ = √(q/α),
+    # after the command latency.
+    q, accel = WIDOWX.pan.resolution, WIDOWX.pan.accel
+    assert moving == pytest.approx(WIDOWX.latency_s + math.sqrt(q / accel), abs=2e-3)
+
+
+def test_position_resolution_and_joint_limits() -> None:
+    plant = TurretPlant(WIDOWX)
+    _move(plant, math.radians(10.03), math.radians(200.0), 3.0)
+    state = plant.state()
+    q = WIDOWX.pan.resolution
+    assert state.pan / q == pytest.approx(round(state.pan / q), abs=1e-9)
+    # Tilt is clipped to its ±68° limit.
+    assert state.tilt == pytest.approx(WIDOWX.tilt.upper, abs=q)
+
+
+def test_velocity_mode_runs_at_the_commanded_rate() -> None:
+    plant = TurretPlant(WIDOWX)
+    t, pan, _ = _move(plant, math.radians(30), 0.0, 1.0, mode="velocity")
+    late = t > 0.5
+    rate = np.polyfit(t[late], pan[late], 1)[0]
+    assert rate == pytest.approx(math.radians(30), rel=0.01)
+    with pytest.raises(ConfigError, match="mode"):
+        plant.command(TurretCommand(1.0, 0.0, 0.0, "spin"))  # type: ignore[arg-type]
+
+
+def test_time_based_profile_makes_every_move_last_its_profile_time() -> None:
+    from dataclasses import replace
+
+    shipped = replace(WIDOWX, profile_time_s=1.0)
+    q = shipped.pan.resolution
+    for goal in (0.1, 1.0):
+        plant = TurretPlant(shipped)
+        t, pan, _ = _move(plant, goal, 0.0, 1.5)
+        at = {s: pan[np.argmin(np.abs(t - shipped.latency_s - s))] for s in (0.5, 0.9, 1.0)}
+        # A triangular move: half way at half time, 2 (0.1)² = 2 % short at 90 %, there at 100 %.
+        assert at[0.5] == pytest.approx(goal / 2, abs=q)
+        assert at[0.9] == pytest.approx(goal * 0.98, abs=q)
+        assert at[1.0] == pytest.approx(goal, abs=q)
+
+
+def test_unknown_turret() -> None:
+    with pytest.raises(ConfigError, match="unknown turret"):
+        make_turret("ptu-x")
+
+
+@given(
+    st.floats(-200, 200),
+    st.floats(-200, 200),
+    st.floats(-20, 80),
+    st.tuples(st.floats(-0.1, 0.1), st.floats(-0.1, 0.1), st.floats(0, 0.2)),
+    st.tuples(st.floats(-0.1, 0.1), st.floats(-0.1, 0.1), st.floats(-0.1, 0.2)),
+)
+def test_aiming_puts_the_target_on_the_optical_axis(
+    x: float, y: float, z: float, pan_to_tilt: tuple, tilt_to_sensor: tuple
+) -> None:
+    mount = MountGeometry((0.0, 0.0, 1.0), pan_to_tilt, tilt_to_sensor)
+    target = np.array([x, y, z])
+    if np.linalg.norm(target[:2]) < 2.0:
+        return
+    pan, tilt = aim_angles(target, mount)
+    T = sensor_poses(pan, tilt, mount)
+    to_target = target - T[:3, 3]
+    axis = T[:3, 0]
+    miss = np.linalg.norm(np.cross(axis, to_target))
+    assert miss < 1e-8 * max(1.0, np.linalg.norm(to_target))
+    assert axis @ to_target > 0
+
+
+def test_aiming_reduces_to_seed_000_eq_10_at_the_pivot() -> None:
+    mount = MountGeometry((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    pan, tilt = aim_angles((30.0, 40.0, 50.0), mount)
+    assert pan == pytest.approx(math.atan2(40, 30))
+    assert tilt == pytest.approx(-math.atan2(50, 50))
