@@ -38,7 +38,7 @@ def test_rate_and_acceleration_limits_hold() -> None:
     assert pan[-1] == pytest.approx(math.radians(150), abs=q)
     assert tilt[-1] == pytest.approx(math.radians(-60), abs=q)
     reached = t[np.argmax(np.abs(pan - math.radians(150)) <= q)]
-    assert reached == pytest.approx(150 / 180 + 180 / 360 + WIDOWX.latency_s, abs=0.05)
+    assert reached == pytest.approx(150 / 180 + 180 / 360 + WIDOWX.pan.latency, abs=0.05)
 
 
 def test_latency_delays_the_response() -> None:
@@ -48,7 +48,7 @@ def test_latency_delays_the_response() -> None:
     # From rest at α_max the pointing leaves zero at ½ α τ² = q/2, i.e. τ = √(q/α),
     # after the command latency.
     q, accel = WIDOWX.pan.resolution, WIDOWX.pan.accel
-    assert moving == pytest.approx(WIDOWX.latency_s + math.sqrt(q / accel), abs=2e-3)
+    assert moving == pytest.approx(WIDOWX.pan.latency + math.sqrt(q / accel), abs=2e-3)
 
 
 def test_position_resolution_and_joint_limits() -> None:
@@ -79,11 +79,23 @@ def test_time_based_profile_makes_every_move_last_its_profile_time() -> None:
     for goal in (0.1, 1.0):
         plant = TurretPlant(shipped)
         t, pan, _ = _move(plant, goal, 0.0, 1.5)
-        at = {s: pan[np.argmin(np.abs(t - shipped.latency_s - s))] for s in (0.5, 0.9, 1.0)}
+        at = {s: pan[np.argmin(np.abs(t - shipped.pan.latency - s))] for s in (0.5, 0.9, 1.0)}
         # A triangular move: half way at half time, 2 (0.1)² = 2 % short at 90 %, there at 100 %.
         assert at[0.5] == pytest.approx(goal / 2, abs=q)
         assert at[0.9] == pytest.approx(goal * 0.98, abs=q)
         assert at[1.0] == pytest.approx(goal, abs=q)
+
+
+def test_each_axis_has_its_own_latency() -> None:
+    from dataclasses import replace
+
+    slow_tilt = replace(WIDOWX, tilt=replace(WIDOWX.tilt, latency=0.05))
+    plant = TurretPlant(slow_tilt)
+    t, pan, tilt = _move(plant, 0.5, 0.5, 0.2)
+    first = {name: t[np.flatnonzero(a != 0.0)[0]] for name, a in (("pan", pan), ("tilt", tilt))}
+    rise = math.sqrt(WIDOWX.pan.resolution / WIDOWX.pan.accel)
+    assert first["pan"] == pytest.approx(0.020 + rise, abs=2e-3)
+    assert first["tilt"] == pytest.approx(0.050 + rise, abs=2e-3)
 
 
 def test_unknown_turret() -> None:

@@ -243,6 +243,7 @@ def _axis(preset: AxisSpec, cfg: TurretConfig, limits: Pair | None) -> AxisSpec:
         ),
         lower=lo,
         upper=hi,
+        latency=preset.latency if cfg.latency_s is None else cfg.latency_s,
     )
 
 
@@ -259,7 +260,6 @@ def _turret(cfg: TurretConfig) -> TurretSpec:
         name=preset.name,
         pan=_axis(preset.pan, cfg, cfg.pan_limits_deg),
         tilt=_axis(preset.tilt, cfg, cfg.tilt_limits_deg),
-        latency_s=preset.latency_s if cfg.latency_s is None else cfg.latency_s,
         mount=mount,
         profile_time_s=preset.profile_time_s if cfg.profile_time_s is None else cfg.profile_time_s,
     )
@@ -294,23 +294,21 @@ def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
             "base_height_m": turret.mount.base[2],
             "pan_to_tilt_m": turret.mount.pan_to_tilt,
             "tilt_to_sensor_m": turret.mount.tilt_to_sensor,
-            "latency_s": turret.latency_s,
             "pan_limits_deg": (deg(turret.pan.lower), deg(turret.pan.upper)),
             "tilt_limits_deg": (deg(turret.tilt.lower), deg(turret.tilt.upper)),
             "profile_time_s": turret.profile_time_s,
         }
     )
-    same_axes = (turret.pan.rate, turret.pan.accel, turret.pan.resolution) == (
-        turret.tilt.rate,
-        turret.tilt.accel,
-        turret.tilt.resolution,
-    )
-    if same_axes:
+    # The per-axis settings are written out when both axes share them (as in the
+    # presets); the config sets both axes at once.
+    p, t = turret.pan, turret.tilt
+    if (p.rate, p.accel, p.resolution, p.latency) == (t.rate, t.accel, t.resolution, t.latency):
         turret_cfg = turret_cfg.model_copy(
             update={
                 "rate_deg_s": deg(turret.pan.rate),
                 "accel_deg_s2": deg(turret.pan.accel),
                 "resolution_deg": deg(turret.pan.resolution),
+                "latency_s": turret.pan.latency,
             }
         )
     return cfg.model_copy(update={"sensor": sensor_cfg, "turret": turret_cfg})

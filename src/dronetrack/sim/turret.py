@@ -17,7 +17,7 @@ move of fixed duration; set ``profile_time_s`` to model it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
@@ -32,17 +32,21 @@ __all__ = ["TURRET_NAMES", "AxisSpec", "TurretPlant", "TurretSpec", "make_turret
 
 @dataclass(frozen=True, slots=True)
 class AxisSpec:
-    """One joint: rate limit [rad/s], acceleration limit [rad/s²], resolution and range [rad]."""
+    """One joint: rate [rad/s] and acceleration [rad/s²] limits, resolution and range [rad],
+    and the latency [s] between a command's stamp and the joint acting on it."""
 
     rate: float
     accel: float
     resolution: float
     lower: float
     upper: float
+    latency: float
 
     def __post_init__(self) -> None:
-        if self.rate <= 0 or self.accel <= 0 or self.resolution < 0:
-            raise ConfigError("turret rate and acceleration must be positive, resolution ≥ 0")
+        if self.rate <= 0 or self.accel <= 0 or self.resolution < 0 or self.latency < 0:
+            raise ConfigError(
+                "turret rate and acceleration must be positive, resolution and latency ≥ 0"
+            )
         if not self.lower < self.upper:
             raise ConfigError(
                 f"turret axis limits must satisfy lower < upper, got {self.lower}, {self.upper}"
@@ -51,12 +55,11 @@ class AxisSpec:
 
 @dataclass(frozen=True, slots=True)
 class TurretSpec:
-    """A pan-tilt unit: its two axes, command latency and default mount geometry."""
+    """A pan-tilt unit: its two axes and its default mount geometry."""
 
     name: str
     pan: AxisSpec
     tilt: AxisSpec
-    latency_s: float
     mount: MountGeometry
     profile_time_s: float = 0.0  # > 0: time-based profile, each goal is one move of this duration
 
@@ -70,24 +73,24 @@ def _widowx() -> TurretSpec:
     # 0.088° (4096 ticks/rev), pan ±180°, tilt ±68°; α_max 360°/s² and L = 20 ms [A].
     # Mount: tilt link → sensor 0.025 m forward, 0.086 m up (LiVOX_MAV_track TF tree);
     # pan → tilt axis 0.05 m up [A].
-    pan = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-180.0), _deg(180.0))
-    tilt = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-68.0), _deg(68.0))
+    pan = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-180.0), _deg(180.0), 0.020)
+    tilt = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-68.0), _deg(68.0), 0.020)
     mount = MountGeometry(
         base=(0.0, 0.0, 1.0), pan_to_tilt=(0.0, 0.0, 0.05), tilt_to_sensor=(0.025, 0.0, 0.086)
     )
-    return TurretSpec("widowx", pan, tilt, 0.020, mount)
+    return TurretSpec("widowx", pan, tilt, mount)
 
 
 def _ptu_e46() -> TurretSpec:
     # FLIR PTU-E46: "speeds higher than 300°/s" (seed 003), 0.0129° per step
     # (the D46's 0.0514° at a 4× finer step mode; seed 003 quotes "about 0.129°"),
     # pan ±159°, tilt 31° up / 47° down (D46 family); α_max 300°/s² and L = 20 ms [A].
-    pan = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-159.0), _deg(159.0))
-    tilt = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-31.0), _deg(47.0))
+    pan = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-159.0), _deg(159.0), 0.020)
+    tilt = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-31.0), _deg(47.0), 0.020)
     mount = MountGeometry(
         base=(0.0, 0.0, 1.0), pan_to_tilt=(0.0, 0.0, 0.07), tilt_to_sensor=(0.0, 0.0, 0.12)
     )
-    return TurretSpec("ptu-e46", pan, tilt, 0.020, mount)
+    return TurretSpec("ptu-e46", pan, tilt, mount)
 
 
 _BUILDERS = {"widowx": _widowx, "ptu-e46": _ptu_e46}
@@ -113,6 +116,21 @@ class _Axis:
     move_t0: float = 0.0
     move_from: float = 0.0
     move_delta: float = 0.0
+    # Commands waiting for their latency: (time they act, mode, reference).
+    pending: list[tuple[float, str, float]] = field(default_factory=list)
+
+    def queue(self, stamp: float, mode: str, ref: float) -> None:
+        self.pending.append((stamp + self.spec.latency, mode, ref))
+        self.pending.sort(key=lambda item: item[0])
+
+    def apply_due(self, t: float) -> None:
+        while self.pending and self.pending[0][0] <= t + 1e-12:
+            t_apply, mode, ref = self.pending.pop(0)
+            self.set_goal(mode, ref, t_apply)
+
+    @property
+    def next_due(self) -> float:
+        return self.pending[0][0] if self.pending else math.inf
 
     def set_goal(self, mode: str, ref: float, t: float) -> None:
         self.mode = mode
@@ -217,55 +235,41 @@ class TurretPlant:
         self._tilt = _Axis(spec.tilt, min(max(tilt, spec.tilt.lower), spec.tilt.upper))
         self._pan.set_goal("position", self._pan.theta, t0)
         self._tilt.set_goal("position", self._tilt.theta, t0)
-        self._pending: list[tuple[float, TurretCommand]] = []
 
     def command(self, cmd: TurretCommand) -> None:
-        """Queue a command; it takes effect ``latency_s`` after its stamp."""
+        """Queue a command; each axis acts on it after its own latency."""
         if cmd.mode not in ("position", "velocity"):
             raise ConfigError(f"unknown turret command mode {cmd.mode!r}")
         if not (math.isfinite(cmd.pan) and math.isfinite(cmd.tilt)):
             raise ConfigError("turret command angles must be finite")
-        self._pending.append((cmd.stamp + self.spec.latency_s, cmd))
-        self._pending.sort(key=lambda item: item[0])
-
-    def _apply_due(self, t: float) -> None:
-        while self._pending and self._pending[0][0] <= t + 1e-12:
-            t_apply, cmd = self._pending.pop(0)
-            self._pan.set_goal(cmd.mode, cmd.pan, t_apply)
-            self._tilt.set_goal(cmd.mode, cmd.tilt, t_apply)
+        self._pan.queue(cmd.stamp, cmd.mode, cmd.pan)
+        self._tilt.queue(cmd.stamp, cmd.mode, cmd.tilt)
 
     def advance(self, t_end: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Run to ``t_end``; return sample times and pan/tilt pointing, both ends included."""
         n = max(1, math.ceil((t_end - self.time) / self.dt - 1e-9))
         dt = (t_end - self.time) / n
         times: FloatArray = self.time + dt * np.arange(n + 1, dtype=np.float64)
-        pan = np.empty(n + 1)
-        tilt = np.empty(n + 1)
-        pan[0], tilt[0] = self._pan.pointing, self._tilt.pointing
+        out = {}
         profile = self.spec.profile_time_s
-        i = 0
-        while i < n:
-            self._apply_due(float(times[i]))
-            # Run up to the step at whose start the next queued command falls due.
-            j = n
-            if self._pending:
-                due = int(np.searchsorted(times[:n], self._pending[0][0] - 1e-12, side="left"))
+        for name, axis in (("pan", self._pan), ("tilt", self._tilt)):
+            pointing = np.empty(n + 1)
+            pointing[0] = axis.pointing
+            i = 0
+            while i < n:
+                axis.apply_due(float(times[i]))
+                # Run up to the step at whose start the next queued command acts.
+                due = int(np.searchsorted(times[:n], axis.next_due - 1e-12, side="left"))
                 j = min(n, max(due, i + 1))
-            t_i = float(times[i])
-            pan[i + 1 : j + 1] = self._pan.run(j - i, dt, t_i, profile)
-            tilt[i + 1 : j + 1] = self._tilt.run(j - i, dt, t_i, profile)
-            i = j
+                pointing[i + 1 : j + 1] = axis.run(j - i, dt, float(times[i]), profile)
+                i = j
+            axis.apply_due(float(t_end))
+            out[name] = pointing
         self.time = float(t_end)
-        self._apply_due(self.time)
-        return times, pan, tilt
+        return times, out["pan"], out["tilt"]
 
     def state(self) -> TurretState:
         """The measured joint state now."""
         return TurretState(
             self.time, self._pan.pointing, self._tilt.pointing, self._pan.omega, self._tilt.omega
         )
-
-
-def with_overrides(spec: TurretSpec, **changes: object) -> TurretSpec:
-    """A copy of ``spec`` with some fields replaced."""
-    return replace(spec, **changes)  # type: ignore[arg-type]
