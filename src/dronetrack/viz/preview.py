@@ -27,8 +27,12 @@ def _draw_scene(ax: Axes, scene: Scene) -> None:
     from matplotlib.patches import Ellipse, Polygon
 
     p = scene.prims
+    x0, y0, x1, y1 = scene.extent
+    view_area = (x1 - x0) * (y1 - y0)
     for k in range(len(p)):
         c, h, R = p.center[k], p.half[k], p.rotation[k]
+        if 4 * h[0] * h[1] > 0.25 * view_area:
+            continue  # floors and ceilings would hide everything
         if p.kind[k] == BOX:
             corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * h[:2]
             xy = corners @ R[:2, :2].T + c[:2]
@@ -129,7 +133,8 @@ def plot_preview(
     view.set_xlabel("azimuth [deg]")
     view.set_ylabel("elevation [deg]")
     view.invert_xaxis()  # left of the sensor (+y) on the left
-    view.set_aspect("equal")
+    if frames and np.ptp(np.degrees(az)) < 120:
+        view.set_aspect("equal")
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
