@@ -28,46 +28,61 @@ __all__ = ["SCENARIOS", "get_scenario"]
 FOG_VISIBILITY_M = 100.0
 
 
-def _outdoor(
-    name: str, flight: str, description: str, duration: float, visibility: float = float("inf")
+def _scenario(
+    name: str,
+    description: str,
+    duration: float,
+    scene: str,
+    drone: str,
+    flight: str,
+    sensor: str,
+    turret: str,
+    base_height: float,
+    visibility: float = float("inf"),
 ) -> ScenarioConfig:
     return ScenarioConfig(
         name=name,
         description=description,
         duration_s=duration,
-        scene=SceneConfig(name="outdoor"),
-        drone=DroneConfig(model="phantom4"),
+        scene=SceneConfig(name=scene),
+        drone=DroneConfig(model=drone),
         trajectory=TrajectoryConfig(name=flight),
-        sensor=SensorConfig(model="avia"),
-        turret=TurretConfig(model="widowx", base_height_m=1.0),
+        sensor=SensorConfig(model=sensor),
+        turret=TurretConfig(model=turret, base_height_m=base_height),
         weather=WeatherConfig(visibility_m=visibility),
     )
 
 
+def _outdoor(
+    name: str, flight: str, description: str, duration: float, visibility: float = float("inf")
+) -> ScenarioConfig:
+    """Seed 000 outdoors: Phantom 4, Avia on a WidowX on a 1 m stand."""
+    return _scenario(
+        name,
+        description,
+        duration,
+        "outdoor",
+        "phantom4",
+        flight,
+        "avia",
+        "widowx",
+        1.0,
+        visibility,
+    )
+
+
 def _indoor(name: str, flight: str, description: str, duration: float) -> ScenarioConfig:
-    return ScenarioConfig(
-        name=name,
-        description=description,
-        duration_s=duration,
-        scene=SceneConfig(name="indoor"),
-        drone=DroneConfig(model="crazyflie2"),
-        trajectory=TrajectoryConfig(name=flight),
-        sensor=SensorConfig(model="avia"),
-        # The turret base stood 0.55 m above the floor (LiVOX_MAV_track TF tree).
-        turret=TurretConfig(model="widowx", base_height_m=0.55),
+    """Seed 000 indoors: Crazyflie, Avia on a WidowX whose base stood 0.55 m above the
+    floor (LiVOX_MAV_track TF tree)."""
+    return _scenario(
+        name, description, duration, "indoor", "crazyflie2", flight, "avia", "widowx", 0.55
     )
 
 
 def _walk(name: str, flight: str, description: str, duration: float) -> ScenarioConfig:
-    return ScenarioConfig(
-        name=name,
-        description=description,
-        duration_s=duration,
-        scene=SceneConfig(name="outdoor"),
-        drone=DroneConfig(model="sign"),
-        trajectory=TrajectoryConfig(name=flight),
-        sensor=SensorConfig(model="vlp16"),
-        turret=TurretConfig(model="ptu-e46", base_height_m=1.0),
+    """Seed 003: a board carried by a walker, VLP-16 on a PTU-E46."""
+    return _scenario(
+        name, description, duration, "outdoor", "sign", flight, "vlp16", "ptu-e46", 1.0
     )
 
 
@@ -131,15 +146,16 @@ _LIST = [
         "seed 003: a board walked in a square around the sensor",
         121.0,
     ),
-    ScenarioConfig(
-        name="mid360-aggressive",
-        description="seed 002: F550 in random aggressive flight, Mid-360 on a fixed mount",
-        duration_s=60.0,
-        scene=SceneConfig(name="outdoor"),
-        drone=DroneConfig(model="f550"),
-        trajectory=TrajectoryConfig(name="aggressive"),
-        sensor=SensorConfig(model="mid360"),
-        turret=TurretConfig(model="widowx", base_height_m=1.0),
+    _scenario(
+        "mid360-aggressive",
+        "seed 002: F550 in random aggressive flight, Mid-360 on a fixed mount",
+        60.0,
+        "outdoor",
+        "f550",
+        "aggressive",
+        "mid360",
+        "widowx",
+        1.0,
     ),
 ]
 SCENARIOS: dict[str, ScenarioConfig] = {s.name: s for s in _LIST}
