@@ -102,6 +102,62 @@ def test_toml_with_unknown_key(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "\n" not in err
 
 
+def test_render_keeps_the_scenario_settings_it_was_not_told_to_change(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    toml = tmp_path / "quiet.toml"
+    toml.write_text('base = "indoor-vertical"\nduration_s = 2.0\n[sensor]\nnoise = false\n')
+    out = tmp_path / "run"
+    assert run(["render", str(toml), "--duration", "0.25", "--out", str(out)]) == 0
+    written = (out / "scenario.toml").read_text()
+    assert "noise = false" in written
+    assert "duration_s = 0.25" in written
+    # 0.25 s of 0.1 s frames: three frames, the last one partial.
+    assert len((out / "frames.csv").read_text().splitlines()) == 1 + 3
+    # Noise off: no false alarms, every return on a surface of the room or the drone.
+    data = np.load(out / "frames.npz")
+    assert np.all(np.linalg.norm(data["world"][:, :2], axis=1) < 12.0)
+    # The written scenario renders the same frames again.
+    again = tmp_path / "again"
+    assert run(["render", str(out / "scenario.toml"), "--out", str(again)]) == 0
+    np.testing.assert_array_equal(np.load(again / "frames.npz")["x"], data["x"])
+
+
+def test_render_of_an_empty_view(tmp_path: Path) -> None:
+    toml = tmp_path / "nothing.toml"
+    toml.write_text(
+        'base = "default"\n[scene]\nname = "sky"\n[sensor]\nnoise = false\n'
+        "[turret]\npan_deg = 180.0\n"
+    )
+    out = tmp_path / "run"
+    assert (
+        run(["render", str(toml), "--turret", "fixed", "--duration", "0.2", "--out", str(out)]) == 0
+    )
+    assert (out / "preview.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["render", "default", "--seed", "-3"], "--seed"),
+        (["render", "default", "--duration", "inf"], "duration_s"),
+        (["render", "default", "--visibility", "-5"], "visibility_m"),
+        (["render"], "Missing argument"),
+        (["pattern", "avia", "--bogus"], "No such option"),
+    ],
+)
+def test_bad_numbers_and_usage(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    err = _fail(
+        [*args, "--out", str(tmp_path / "o")] if args[0] == "render" and len(args) > 1 else args,
+        capsys,
+    )
+    assert err.startswith("error:")
+    assert message in err
+    assert "\n" not in err
+
+
 def test_console_script_exit_code_and_no_traceback(tmp_path: Path) -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "dronetrack", "pattern", "nosuch", "--out", str(tmp_path / "x.csv")],

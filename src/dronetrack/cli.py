@@ -74,9 +74,12 @@ def pattern(
     ],
     out: Annotated[Path, typer.Option("--out", "-o", help="CSV file to write.")],
     duration: Annotated[
-        float, typer.Option("--duration", "-d", min=0.0, help="Seconds of pattern.")
+        float,
+        typer.Option("--duration", "-d", min=0.0, max=3600.0, help="Seconds of pattern."),
     ] = 0.1,
-    start: Annotated[float, typer.Option("--start", min=0.0, help="Start time [s].")] = 0.0,
+    start: Annotated[
+        float, typer.Option("--start", min=0.0, max=1e6, help="Start time [s].")
+    ] = 0.0,
     rate: Annotated[
         float | None, typer.Option("--rate", min=1.0, help="Point rate of a file: pattern [1/s].")
     ] = None,
@@ -117,10 +120,13 @@ def render(
     duration: Annotated[
         float | None,
         typer.Option(
-            "--duration", "-d", min=0.01, help="Seconds to simulate (default: the scenario's)."
+            "--duration",
+            "-d",
+            min=0.01,
+            help="Seconds to simulate (default: the scenario's).",
         ),
     ] = None,
-    seed: Annotated[int | None, typer.Option("--seed", help="Random seed.")] = None,
+    seed: Annotated[int | None, typer.Option("--seed", min=0, help="Random seed.")] = None,
     turret: Annotated[
         TurretMode, typer.Option("--turret", help="Follow the true target, or hold still.")
     ] = TurretMode.truth,
@@ -133,8 +139,11 @@ def render(
     drone: Annotated[str | None, typer.Option("--drone", help="Target model.")] = None,
     sensor: Annotated[str | None, typer.Option("--sensor", help="Sensor model.")] = None,
     noise: Annotated[
-        bool, typer.Option("--noise/--no-noise", help="Sensor noise and false alarms.")
-    ] = True,
+        bool | None,
+        typer.Option(
+            "--noise/--no-noise", help="Sensor noise and false alarms (default: the scenario's)."
+        ),
+    ] = None,
 ) -> None:
     """Simulate a scenario and write its frames, ground truth and a PNG preview.
 
@@ -151,17 +160,17 @@ def render(
     cfg = apply_overrides(
         get_scenario(scenario),
         seed=seed,
+        duration=duration,
         trajectory=trajectory,
         visibility=visibility,
         drone=drone,
         sensor=sensor,
         noise=noise,
     )
-    length = cfg.duration_s if duration is None else duration
     with Progress(console=err_console, transient=True) as bar:
         task = bar.add_task(f"rendering {cfg.name}", total=None)
         rendering = render_scenario(
-            cfg, length, turret.value, progress=lambda i, n: bar.update(task, completed=i, total=n)
+            cfg, turret.value, progress=lambda i, n: bar.update(task, completed=i, total=n)
         )
     paths = write_rendering(rendering, out)
     n_points = sum(len(f) for f in rendering.frames)
@@ -184,11 +193,9 @@ def run(argv: list[str] | None = None) -> int:
         err_console.print("aborted")
         return 130
     except typer.TyperException as err:  # usage errors: unknown option, missing argument, ...
-        show = getattr(err, "show", None)
-        if callable(show):
-            show()
-        else:
-            err_console.print(f"error: {err}", markup=False, highlight=False)
+        describe = getattr(err, "format_message", None)
+        message = describe() if callable(describe) else str(err)
+        err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
         return 2
     except DronetrackError as err:
         err_console.print(f"error: {err}", markup=False, highlight=False, soft_wrap=True)

@@ -6,6 +6,7 @@ This is the simulator's own preview, without any tracking: ``dronetrack render``
 from __future__ import annotations
 
 import csv
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,14 +37,14 @@ class Rendering:
 
 def render_scenario(
     config: ScenarioConfig,
-    duration: float,
     turret: TurretMode = "truth",
     progress: Callable[[int, int], None] | None = None,
 ) -> Rendering:
-    """Simulate ``duration`` seconds.  ``turret="truth"`` keeps the true target centred."""
+    """Simulate the scenario's duration.  ``turret="truth"`` keeps the true target centred."""
     config = resolve_scenario(config)
     world: SimWorld = build_world(config)
-    n_frames = max(1, round(duration / config.sensor.integration_time_s))
+    # Whole frames covering the duration (a partial last frame counts as one).
+    n_frames = max(1, math.ceil(config.duration_s / config.sensor.integration_time_s - 1e-9))
     if turret == "truth":
         world.place_turret(*aim_angles(world.target_position(0.0), world.mount))
     frames: list[Frame] = []

@@ -133,6 +133,15 @@ def test_vlp16_angles_and_timing() -> None:
     assert p.origins[0, 2] == pytest.approx(0.0112)
 
 
+@pytest.mark.parametrize("frame", [0.1, 0.05, 0.0333])
+def test_vlp16_frames_neither_lose_nor_repeat_pulses(frame: float) -> None:
+    pattern = vlp16_pattern(600.0)
+    whole = pattern.pulses(0.0, 20 * frame)
+    parts = [pattern.pulses(k * frame, (k + 1) * frame) for k in range(20)]
+    np.testing.assert_array_equal(np.concatenate([q.t for q in parts]), whole.t)
+    np.testing.assert_array_equal(np.concatenate([q.line for q in parts]), whole.line)
+
+
 def test_vlp16_spin_rate_is_limited() -> None:
     with pytest.raises(SensorError, match="300-1200 rpm"):
         vlp16_pattern(1500.0)
@@ -182,6 +191,20 @@ def test_bad_pattern_files(tmp_path: Path, content: str, message: str) -> None:
         load_pattern_table(path)
 
 
+def test_csv_with_a_byte_order_mark(tmp_path: Path) -> None:
+    path = tmp_path / "excel.csv"
+    path.write_bytes("Time/s,Azimuth/deg,Zenith/deg\n1,0,90\n".encode("utf-8-sig"))
+    az, el = load_pattern_table(path)
+    np.testing.assert_allclose([az[0], el[0]], [0.0, 0.0])
+
+
+def test_options_that_do_not_apply_are_refused() -> None:
+    with pytest.raises(SensorError, match="vlp16 only"):
+        make_sensor("avia", rpm=600)
+    with pytest.raises(SensorError, match="file: patterns"):
+        make_sensor("vlp16", rate_hz=1000.0)
+
+
 def test_missing_and_malformed_npy(tmp_path: Path) -> None:
     with pytest.raises(SensorError, match="not found"):
         load_pattern_table(tmp_path / "none.npy")
@@ -189,3 +212,7 @@ def test_missing_and_malformed_npy(tmp_path: Path) -> None:
     np.save(bad, np.zeros((4, 3)))
     with pytest.raises(SensorError, match=r"\(N, 2\)"):
         load_pattern_table(bad)
+    words = tmp_path / "words.npy"
+    np.save(words, np.array([["a", "b"], ["c", "d"]]))
+    with pytest.raises(SensorError, match="numbers"):
+        load_pattern_table(words)

@@ -50,10 +50,48 @@ def test_resolved_scenario_reproduces_the_run(tmp_path: Path) -> None:
         np.testing.assert_array_equal(a.step()[0].points, b.step()[0].points)
 
 
+def test_trajectory_file_relative_to_the_toml_and_reproducible(tmp_path: Path) -> None:
+    folder = tmp_path / "site"
+    folder.mkdir()
+    t = np.linspace(0.0, 4.0, 9)
+    xyz = np.column_stack([20 + 2 * t, np.zeros_like(t), 10 + 0.5 * t])
+    np.savetxt(
+        folder / "flight.csv",
+        np.column_stack([t, xyz]),
+        delimiter=",",
+        header="t,x,y,z",
+        comments="",
+    )
+    path = folder / "mine.toml"
+    path.write_text(
+        'base = "default"\n[trajectory]\nfile = "flight.csv"\n[sensor]\nnoise = false\n'
+    )
+    cfg = get_scenario(str(path))
+    assert cfg.trajectory.name is None
+    assert Path(cfg.trajectory.file or "") == folder / "flight.csv"
+    resolved = resolve_scenario(cfg)
+    again = tmp_path / "again.toml"
+    again.write_text(dump_scenario(resolved))
+    reloaded = load_scenario_file(again, SCENARIOS)
+    assert reloaded == resolved
+    assert reloaded.sensor.noise is False
+    a, b = build_world(cfg), build_world(reloaded)
+    for _ in range(3):
+        np.testing.assert_array_equal(a.step()[0].points, b.step()[0].points)
+    np.testing.assert_allclose(a.target_position(2.0), [24.0, 0.0, 11.0], atol=1e-9)
+
+
 @pytest.mark.parametrize(
     ("content", "message"),
     [
         ('base = "default"\n[sensor]\nmodle = "avia"\n', "unknown key 'sensor.modle'"),
+        ("seed = -1\n", "seed"),
+        ("duration_s = inf\n", "duration_s"),
+        ("[turret]\ntilt_to_sensor_m = [0.0, 0.0, nan]\n", "tilt_to_sensor_m"),
+        ("[sensor]\nintegration_time_s = 1e-9\n", "integration_time_s"),
+        ('[sensor]\nmodel = "file:x.npy"\nlines = 300\n', "lines"),
+        ("[weather]\nvisibility_m = nan\n", "visibility_m"),
+        ('base = ["default"]\n', "unknown base scenario"),
         ("colour = 3\n", "unknown key 'colour'"),
         ('base = "nothing"\n', "unknown base scenario"),
         ("duration_s = -1\n", "duration_s"),

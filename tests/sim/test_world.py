@@ -126,6 +126,42 @@ def test_frames_carry_integration_time_and_pose_samples() -> None:
     assert frame.line.max() == 5
 
 
+def test_frame_times_do_not_drift() -> None:
+    world = _world(scene="sky")
+    for _ in range(1000):
+        frame, _truth = world.step()
+    assert frame.stamp == 999 * 0.1
+    assert frame.end == 1000 * 0.1
+    assert np.all((frame.t >= frame.stamp) & (frame.t < frame.end))
+
+
+def test_nothing_returns_from_beyond_the_maximum_range() -> None:
+    # A bright board on the VLP-16's +1° beam: seen at 60 m, but not at 110 m,
+    # beyond the 100 m the sensor is rated for.
+    from dataclasses import replace
+
+    turret = make_turret("ptu-e46")
+    height = turret.mount.base[2] + turret.mount.pan_to_tilt[2] + turret.mount.tilt_to_sensor[2]
+    sign = replace(make_drone("sign"), body=make_drone("sign", 2.0).body)
+
+    def returns(range_m: float) -> int:
+        at = (range_m, 0.0, height + range_m * math.tan(math.radians(1.0)))
+        world = SimWorld(
+            make_sensor("vlp16", noise=False),
+            make_scene("sky"),
+            sign,
+            fly_waypoints(at, []),
+            turret,
+            turret.mount,
+            0.0,
+            np.random.default_rng(0),
+        )
+        return sum(world.step()[1].n_target_points for _ in range(5))
+
+    assert returns(60.0) > 0
+    assert returns(110.0) == 0
+
+
 def test_vlp16_revolution_sees_the_room_all_around() -> None:
     cfg = SCENARIOS["indoor-horizontal"].model_copy(
         update={"sensor": SCENARIOS["walk-line"].sensor}

@@ -25,7 +25,7 @@ def read_csv_columns(
     """
     if not path.is_file():
         raise error(f"{what} not found: {path}")
-    with path.open("r", encoding="utf-8", errors="replace") as f:
+    with path.open("r", encoding="utf-8-sig", errors="replace") as f:
         header = [h.strip().lower() for h in f.readline().strip().split(",")]
     missing = [c for c in columns if c.lower() not in header]
     if missing:
@@ -34,7 +34,9 @@ def read_csv_columns(
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            data = np.loadtxt(path, delimiter=",", skiprows=1, usecols=cols, ndmin=2)
+            data = np.loadtxt(
+                path, delimiter=",", skiprows=1, usecols=cols, ndmin=2, encoding="utf-8-sig"
+            )
     except ValueError as err:
         raise error(f"{what} {path} has a value that is not a number: {err}") from None
     if len(data) == 0:

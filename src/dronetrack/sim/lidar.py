@@ -70,6 +70,7 @@ class _TargetEcho:
     reflectivity: FloatArray  # (C,) Σ ρ cos θ / K
     fill: FloatArray  # (C,) fraction of sub-rays on the target
     range_m: FloatArray  # (C,) mean range of the sub-rays on the target (inf if none)
+    surface: FloatArray  # (C,) mean reflectivity ρ of the parts hit (for the intensity)
 
 
 @nb.njit(cache=True, fastmath=True)
@@ -188,7 +189,7 @@ class LidarSimulator:
             idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
         if len(idx) == 0:
             empty = np.empty(0)
-            return _TargetEcho(idx, empty, empty, empty)
+            return _TargetEcho(idx, empty, empty, empty, empty)
         # Rays in the target's body frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
         Rb = self.target_attitude(tm)
         o_b = (orig[idx] - self.trajectory.position(pulses.t[idx])) @ Rb
@@ -203,7 +204,7 @@ class LidarSimulator:
         idx, o_b, d_b = idx[near], o_b[near], d_b[near]
         if len(idx) == 0:
             empty = np.empty(0)
-            return _TargetEcho(idx, empty, empty, empty)
+            return _TargetEcho(idx, empty, empty, empty, empty)
         h_s, v_s = _beam_axes(pulses.dirs[idx])
         t_idx = pulses.t[idx]
         axes_w, _ = apply_interpolated_poses(
@@ -227,13 +228,17 @@ class LidarSimulator:
         t_k = t_k.reshape(-1, k)
         hit_k = hit_k.reshape(-1, k)
         on = (hit_k >= 0) & (t_k < scene_range[idx][:, None])
-        rho_k = np.where(
-            on, self.drone.body.reflectivity[np.maximum(hit_k, 0)] * cos_k.reshape(-1, k), 0.0
-        )
+        rho_k = np.where(on, self.drone.body.reflectivity[np.maximum(hit_k, 0)], 0.0)
         count = on.sum(axis=1)
-        with np.errstate(invalid="ignore"):
-            mean_range = np.where(count > 0, np.where(on, t_k, 0.0).sum(axis=1) / count, np.inf)
-        return _TargetEcho(idx, rho_k.sum(axis=1) / k, count / k, mean_range)
+        per_hit = 1.0 / np.maximum(count, 1)
+        mean_range = np.where(count > 0, np.where(on, t_k, 0.0).sum(axis=1) * per_hit, np.inf)
+        return _TargetEcho(
+            index=idx,
+            reflectivity=(rho_k * cos_k.reshape(-1, k)).sum(axis=1) / k,
+            fill=count / k,
+            range_m=mean_range,
+            surface=rho_k.sum(axis=1) * per_hit,
+        )
 
     def _cast_scene(
         self, orig: FloatArray, D: FloatArray, o_mean: FloatArray, slack: float
@@ -303,7 +308,8 @@ class LidarSimulator:
         from_scene = ~from_target & (u[:, 1] < pd_scene)
         range_m = t_s.copy()
         range_m[echo.index] = np.where(from_target[echo.index], echo.range_m, t_s[echo.index])
-        returned = (from_target | from_scene) & (range_m >= sensor.min_range_m)
+        in_range = (range_m >= sensor.min_range_m) & (range_m <= sensor.max_range_m)
+        returned = (from_target | from_scene) & in_range
         # False alarms on pulses that returned nothing, uniform in range: given
         # u < p_fa, u / p_fa is uniform on [0, 1).
         false_alarm = ~returned & (u[:, 2] < sensor.false_alarm_rate)
@@ -314,9 +320,8 @@ class LidarSimulator:
             u[keep[fa], 2] / sensor.false_alarm_rate
         )
         rho = self._scene_rho[hit_s[keep]]
-        target_rho = echo.reflectivity / np.maximum(echo.fill, 1e-12)
         rho_by_pulse = np.zeros(n)
-        rho_by_pulse[echo.index] = target_rho
+        rho_by_pulse[echo.index] = echo.surface
         rho = np.where(from_target[keep], rho_by_pulse[keep], rho)
         rho[fa] = 0.0
 

@@ -323,7 +323,9 @@ class SpinningPattern:
         return 60.0 / self.rpm
 
     def pulses(self, t_start: float, t_end: float) -> Pulses:
-        seq = _pulse_indices(t_start, t_end + self.cycle_s, 1.0 / self.cycle_s)
+        # Firing sequences with a laser in [t_start, t_end): s T_cycle + (C − 1) T_fire ≥ t_start.
+        last_offset = (self.n_lines - 1) * self.firing_interval_s
+        seq = _pulse_indices(t_start - last_offset, t_end, 1.0 / self.cycle_s)
         s0 = int(seq[0]) if len(seq) else 0
         t, dirs, origins, line = _spinning_kernel(
             s0,
@@ -488,6 +490,8 @@ def load_pattern_table(path: Path) -> tuple[FloatArray, FloatArray]:
             raise SensorError(
                 f"scan-pattern array {path} must have shape (N, 2), got {table.shape}"
             )
+        if not np.issubdtype(table.dtype, np.number):
+            raise SensorError(f"scan-pattern array {path} must hold numbers, got {table.dtype}")
         az, el = table[:, 0].astype(np.float64), table[:, 1].astype(np.float64)
     else:
         az, el = _read_livox_csv(path)

@@ -44,17 +44,19 @@ __all__ = [
     "resolve_scenario",
 ]
 
+MAX_DURATION_S = 86_400.0  # one day of simulated time
 Vec3 = tuple[float, float, float]
 Pair = tuple[float, float]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # Unknown keys are errors; NaN and infinity are refused except where a field allows them.
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class SceneConfig(_Strict):
     name: str = "outdoor"
-    layout_seed: int = 0
+    layout_seed: int = Field(0, ge=0)
 
 
 class DroneConfig(_Strict):
@@ -62,8 +64,11 @@ class DroneConfig(_Strict):
     reflectivity_scale: float = Field(1.0, gt=0)
 
 
+DEFAULT_FLIGHT = "horizontal-fast"
+
+
 class TrajectoryConfig(_Strict):
-    name: str | None = "horizontal-fast"
+    name: str | None = None  # a named flight; the default one when no file is given either
     file: str | None = None  # CSV with columns t,x,y,z
     hold_s: float = Field(0.0, ge=0)  # on the ground (or at the first sample) before it starts
 
@@ -72,18 +77,18 @@ class TrajectoryConfig(_Strict):
         if self.file is not None and self.name is not None:
             raise ValueError("give either trajectory.name or trajectory.file, not both")
         if self.file is None and self.name is None:
-            raise ValueError("give trajectory.name or trajectory.file")
+            object.__setattr__(self, "name", DEFAULT_FLIGHT)
         return self
 
 
 class SensorConfig(_Strict):
     model: str = "avia"  # avia, mid40, mid360, vlp16 or file:PATH
-    integration_time_s: float = Field(0.1, gt=0, le=1.0)
+    integration_time_s: float = Field(0.1, ge=1e-3, le=1.0)
     noise: bool = True
     rpm: float | None = None  # vlp16 spin rate
-    rate_hz: float | None = Field(None, gt=0)  # file: patterns
-    lines: int | None = Field(None, ge=1)  # file: patterns
-    physics: str = "avia"  # whose range physics a file: pattern uses
+    rate_hz: float | None = Field(None, gt=0, le=1e7)  # file: patterns
+    lines: int | None = Field(None, ge=1, le=255)  # file: patterns
+    physics: str | None = None  # whose range physics a file: pattern uses (default avia)
     range_sigma_m: float | None = Field(None, ge=0)
     angular_sigma_deg: float | None = Field(None, ge=0)
     false_alarm_rate: float | None = Field(None, ge=0, le=1)
@@ -106,14 +111,21 @@ class TurretConfig(_Strict):
 
 
 class WeatherConfig(_Strict):
-    visibility_m: float = Field(math.inf, gt=0)  # meteorological visibility; inf is clear air
+    # Meteorological visibility [m]; inf is clear air.
+    visibility_m: float = Field(math.inf, gt=0, allow_inf_nan=True)
+
+    @model_validator(mode="after")
+    def _not_nan(self) -> WeatherConfig:
+        if math.isnan(self.visibility_m):
+            raise ValueError("visibility_m must be a number or inf")
+        return self
 
 
 class ScenarioConfig(_Strict):
     name: str = "custom"
     description: str = ""
-    duration_s: float = Field(60.0, gt=0)
-    seed: int = 0
+    duration_s: float = Field(60.0, gt=0, le=MAX_DURATION_S)
+    seed: int = Field(0, ge=0)
     scene: SceneConfig = SceneConfig()
     drone: DroneConfig = DroneConfig()
     trajectory: TrajectoryConfig = TrajectoryConfig()
@@ -163,10 +175,25 @@ def load_scenario_file(path: Path, named: dict[str, ScenarioConfig]) -> Scenario
         raise ScenarioError(f"{path}: invalid TOML: {err}") from None
     base_name = data.pop("base", None)
     if base_name is not None:
-        if base_name not in named:
+        if not isinstance(base_name, str) or base_name not in named:
             raise ScenarioError(f"{path}: unknown base scenario {base_name!r}")
-        data = _merge(named[base_name].model_dump(), {"name": path.stem, **data})
-    return validate_scenario(data, str(path))
+        base = named[base_name].model_dump()
+        if "file" in data.get("trajectory", {}):
+            base["trajectory"]["name"] = None  # a file replaces the base's named flight
+        data = _merge(base, {"name": path.stem, **data})
+    return _anchor_paths(validate_scenario(data, str(path)), path.parent)
+
+
+def _anchor_paths(cfg: ScenarioConfig, folder: Path) -> ScenarioConfig:
+    """Files named in a scenario file are relative to that file's folder."""
+    traj, sensor = cfg.trajectory, cfg.sensor
+    if traj.file is not None and not Path(traj.file).expanduser().is_absolute():
+        traj = traj.model_copy(update={"file": str(folder / traj.file)})
+    if sensor.model.lower().startswith("file:"):
+        pattern = Path(sensor.model[5:]).expanduser()
+        if not pattern.is_absolute():
+            sensor = sensor.model_copy(update={"model": f"file:{folder / pattern}"})
+    return cfg.model_copy(update={"trajectory": traj, "sensor": sensor})
 
 
 def apply_overrides(
@@ -311,7 +338,16 @@ def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
                 "latency_s": turret.pan.latency,
             }
         )
-    return cfg.model_copy(update={"sensor": sensor_cfg, "turret": turret_cfg})
+    trajectory_cfg = cfg.trajectory
+    if trajectory_cfg.file is not None:
+        absolute = str(Path(trajectory_cfg.file).expanduser().resolve())
+        trajectory_cfg = trajectory_cfg.model_copy(update={"file": absolute})
+    if sensor_cfg.model.lower().startswith("file:"):
+        absolute = str(Path(sensor_cfg.model[5:]).expanduser().resolve())
+        sensor_cfg = sensor_cfg.model_copy(update={"model": f"file:{absolute}"})
+    return cfg.model_copy(
+        update={"sensor": sensor_cfg, "turret": turret_cfg, "trajectory": trajectory_cfg}
+    )
 
 
 def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> SimWorld:

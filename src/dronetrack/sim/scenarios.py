@@ -148,7 +148,7 @@ _LIST = [
     ),
     _scenario(
         "mid360-aggressive",
-        "seed 002: F550 in random aggressive flight, Mid-360 on a fixed mount",
+        "seed 002: F550 in random aggressive flight seen by a Mid-360",
         60.0,
         "outdoor",
         "f550",

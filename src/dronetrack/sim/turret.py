@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from dronetrack.errors import ConfigError
+from dronetrack.errors import ConfigError, InputError
 from dronetrack.geometry import FloatArray
 from dronetrack.kinematics import MountGeometry
 from dronetrack.types import TurretCommand, TurretState
@@ -247,6 +247,8 @@ class TurretPlant:
 
     def advance(self, t_end: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Run to ``t_end``; return sample times and pan/tilt pointing, both ends included."""
+        if not t_end > self.time:
+            raise InputError(f"turret time runs forward: asked for {t_end} s at {self.time} s")
         n = max(1, math.ceil((t_end - self.time) / self.dt - 1e-9))
         dt = (t_end - self.time) / n
         times: FloatArray = self.time + dt * np.arange(n + 1, dtype=np.float64)

@@ -64,6 +64,9 @@ class SimWorld:
         self.mount = mount
         self.integration_time = integration_time
         self.plant = TurretPlant(turret, mount, pan=pan, tilt=tilt, t0=t0)
+        # Frame k spans [t0 + k T, t0 + (k + 1) T): times from the index, not a running sum.
+        self._t0 = t0
+        self._frames = 0
         self.rng = rng
 
     @property
@@ -90,8 +93,9 @@ class SimWorld:
 
     def step(self) -> tuple[Frame, FrameTruth]:
         """Integrate one frame: move the turret, fire the pattern, return frame and truth."""
-        t0 = self.time
-        t1 = t0 + self.integration_time
+        t0 = self._t0 + self._frames * self.integration_time
+        t1 = self._t0 + (self._frames + 1) * self.integration_time
+        self._frames += 1
         times, pan, tilt = self.plant.advance(t1)
         poses = sensor_poses(pan, tilt, self.mount)
         scan = self.lidar.scan(t0, t1, times, poses, self.rng)

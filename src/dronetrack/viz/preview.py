@@ -15,6 +15,7 @@ from dronetrack.types import Frame
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
     from dronetrack.sim.world import FrameTruth
 
@@ -49,6 +50,29 @@ def _draw_scene(ax: Axes, scene: Scene) -> None:
                     zorder=1,
                 )
             )
+
+
+def _draw_sensor_view(fig: Figure, view: Axes, last: Frame, truth: FrameTruth) -> None:
+    """The frame in the sensor's azimuth/elevation, coloured by range, target returns circled."""
+    from matplotlib.colors import LogNorm
+
+    az, el = np.degrees(azimuth_elevation(last.points))
+    if len(last):
+        r = np.linalg.norm(last.points, axis=1)
+        norm = LogNorm(vmin=max(float(r.min()), 0.5), vmax=max(float(r.max()), 1.0))
+        sc = view.scatter(az, el, c=r, s=0.5, cmap="plasma", norm=norm)
+        fig.colorbar(sc, ax=view, label="range [m]", shrink=0.8)
+        h = truth.hit_target
+        label = f"target returns ({int(h.sum())})"
+        view.scatter(az[h], el[h], s=30, facecolors="none", edgecolors="red", label=label)
+    T = last.poses[-1]
+    rel = T[:3, :3].T @ (truth.target_position - T[:3, 3])
+    taz, tel = np.degrees(azimuth_elevation(rel))
+    view.plot(taz, tel, "r+", ms=14, label="true target direction")
+    view.set_title(f"sensor view, last frame (t = {last.stamp:.1f} s, {len(last)} points)")
+    view.legend(loc="upper right", fontsize=8)
+    if len(last) and np.ptp(az) < 120:
+        view.set_aspect("equal")
 
 
 def plot_preview(
@@ -103,38 +127,10 @@ def plot_preview(
     top.legend(loc="upper right", fontsize=8)
 
     if frames:
-        last, truth = frames[-1], truths[-1]
-        az, el = azimuth_elevation(last.points)
-        r = np.linalg.norm(last.points, axis=1)
-        sc2 = view.scatter(
-            np.degrees(az),
-            np.degrees(el),
-            c=r,
-            s=0.5,
-            cmap="plasma",
-            norm=matplotlib.colors.LogNorm(vmin=max(r.min(), 0.5), vmax=max(r.max(), 1.0)),
-        )
-        fig.colorbar(sc2, ax=view, label="range [m]", shrink=0.8)
-        h = truth.hit_target
-        view.scatter(
-            np.degrees(az[h]),
-            np.degrees(el[h]),
-            s=30,
-            facecolors="none",
-            edgecolors="red",
-            label=f"target returns ({int(h.sum())})",
-        )
-        T = last.poses[-1]
-        rel = T[:3, :3].T @ (truth.target_position - T[:3, 3])
-        taz, tel = azimuth_elevation(rel)
-        view.plot(np.degrees(taz), np.degrees(tel), "r+", ms=14, label="true target direction")
-        view.set_title(f"sensor view, last frame (t = {last.stamp:.1f} s, {len(last)} points)")
-        view.legend(loc="upper right", fontsize=8)
+        _draw_sensor_view(fig, view, frames[-1], truths[-1])
     view.set_xlabel("azimuth [deg]")
     view.set_ylabel("elevation [deg]")
     view.invert_xaxis()  # left of the sensor (+y) on the left
-    if frames and np.ptp(np.degrees(az)) < 120:
-        view.set_aspect("equal")
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
