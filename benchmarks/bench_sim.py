@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dronetrack.allocator import tune_allocator
 from dronetrack.control.aiming import aim_angles
 from dronetrack.sim.scenario import build_world
 from dronetrack.sim.scenarios import SCENARIOS
@@ -72,6 +73,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=200)
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
+    tune_allocator()
     print(
         f"machine: {_cpu_model()}, {os.cpu_count()} cores; Python {platform.python_version()}, "
         f"numpy {np.__version__}; one thread"

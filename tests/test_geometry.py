@@ -8,12 +8,14 @@ from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import InputError
 from dronetrack.geometry import (
+    MAX_SEGMENT_ANGLE,
     apply_interpolated_poses,
     azimuth_elevation,
     direction_from_azimuth_elevation,
     interpolate_poses,
     make_pose,
     matrix_to_quaternion,
+    pose_tables,
     quaternion_to_matrix,
     rot_x,
     rot_y,
@@ -108,8 +110,28 @@ def test_apply_interpolated_poses_matches_matrices(seed: int) -> None:
     p = g.normal(size=(40, 3))
     Ri, pi = interpolate_poses(ts, poses, t)
     rv, rp = apply_interpolated_poses(ts, poses, t, v, p)
-    np.testing.assert_allclose(rv, np.einsum("nij,nj->ni", Ri, v), atol=1e-12)
-    np.testing.assert_allclose(rp, np.einsum("nij,nj->ni", Ri, p) + pi, atol=1e-12)
+    # Linear interpolation between samples at most MAX_SEGMENT_ANGLE apart errs by
+    # at most δ²/8 of the vector's length (nlerp and the lerp share the samples).
+    bound = MAX_SEGMENT_ANGLE**2 / 8
+    exact_v = np.einsum("nij,nj->ni", Ri, v)
+    exact_p = np.einsum("nij,nj->ni", Ri, p) + pi
+    assert np.all(np.linalg.norm(rv - exact_v, axis=1) <= bound * np.linalg.norm(v, axis=1) + 1e-12)
+    assert np.all(np.linalg.norm(rp - exact_p, axis=1) <= bound * np.linalg.norm(p, axis=1) + 1e-12)
+
+
+def test_pose_tables_split_large_turns() -> None:
+    ts = np.array([0.0, 1.0])
+    poses = make_pose(rot_z(np.array([0.0, 0.5])), np.zeros((2, 3)))
+    dense_t, R, _ = pose_tables(ts, poses)
+    # 0.5 rad in steps of at most MAX_SEGMENT_ANGLE, and not many more than needed.
+    assert np.ceil(0.5 / MAX_SEGMENT_ANGLE) <= len(dense_t) - 1 <= 1.1 * 0.5 / MAX_SEGMENT_ANGLE
+    steps = np.arccos(np.clip((np.einsum("kij,kij->k", R[:-1], R[1:]) - 1) / 2, -1, 1))
+    assert steps.max() <= MAX_SEGMENT_ANGLE + 1e-12
+    # A single pose is held at all times.
+    one = make_pose(rot_z(0.3), [1.0, 2.0, 3.0])[None]
+    v, p = apply_interpolated_poses([5.0], one, [0.0, 9.0], np.eye(3)[:2])
+    np.testing.assert_allclose(v, (rot_z(0.3) @ np.eye(3)[:2].T).T, atol=1e-15)
+    np.testing.assert_allclose(p, [[1.0, 2.0, 3.0]] * 2)
 
 
 def test_pose_samples_are_checked() -> None:

@@ -208,4 +208,7 @@ def run(argv: list[str] | None = None) -> int:
 
 def main() -> None:
     """Console-script entry point."""
+    from dronetrack.allocator import tune_allocator
+
+    tune_allocator()
     sys.exit(run(sys.argv[1:]))

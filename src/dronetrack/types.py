@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray, interpolate_poses
+from dronetrack.geometry import FloatArray, apply_interpolated_poses, interpolate_poses
 
 __all__ = ["Frame", "TurretCommand", "TurretState"]
 
@@ -69,9 +69,10 @@ class Frame:
         """Points (N, 3) in the world frame, each with the sensor pose at its time."""
         if len(self) == 0:
             return np.empty((0, 3))
-        R, p = self.sensor_poses()
-        out: FloatArray = np.einsum("nij,nj->ni", R, self.points) + p
-        return out
+        _, world = apply_interpolated_poses(
+            self.pose_t, self.poses, self.t, self.points, self.points
+        )
+        return world
 
 
 @dataclass(frozen=True, slots=True)

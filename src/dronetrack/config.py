@@ -1,0 +1,120 @@
+"""Configuration of the detection and tracking pipeline, validated at the edge.
+
+TOML in, frozen pydantic models out; unknown keys and non-finite numbers are
+errors.  Lengths in metres, times in seconds, angles in degrees (keys end in
+``_deg``); components receive plain SI/radian keyword arguments.
+
+Defaults follow the reference implementation's outdoor configuration
+(LiVOX_MAV_track ``mav_track_outside.yaml``, see research/livox_mav_track.md).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = [
+    "BackgroundConfig",
+    "ControllerConfig",
+    "CropConfig",
+    "LatencyConfig",
+    "OutlierConfig",
+    "PipelineConfig",
+    "TrackerConfig",
+]
+
+Vec3 = tuple[float, float, float]
+Pair = tuple[float, float]
+TrackerKind = Literal["pf-delta", "pf-cv", "pf-ca"]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class CropConfig(_Section):
+    """World-frame box that keeps the points worth tracking (drops the ground and far points)."""
+
+    min_m: Vec3 = (1.0, -200.0, 1.0)
+    max_m: Vec3 = (300.0, 200.0, 100.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> CropConfig:
+        if not all(lo < hi for lo, hi in zip(self.min_m, self.max_m, strict=True)):
+            raise ValueError("crop min_m must be below max_m on every axis")
+        return self
+
+
+class BackgroundConfig(_Section):
+    """Voxel occupancy map of the static scene, built while the turret scans."""
+
+    enabled: bool = True
+    resolution_m: float = Field(1.0, gt=0)
+    inflate_voxels: int = Field(1, ge=0, le=5)  # dilation over the 26-neighbourhood, k times
+    lookup_depth: int = Field(2, ge=0, le=6)  # look up cells 2^depth voxels wide (OctoMap depth)
+    min_hits: int = Field(1, ge=1)  # returns a voxel needs to count as occupied
+    scan_s: float = Field(10.0, ge=0)  # scanning time before tracking starts
+    file: str | None = None  # load a saved map instead of scanning (and skip the scan)
+    # The scanning pattern: pan and tilt triangle waves over these ranges.
+    scan_pan_deg: Pair = (-60.0, 60.0)
+    scan_tilt_deg: Pair = (-25.0, 5.0)
+    scan_period_s: float = Field(4.0, gt=0)  # one pan sweep there and back
+
+
+class OutlierConfig(_Section):
+    """PCL-style outlier filters on the foreground points; off by default as in the reference."""
+
+    radius_enabled: bool = False
+    radius_m: float = Field(1.0, gt=0)
+    min_neighbors: int = Field(3, ge=1)
+    statistical_enabled: bool = False
+    mean_k: int = Field(4, ge=1)
+    std_mul: float = Field(1.0, gt=0)
+
+
+class TrackerConfig(_Section):
+    """Seed 000's particle filter.  σ values default to eq. (11) from v_max, a_max, s_diag and T."""
+
+    kind: TrackerKind = "pf-delta"
+    particles: int = Field(5000, ge=10, le=2_000_000)
+    resampling: Literal["multinomial", "systematic"] = "multinomial"
+    v_max: float = Field(15.0, gt=0)  # expected maximum speed [m/s]
+    a_max: float = Field(15.0, gt=0)  # expected maximum acceleration [m/s²]
+    s_diag: float = Field(0.4, gt=0)  # motor-to-motor diagonal [m]
+    sigma_pos: float | None = Field(None, ge=0)  # eq. (11): v_max T / 3
+    sigma_vel: float | None = Field(None, ge=0)  # eq. (11): a_max T / 3
+    sigma_acc: float | None = Field(None, ge=0)  # eq. (11): 0
+    sigma_m: float | None = Field(None, gt=0)  # eq. (11): s_diag / 2
+    weight_floor: float = Field(1e-4, ge=0)  # added to every weight, keeps far particles alive
+    cylinder_center_m: Vec3 = (25.0, 0.0, 1.0)  # centre of the base of the start cylinder
+    cylinder_radius_m: float = Field(20.0, gt=0)
+    cylinder_height_m: float = Field(20.0, gt=0)
+
+
+class ControllerConfig(_Section):
+    """Turret control: track the estimate, search when lost, or hold still."""
+
+    mode: Literal["tracking", "fixed"] = "tracking"
+    home_m: Vec3 = (60.0, 0.0, 15.0)  # where the sensor looks before a lock, and in fixed mode
+    lead_s: float = Field(0.0, ge=0)  # aim at p + v·lead (0: at the estimate, as the reference)
+    search_hold_s: float = Field(2.0, ge=0)  # hold after losing the target, then scan
+    search_pan_deg: float = Field(30.0, ge=0)  # scan ± this around the last bearing
+    search_tilt_deg: float = Field(10.0, ge=0)
+    search_period_s: float = Field(4.0, gt=0)
+
+
+class LatencyConfig(_Section):
+    """Delays between the end of a frame and the turret command it produces (closed loop)."""
+
+    sensor_s: float = Field(0.002, ge=0)  # Livox data latency ≤ 2 ms
+    processing_s: float = Field(0.012, ge=0)  # seed 000: 1.45 ms callback + 10.85 ms filter
+
+
+class PipelineConfig(_Section):
+    crop: CropConfig = CropConfig()
+    background: BackgroundConfig = BackgroundConfig()
+    outliers: OutlierConfig = OutlierConfig()
+    tracker: TrackerConfig = TrackerConfig()
+    controller: ControllerConfig = ControllerConfig()
+    latency: LatencyConfig = LatencyConfig()

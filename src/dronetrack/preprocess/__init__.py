@@ -1,0 +1,1 @@
+"""Preprocessing: world transform, crop, background subtraction, outlier removal."""
