@@ -71,6 +71,16 @@ def test_avia_field_of_view_is_70_4_by_77_2_degrees() -> None:
     np.testing.assert_allclose(np.diff(p.t[:10]), 1 / 240_000)
 
 
+def test_avia_centre_stays_dense_over_minutes() -> None:
+    pattern = avia_pattern()
+
+    def near_axis(t0: float) -> int:
+        return int(np.sum(_off_axis_deg(pattern.pulses(t0, t0 + 0.5).dirs) < 1.0))
+
+    counts = [near_axis(t0) for t0 in (0.0, 30.0, 60.0, 120.0, 600.0)]
+    assert min(counts) > 0.9 * max(counts)
+
+
 def test_pattern_continues_across_frames() -> None:
     pattern = avia_pattern()
     whole = pattern.pulses(0.0, 0.3)

@@ -222,8 +222,19 @@ def _prisms(rows: list[tuple[float, float, float]]) -> FloatArray:
 
 # Helios++ parameter sets (scanners_tls.xml @ fd94d1ff; sensor_physics.md §1.3).
 MID40_PRISMS = _prisms([(18.7481, -121.5657, 1.51), (17.9634, 77.7430, 1.51)])
+# Avia: Helios lists f3 = 213.1611 Hz.  The rosette passes through the centre when
+# the two large prisms cancel and the small one cancels their residue, which holds
+# for every pass only when f3 = 2 f2 − f1 = 213.1527 Hz.  Helios' value misses that
+# by 0.0084 Hz, so its centre empties and refills with a 119 s period (a few points
+# per 0.5 s near the axis at t = 60 s against 1,350 at t = 0).  The Avia's dense
+# centre, which seed 000 relies on, does not fade: we take f3 = 2 f2 − f1 (0.004 %).
+_AVIA_F1, _AVIA_F2 = -131.5463, 40.8032
 AVIA_PRISMS = _prisms(
-    [(30.8856, -131.5463, 1.51), (29.7735, 40.8032, 1.51), (3.1351, 213.1611, 1.51)]
+    [
+        (30.8856, _AVIA_F1, 1.51),
+        (29.7735, _AVIA_F2, 1.51),
+        (3.1351, 2.0 * _AVIA_F2 - _AVIA_F1, 1.51),
+    ]
 )
 # Avia incident beams of its six lasers in the prism frame (x, y = forward, z).
 AVIA_INCIDENT = np.array(

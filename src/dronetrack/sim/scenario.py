@@ -17,6 +17,7 @@ import numpy as np
 import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from dronetrack.config import PipelineConfig
 from dronetrack.errors import ScenarioError
 from dronetrack.kinematics import MountGeometry
 from dronetrack.sim.drones import make_drone
@@ -132,6 +133,8 @@ class ScenarioConfig(_Strict):
     sensor: SensorConfig = SensorConfig()
     turret: TurretConfig = TurretConfig()
     weather: WeatherConfig = WeatherConfig()
+    # How the run is processed by ``dronetrack simulate``; the simulator ignores it.
+    pipeline: PipelineConfig = PipelineConfig()
 
 
 def format_validation_error(err: ValidationError, source: str) -> str:

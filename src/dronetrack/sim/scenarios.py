@@ -8,6 +8,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dronetrack.config import (
+    BackgroundConfig,
+    ControllerConfig,
+    CropConfig,
+    PipelineConfig,
+    TrackerConfig,
+)
 from dronetrack.errors import ScenarioError
 from dronetrack.sim.scenario import (
     DroneConfig,
@@ -28,6 +35,58 @@ __all__ = ["SCENARIOS", "get_scenario"]
 FOG_VISIBILITY_M = 100.0
 
 
+# Pipeline presets, after the reference implementation's configurations.
+OUTDOOR = PipelineConfig()  # mav_track_outside.yaml: 1 m voxels, 4 m lookup, eq. (11) at 15 m/s
+INDOOR = PipelineConfig(
+    # mav_track_inside.yaml: 0.1 m voxels looked up in 0.4 m cells; Crazyflie dynamics
+    # (1.2 m/s, 1.2 m/s², 0.12 m) give σ_pos = σ_vel = 0.04, σ_m = 0.06 (seed 000 §III-E).
+    crop=CropConfig(min_m=(1.0, -2.0, 0.0), max_m=(8.0, 2.0, 3.0)),
+    background=BackgroundConfig(
+        resolution_m=0.1, scan_pan_deg=(-40.0, 40.0), scan_tilt_deg=(-20.0, 10.0)
+    ),
+    tracker=TrackerConfig(
+        v_max=1.2,
+        a_max=1.2,
+        s_diag=0.12,
+        cylinder_center_m=(0.0, 0.0, 0.0),
+        cylinder_radius_m=5.0,
+        cylinder_height_m=2.0,
+    ),
+    controller=ControllerConfig(home_m=(3.0, 0.0, 1.2)),
+)
+WALK = PipelineConfig(
+    # Seed 003's filter box: above head height, within 20 m.
+    crop=CropConfig(min_m=(-20.0, -20.0, 1.8), max_m=(20.0, 20.0, 6.0)),
+    background=BackgroundConfig(
+        resolution_m=0.2, scan_s=2.0, scan_pan_deg=(-10.0, 10.0), scan_tilt_deg=(0.0, 0.0)
+    ),
+    tracker=TrackerConfig(
+        v_max=2.0,
+        a_max=2.0,
+        s_diag=0.6,
+        cylinder_center_m=(0.0, 0.0, 1.8),
+        cylinder_radius_m=20.0,
+        cylinder_height_m=4.0,
+    ),
+    controller=ControllerConfig(mode="fixed", home_m=(10.0, 0.0, 2.3)),
+)
+AGGRESSIVE = PipelineConfig(
+    crop=CropConfig(min_m=(2.0, -15.0, 1.5), max_m=(30.0, 15.0, 15.0)),
+    background=BackgroundConfig(
+        resolution_m=0.5, scan_s=2.0, scan_pan_deg=(-10.0, 10.0), scan_tilt_deg=(0.0, 0.0)
+    ),
+    tracker=TrackerConfig(
+        v_max=8.0,
+        a_max=6.0,
+        s_diag=0.55,
+        cylinder_center_m=(15.0, 0.0, 2.0),
+        cylinder_radius_m=10.0,
+        cylinder_height_m=10.0,
+    ),
+    controller=ControllerConfig(home_m=(15.0, 0.0, 6.0)),
+)
+
+
 def _scenario(
     name: str,
     description: str,
@@ -39,6 +98,7 @@ def _scenario(
     turret: str,
     base_height: float,
     visibility: float = float("inf"),
+    pipeline: PipelineConfig = OUTDOOR,
 ) -> ScenarioConfig:
     return ScenarioConfig(
         name=name,
@@ -50,6 +110,7 @@ def _scenario(
         sensor=SensorConfig(model=sensor),
         turret=TurretConfig(model=turret, base_height_m=base_height),
         weather=WeatherConfig(visibility_m=visibility),
+        pipeline=pipeline,
     )
 
 
@@ -75,7 +136,16 @@ def _indoor(name: str, flight: str, description: str, duration: float) -> Scenar
     """Seed 000 indoors: Crazyflie, Avia on a WidowX whose base stood 0.55 m above the
     floor (LiVOX_MAV_track TF tree)."""
     return _scenario(
-        name, description, duration, "indoor", "crazyflie2", flight, "avia", "widowx", 0.55
+        name,
+        description,
+        duration,
+        "indoor",
+        "crazyflie2",
+        flight,
+        "avia",
+        "widowx",
+        0.55,
+        pipeline=INDOOR,
     )
 
 
@@ -156,6 +226,7 @@ _LIST = [
         "mid360",
         "widowx",
         1.0,
+        pipeline=AGGRESSIVE,
     ),
 ]
 SCENARIOS: dict[str, ScenarioConfig] = {s.name: s for s in _LIST}

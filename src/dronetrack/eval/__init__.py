@@ -1,0 +1,1 @@
+"""Evaluation: metrics and plots over logged runs, simulated or recorded."""

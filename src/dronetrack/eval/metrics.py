@@ -1,0 +1,127 @@
+"""Metrics of a tracking run: arrays in, numbers out.
+
+Seed 000 (§III-A, III-C, III-E):
+
+- an estimate is *correct* when it lies within ``radius`` (4 m, the GPS
+  accuracy) of the ground truth;
+- track coverage = correct frames / all frames [%];
+- maximum tracking distance = the largest sensor-to-target range among the
+  correct frames;
+- RMSE = √(1/n Σ ‖x̂_i − x_i‖²) (eq. 13), with the 95 % confidence interval
+  from the chi-squared distribution: n·RMSE² / σ² ~ χ²(n), so
+  σ ∈ [√(n RMSE² / χ²₀.₉₇₅(n)), √(n RMSE² / χ²₀.₀₂₅(n))].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from dronetrack.geometry import FloatArray
+
+__all__ = [
+    "CORRECT_RADIUS_M",
+    "Rmse",
+    "coverage_pct",
+    "detection_gaps",
+    "max_tracking_distance",
+    "points_by_distance",
+    "rmse",
+    "timing",
+]
+
+CORRECT_RADIUS_M = 4.0
+
+
+def _correct(errors: FloatArray, radius: float) -> NDArray[np.bool_]:
+    """Frames whose 3-D error (N, 3) is within ``radius`` (NaN counts as wrong)."""
+    norm = np.linalg.norm(errors, axis=1)
+    ok: NDArray[np.bool_] = np.isfinite(norm) & (norm <= radius)
+    return ok
+
+
+def coverage_pct(errors: FloatArray, radius: float = CORRECT_RADIUS_M) -> float:
+    """Share of frames with a correct estimate [%]; errors (N, 3) = estimate − truth."""
+    if len(errors) == 0:
+        return 0.0
+    return 100.0 * float(np.mean(_correct(errors, radius)))
+
+
+def max_tracking_distance(
+    errors: FloatArray, ranges: FloatArray, radius: float = CORRECT_RADIUS_M
+) -> float:
+    """Largest sensor-to-target range [m] among the correct frames (0 if none)."""
+    ok = _correct(errors, radius)
+    return float(ranges[ok].max()) if np.any(ok) else 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class Rmse:
+    value: float  # [m]
+    ci95: tuple[float, float]  # [m]
+    per_axis: tuple[float, float, float]  # [m]
+    n: int
+
+
+def rmse(errors: FloatArray) -> Rmse:
+    """RMSE of 3-D errors (N, 3) with its χ² 95 % interval and per-axis RMSE (eq. 13)."""
+    e = errors[np.all(np.isfinite(errors), axis=1)]
+    n = len(e)
+    if n == 0:
+        nan = float("nan")
+        return Rmse(nan, (nan, nan), (nan, nan, nan), 0)
+    sq = float(np.mean(np.sum(e**2, axis=1)))
+    # n RMSE² / σ² ~ χ²(n)
+    lo = np.sqrt(n * sq / chi2.ppf(0.975, n))
+    hi = np.sqrt(n * sq / chi2.ppf(0.025, n))
+    axes = np.sqrt(np.mean(e**2, axis=0))
+    return Rmse(
+        np.sqrt(sq), (float(lo), float(hi)), (float(axes[0]), float(axes[1]), float(axes[2])), n
+    )
+
+
+def points_by_distance(
+    ranges: FloatArray, counts: NDArray[np.int64] | FloatArray, bin_m: float = 10.0
+) -> list[dict[str, float]]:
+    """Target points per frame against range, in bins of ``bin_m`` (seed 000 Fig. 7)."""
+    ok = np.isfinite(ranges)
+    r, c = ranges[ok], np.asarray(counts, dtype=np.float64)[ok]
+    if len(r) == 0:
+        return []
+    edges = np.arange(0.0, r.max() + bin_m, bin_m)
+    which = np.digitize(r, edges) - 1
+    rows = []
+    for b in range(len(edges) - 1):
+        sel = which == b
+        if np.any(sel):
+            rows.append(
+                {
+                    "range_from_m": float(edges[b]),
+                    "range_to_m": float(edges[b + 1]),
+                    "frames": int(sel.sum()),
+                    "points_mean": float(c[sel].mean()),
+                    "points_max": float(c[sel].max()),
+                }
+            )
+    return rows
+
+
+def detection_gaps(t: FloatArray, detected: NDArray[np.bool_]) -> FloatArray:
+    """Times [s] between consecutive frames that saw the target."""
+    times = t[detected]
+    gaps: FloatArray = np.diff(times)
+    return gaps
+
+
+def timing(step_ms: FloatArray) -> dict[str, float]:
+    """Mean, standard deviation and worst case of the per-step compute time [ms]."""
+    if len(step_ms) == 0:
+        return {"mean": 0.0, "std": 0.0, "max": 0.0}
+    return {
+        "mean": float(np.mean(step_ms)),
+        "std": float(np.std(step_ms)),
+        "max": float(np.max(step_ms)),
+    }

@@ -1,0 +1,193 @@
+"""The push-based pipeline: ``step(frame) -> StepResult``, whatever produced the frame.
+
+Per frame:
+1. check the frame (time order, finite values, sensor poses) and count problems;
+2. transform to the world frame with each point's sensor pose, crop to a box;
+3. while the background is being scanned: add the points to the background model
+   and command the scanning raster; when the scan ends, build the model;
+4. otherwise subtract the background, optionally remove outliers, and step the
+   tracker: predict once per elapsed filter period (through gaps), update with
+   the remaining points;
+5. command the turret.
+
+Commands are stamped at the frame's end plus the modelled sensor and processing
+latency, so a closed loop is deterministic whatever the machine's speed.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from dronetrack.control.controller import TurretController
+from dronetrack.errors import InputError
+from dronetrack.geometry import FloatArray
+from dronetrack.preprocess.background import VoxelBackground
+from dronetrack.preprocess.foreground import Foreground, extract_foreground
+from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
+from dronetrack.track.tracker import Tracker, TrackEstimate
+from dronetrack.types import Frame, TurretCommand
+
+__all__ = ["OutlierSettings", "Pipeline", "StepResult"]
+
+log = logging.getLogger(__name__)
+Phase = Literal["scan", "track"]
+
+
+@dataclass(frozen=True, slots=True)
+class OutlierSettings:
+    """Which outlier filters run on the foreground, and their parameters (SI)."""
+
+    radius: float | None = None  # radius filter off when None
+    min_neighbors: int = 3
+    mean_k: int | None = None  # statistical filter off when None
+    std_mul: float = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class StepResult:
+    """What the pipeline made of one frame."""
+
+    t: float  # frame end [s]
+    phase: Phase
+    estimate: TrackEstimate | None  # None while scanning
+    n_points: int  # points left after background subtraction and outlier removal
+    n_returns: int  # points in the frame
+    command: TurretCommand | None
+    step_ms: float  # wall time spent in step()
+    flags: tuple[str, ...] = ()
+    foreground: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
+
+
+class Pipeline:
+    """Preprocessing, tracking and turret control, one frame at a time."""
+
+    def __init__(
+        self,
+        tracker: Tracker,
+        controller: TurretController,
+        crop_min: FloatArray,
+        crop_max: FloatArray,
+        background: VoxelBackground | None = None,
+        scan_until: float = 0.0,
+        outliers: OutlierSettings = OutlierSettings(),
+        latency_s: float = 0.0,
+    ) -> None:
+        self.tracker = tracker
+        self.controller = controller
+        self.crop_min = np.asarray(crop_min, dtype=np.float64)
+        self.crop_max = np.asarray(crop_max, dtype=np.float64)
+        self.background = background
+        self.scan_until = scan_until if background is not None and not background.ready else 0.0
+        self.outliers = outliers
+        self.latency_s = latency_s
+        self.counts: Counter[str] = Counter()
+        self._last_end: float | None = None
+        self._estimate: TrackEstimate | None = None
+
+    @property
+    def scanning(self) -> bool:
+        return self.background is not None and not self.background.ready
+
+    def step(self, frame: Frame) -> StepResult:
+        """Process one frame."""
+        start = time.perf_counter()
+        flags: list[str] = []
+        steps = self._periods_since_last(frame.end, flags)
+        fg = self._foreground(frame, flags)
+        t_cmd = frame.end + self.latency_s
+        if self.scanning:
+            assert self.background is not None
+            if steps > 0:
+                self.background.insert(fg.points)
+            command: TurretCommand | None = self.controller.scanning(t_cmd)
+            if frame.end >= self.scan_until:
+                self.background.build()
+                log.info("background model built: %d cells", len(self.background))
+            result = self._result(frame, "scan", None, fg.points, command, start, flags)
+        else:
+            points = self._remove_outliers(fg.points)
+            estimate = self.tracker.step(frame.end, points, steps)
+            if not np.all(np.isfinite(estimate.position)):
+                flags.append("nonfinite_estimate")
+                self.tracker.reset()
+                estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
+            self._estimate = estimate
+            command = self.controller.tracking(t_cmd, estimate) if steps > 0 else None
+            result = self._result(frame, "track", estimate, points, command, start, flags)
+        for flag in flags:
+            self.counts[flag] += 1
+        if flags:
+            log.debug("frame ending %.3f s: %s", frame.end, ", ".join(flags))
+        return result
+
+    def _periods_since_last(self, end: float, flags: list[str]) -> int:
+        """Filter periods since the previous frame: 0 for a repeated or older frame."""
+        if not np.isfinite(end):
+            flags.append("bad_time")
+            return 0
+        if self._last_end is None:
+            self._last_end = end
+            return 1
+        dt = end - self._last_end
+        if dt <= 0.0:
+            flags.append("repeated" if dt == 0.0 else "out_of_order")
+            return 0
+        self._last_end = end
+        steps = max(1, round(dt / self.tracker.period))
+        if steps > 1:
+            flags.append("gap")
+        return steps
+
+    def _foreground(self, frame: Frame, flags: list[str]) -> Foreground:
+        if len(frame) == 0:
+            flags.append("empty")
+            return _no_foreground()
+        bg = None if self.scanning else self.background
+        try:
+            fg = extract_foreground(frame, self.crop_min, self.crop_max, bg)
+        except InputError:
+            flags.append("bad_pose")
+            return _no_foreground()
+        if fg.n_nonfinite:
+            flags.append("nonfinite_points")
+        return fg
+
+    def _remove_outliers(self, points: FloatArray) -> FloatArray:
+        o = self.outliers
+        if o.radius is not None and len(points):
+            points = points[radius_outlier_mask(points, o.radius, o.min_neighbors)]
+        if o.mean_k is not None and len(points):
+            points = points[statistical_outlier_mask(points, o.mean_k, o.std_mul)]
+        return points
+
+    def _result(
+        self,
+        frame: Frame,
+        phase: Phase,
+        estimate: TrackEstimate | None,
+        points: FloatArray,
+        command: TurretCommand | None,
+        start: float,
+        flags: list[str],
+    ) -> StepResult:
+        return StepResult(
+            t=frame.end,
+            phase=phase,
+            estimate=estimate,
+            n_points=len(points),
+            n_returns=len(frame),
+            command=command,
+            step_ms=1e3 * (time.perf_counter() - start),
+            flags=tuple(flags),
+            foreground=points,
+        )
+
+
+def _no_foreground() -> Foreground:
+    return Foreground(np.empty((0, 3)), np.empty(0, dtype=np.int64), 0, 0, 0)

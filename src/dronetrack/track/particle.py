@@ -1,0 +1,206 @@
+"""Seed 000's particle filter (Gazdag et al., §II-C), as pure functions and a thin class.
+
+State of particle i: s = [x, y, z, v_x, v_y, v_z, a_x, a_y, a_z] (an (N, 9) array).
+Predict, every period T, with p ~ N(0, σ²) drawn per axis (eqs. 1-7):
+
+    delta position:  x_k = x + v T + p_x,                v_k = ρ (x_k − x) / T        (1)-(3)
+    constant vel.:   x_k = x + v T + p_x,                v_k = v + p_v                (1), (4)-(5)
+    constant acc.:   x_k = x + v T + ½ a T² + p_x,       v_k = v + a T + p_v,
+                     a_k = a + p_a                                                   (1), (4)-(7)
+
+    ρ = 1 if σ_particles < σ_threshold, else σ_pos / σ_particles                     (2)
+
+Update, when the filtered cloud holds points (eqs. 8-9), with d_i the distance of
+particle i to its nearest point:
+
+    w_i = N(d_i; 0, σ_m²) + w_floor,        w̃_i = w_i / Σ_j w_j
+
+then resample on every update.  The estimate is the particle mean; the spread
+σ_particles is the mean of the per-axis standard deviations of the positions,
+and the target counts as tracked while σ_particles < σ_threshold = 1.5 max(σ_pos, σ_m).
+
+Parameters follow from the drone's dynamics by eq. (11):
+σ_pos = v_max T / 3, σ_vel = a_max T / 3, σ_acc = 0, σ_m = s_diag / 2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from dronetrack.errors import ConfigError
+from dronetrack.geometry import FloatArray
+from dronetrack.track.nearest import nearest_distances
+from dronetrack.track.resample import RESAMPLERS
+
+__all__ = [
+    "MotionModel",
+    "NoiseParameters",
+    "ParticleFilter",
+    "cylinder_particles",
+    "eq11_parameters",
+    "likelihood_weights",
+    "predict",
+    "spread",
+]
+
+MotionModel = Literal["delta", "cv", "ca"]
+STATE_DIM = 9
+# The reference adds 1e-4 m² to every squared distance before the Gaussian.
+DISTANCE_EPS2 = 1e-4
+
+
+@dataclass(frozen=True, slots=True)
+class NoiseParameters:
+    """Process and measurement noise [m, m/s, m/s², m] and the period T [s]."""
+
+    sigma_pos: float
+    sigma_vel: float
+    sigma_acc: float
+    sigma_m: float
+    period: float
+
+    @property
+    def threshold(self) -> float:
+        """σ_threshold = 1.5 · max(σ_pos, σ_m)"""
+        return 1.5 * max(self.sigma_pos, self.sigma_m)
+
+
+def eq11_parameters(v_max: float, a_max: float, s_diag: float, period: float) -> NoiseParameters:
+    """Seed 000's eq. (11): σ_pos = v_max T/3, σ_vel = a_max T/3, σ_acc = 0, σ_m = s_diag/2."""
+    return NoiseParameters(v_max * period / 3.0, a_max * period / 3.0, 0.0, s_diag / 2.0, period)
+
+
+def cylinder_particles(
+    rng: np.random.Generator, n: int, center: FloatArray, radius: float, height: float
+) -> FloatArray:
+    """(n, 9) particles at rest in a vertical cylinder on ``center`` (its base centre).
+
+    As the reference: θ ~ U[0, 2π), r ~ U[0, R] (denser near the axis), z ~ U[z0, z0 + H].
+    """
+    theta = rng.uniform(0.0, 2.0 * np.pi, n)
+    r = rng.uniform(0.0, radius, n)
+    X = np.zeros((n, STATE_DIM))
+    X[:, 0] = center[0] + r * np.sin(theta)
+    X[:, 1] = center[1] + r * np.cos(theta)
+    X[:, 2] = center[2] + rng.uniform(0.0, height, n)
+    return X
+
+
+def predict(
+    X: FloatArray, model: MotionModel, noise: NoiseParameters, rho: float, Z: FloatArray
+) -> FloatArray:
+    """One prediction step of eqs. (1)-(7); Z (N, 9) holds standard normal draws."""
+    T = noise.period
+    p, v, a = X[:, 0:3], X[:, 3:6], X[:, 6:9]
+    out = np.empty_like(X)
+    if model == "ca":
+        # x_k = x + v T + ½ a T² + p_x;  v_k = v + a T + p_v;  a_k = a + p_a
+        out[:, 0:3] = p + v * T + 0.5 * a * T**2 + noise.sigma_pos * Z[:, 0:3]
+        out[:, 3:6] = v + a * T + noise.sigma_vel * Z[:, 3:6]
+        out[:, 6:9] = a + noise.sigma_acc * Z[:, 6:9]
+        return out
+    # x_k = x + v T + p_x
+    out[:, 0:3] = p + v * T + noise.sigma_pos * Z[:, 0:3]
+    if model == "delta":
+        # v_k = ρ (x_k − x) / T
+        out[:, 3:6] = rho * (out[:, 0:3] - p) / T
+    else:
+        # v_k = v + p_v
+        out[:, 3:6] = v + noise.sigma_vel * Z[:, 3:6]
+    out[:, 6:9] = 0.0
+    return out
+
+
+def likelihood_weights(distances: FloatArray, sigma_m: float, floor: float) -> FloatArray:
+    """w_i = N(d_i; 0, σ_m²) + floor, normalised to sum to one (eqs. 8-9)."""
+    d2 = distances**2 + DISTANCE_EPS2
+    w = np.exp(-0.5 * d2 / sigma_m**2) / (sigma_m * np.sqrt(2.0 * np.pi)) + floor
+    total = float(w.sum())
+    if not np.isfinite(total) or total <= 0.0:
+        return np.full(len(w), 1.0 / len(w))
+    out: FloatArray = w / total
+    return out
+
+
+def spread(X: FloatArray) -> float:
+    """σ_particles: the mean of the per-axis standard deviations of the positions."""
+    return float(np.mean(np.std(X[:, 0:3], axis=0)))
+
+
+class ParticleFilter:
+    """The particles and their bookkeeping; the maths is in the functions above."""
+
+    def __init__(
+        self,
+        n: int,
+        model: MotionModel,
+        noise: NoiseParameters,
+        rng: np.random.Generator,
+        resampling: str = "multinomial",
+        weight_floor: float = 1e-4,
+    ) -> None:
+        if model not in ("delta", "cv", "ca"):
+            raise ConfigError(f"unknown motion model {model!r}")
+        if resampling not in RESAMPLERS:
+            raise ConfigError(
+                f"unknown resampling {resampling!r}; choose one of {', '.join(RESAMPLERS)}"
+            )
+        if n < 1:
+            raise ConfigError(f"the particle count must be positive, got {n}")
+        self.n = n
+        self.model: MotionModel = model
+        self.noise = noise
+        self.rng = rng
+        self.weight_floor = weight_floor
+        self._resample = RESAMPLERS[resampling]
+        self.X = np.zeros((n, STATE_DIM))
+        self.sigma_particles = np.inf
+        # Standard normal draws, STATE_DIM or 6 per particle (column blocks, contiguous).
+        self._Z = np.zeros((n, STATE_DIM))
+
+    @property
+    def tracked(self) -> bool:
+        return self.sigma_particles < self.noise.threshold
+
+    def reset(self, center: FloatArray, radius: float, height: float) -> None:
+        """Scatter the particles in a new cylinder (start-up, or an operator's reset)."""
+        self.X = cylinder_particles(
+            self.rng, self.n, np.asarray(center, dtype=np.float64), radius, height
+        )
+        self.sigma_particles = spread(self.X)
+
+    def predict(self) -> None:
+        """Move every particle one period ahead (eqs. 1-7)."""
+        # ρ from the spread after the previous step, eq. (2)
+        rho = 1.0 if self.tracked else self.noise.sigma_pos / self.sigma_particles
+        dims = STATE_DIM if self.model == "ca" else 6
+        self._Z[:, :dims] = self.rng.standard_normal((self.n, dims))
+        self.X = predict(self.X, self.model, self.noise, rho, self._Z)
+        self.sigma_particles = spread(self.X)
+
+    def update(self, points: FloatArray) -> bool:
+        """Weight by the nearest point and resample (eqs. 8-9); False if there are no points."""
+        if len(points) == 0:
+            return False
+        # Points beyond 8 σ_m of every particle leave all weights at the floor:
+        # keep only those near the cloud's bounding box.
+        margin = 8.0 * self.noise.sigma_m
+        lo = self.X[:, 0:3].min(axis=0) - margin
+        hi = self.X[:, 0:3].max(axis=0) + margin
+        near = points[np.all((points >= lo) & (points <= hi), axis=1)]
+        if len(near) == 0:
+            w = np.full(self.n, 1.0 / self.n)
+        else:
+            d = nearest_distances(self.X[:, 0:3], near)
+            w = likelihood_weights(d, self.noise.sigma_m, self.weight_floor)
+        self.X = self.X[self._resample(w, self.rng)]
+        self.sigma_particles = spread(self.X)
+        return True
+
+    def estimate(self) -> tuple[FloatArray, FloatArray]:
+        """Mean position and mean velocity of the particles."""
+        mean = self.X.mean(axis=0)
+        return mean[0:3].copy(), mean[3:6].copy()
