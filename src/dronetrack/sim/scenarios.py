@@ -132,14 +132,16 @@ def _outdoor(
     )
 
 
-def _indoor(name: str, flight: str, description: str, duration: float) -> ScenarioConfig:
+def _indoor(
+    name: str, flight: str, description: str, duration: float, scene: str = "indoor"
+) -> ScenarioConfig:
     """Seed 000 indoors: Crazyflie, Avia on a WidowX whose base stood 0.55 m above the
     floor (LiVOX_MAV_track TF tree)."""
     return _scenario(
         name,
         description,
         duration,
-        "indoor",
+        scene,
         "crazyflie2",
         flight,
         "avia",
@@ -207,6 +209,7 @@ _LIST = [
         "indoor-lost-and-found",
         "seed 000 indoor: Crazyflie hidden behind a partition and found again",
         86.0,
+        scene="indoor-occluded",
     ),
     _walk("walk-line", "walk-line", "seed 003: a board walked towards a VLP-16 on a PTU-E46", 71.0),
     _walk("walk-across", "walk-across-7", "seed 003: a board walked across at 7 m", 91.0),

@@ -88,12 +88,13 @@ def outdoor_field(layout_seed: int = 0) -> Scene:
     return Scene("outdoor", Primitives.concat(parts), (-50.0, -150.0, 250.0, 150.0))
 
 
-def indoor_room() -> Scene:
+def indoor_room(partition: bool = False) -> Scene:
     """Seed 000's motion-capture arena: 7 × 8 m, 3.5 m high.
 
     The turret stands 1 m in from the short wall behind it, looking down the
-    8 m length (x from -1 to 7 m, y from -3.5 to 3.5 m).  A 0.7 m wide, 2.2 m
-    tall partition at x = 2 m hides the lost-and-found pattern's middle waypoint.
+    8 m length (x from -1 to 7 m, y from -3.5 to 3.5 m).  With ``partition``, a
+    0.7 m wide, 2.2 m tall board at x = 2 m hides what is straight ahead 3-4 m
+    away: the lost-and-found pattern's middle waypoint.
     """
     t = 0.2  # wall thickness
     x0, x1, y0, y1, h = -1.0, 7.0, -3.5, 3.5, 3.5
@@ -111,9 +112,11 @@ def indoor_room() -> Scene:
         # Furniture along the walls and the occluding partition.
         box((5.5, 3.0, 0.4), (2.0, 0.8, 0.8), 0.4),
         box((5.5, -3.0, 0.9), (1.2, 0.6, 1.8), 0.3),
-        box((2.0, 0.0, 1.1), (0.3, 0.7, 2.2), 0.5),
     ]
-    return Scene("indoor", Primitives.concat(parts), (x0, y0, x1, y1))
+    if partition:
+        parts.append(box((2.0, 0.0, 1.1), (0.3, 0.7, 2.2), 0.5))
+    name = "indoor-occluded" if partition else "indoor"
+    return Scene(name, Primitives.concat(parts), (x0, y0, x1, y1))
 
 
 def empty_field() -> Scene:
@@ -126,16 +129,16 @@ def sky() -> Scene:
     return Scene("sky", Primitives.empty(), (-50.0, -150.0, 250.0, 150.0))
 
 
-SCENE_NAMES = ("outdoor", "indoor", "empty", "sky")
+SCENE_NAMES = ("outdoor", "indoor", "indoor-occluded", "empty", "sky")
 
 
 def make_scene(name: str, layout_seed: int = 0) -> Scene:
-    """Build a scene by name: ``outdoor``, ``indoor``, ``empty`` or ``sky``."""
+    """Build a scene by name: ``outdoor``, ``indoor``, ``indoor-occluded``, ``empty`` or ``sky``."""
     key = name.strip().lower()
     if key == "outdoor":
         return outdoor_field(layout_seed)
-    if key == "indoor":
-        return indoor_room()
+    if key in ("indoor", "indoor-occluded"):
+        return indoor_room(partition=key == "indoor-occluded")
     if key == "empty":
         return empty_field()
     if key == "sky":
