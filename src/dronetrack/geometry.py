@@ -25,13 +25,13 @@ __all__ = [
     "interpolate_poses",
     "make_pose",
     "matrix_to_quaternion",
-    "pose_at",
-    "pose_segment",
+    "pose_segments",
     "pose_tables",
     "quaternion_to_matrix",
     "rot_x",
     "rot_y",
     "rot_z",
+    "transform_at_times",
     "transform_points",
     "unit",
     "wrap_angle",
@@ -263,48 +263,73 @@ def pose_tables(pose_t: ArrayLike, poses: ArrayLike) -> tuple[FloatArray, FloatA
     return ts, np.ascontiguousarray(R), np.ascontiguousarray(T[:, :3, 3])
 
 
-@nb.njit(cache=True, inline="always")
-def pose_segment(ts: FloatArray, tj: float, i: int) -> int:
-    """Segment i of the samples with ts[i] ≤ tj < ts[i+1], clamped to [0, K − 2].
+@nb.njit(cache=True)
+def pose_segments(ts: FloatArray, t: FloatArray) -> NDArray[np.int64]:
+    """Segment i of the samples with ts[i] ≤ t < ts[i+1] for each time, clamped to [0, K − 2].
 
-    Times are usually sorted: walk on from the previous segment ``i``, else bisect.
+    Times are usually sorted: walk on from the previous segment, else bisect.
     """
     k = ts.shape[0]
-    if tj < ts[i]:
-        lo, hi = 0, i
-        while lo < hi:
-            mid = (lo + hi + 1) // 2
-            if ts[mid] <= tj:
-                lo = mid
-            else:
-                hi = mid - 1
-        i = lo
-    while i < k - 2 and ts[i + 1] <= tj:
-        i += 1
-    return i
+    out = np.empty(t.shape[0], dtype=np.int64)
+    i = 0
+    for j in range(t.shape[0]):
+        tj = t[j]
+        if tj < ts[i]:
+            lo, hi = 0, i
+            while lo < hi:
+                mid = (lo + hi + 1) // 2
+                if ts[mid] <= tj:
+                    lo = mid
+                else:
+                    hi = mid - 1
+            i = lo
+        while i < k - 2 and ts[i + 1] <= tj:
+            i += 1
+        out[j] = i
+    return out
 
 
-@nb.njit(cache=True, inline="always")
-def pose_at(
-    ts: FloatArray, R: FloatArray, pos: FloatArray, i: int, tj: float
-) -> tuple[float, float, float, float, float, float, float, float, float, float, float, float]:
-    """Entries r00 … r22 and translation of the pose at tj in segment i (``pose_tables``).
+@nb.njit(cache=True, fastmath=True)
+def _transform_kernel(
+    ts: FloatArray,
+    R: FloatArray,
+    pos: FloatArray,
+    seg: NDArray[np.int64],
+    t: FloatArray,
+    V: FloatArray,
+    translate: bool,
+) -> FloatArray:
+    """R(t) v (+ p(t) if ``translate``) per row, with the linear pose interpolation of
+    ``pose_tables``:  R(u) = R_i + u (R_{i+1} − R_i),  p(u) = p_i + u (p_{i+1} − p_i),
+    u = clip((t − t_i) / (t_{i+1} − t_i), 0, 1).  Branch-free, so it vectorises."""
+    n = V.shape[0]
+    out = np.empty((n, 3))
+    for j in range(n):
+        i = seg[j]
+        u = min(max((t[j] - ts[i]) / (ts[i + 1] - ts[i]), 0.0), 1.0)
+        a, b, c = V[j, 0], V[j, 1], V[j, 2]
+        for r in range(3):
+            value = (
+                (R[i, r, 0] + u * (R[i + 1, r, 0] - R[i, r, 0])) * a
+                + (R[i, r, 1] + u * (R[i + 1, r, 1] - R[i, r, 1])) * b
+                + (R[i, r, 2] + u * (R[i + 1, r, 2] - R[i, r, 2])) * c
+            )
+            if translate:
+                value += pos[i, r] + u * (pos[i + 1, r] - pos[i, r])
+            out[j, r] = value
+    return out
 
-    R(u) = R_i + u (R_{i+1} − R_i),  p(u) = p_i + u (p_{i+1} − p_i),  u = (tj − t_i)/(t_{i+1} − t_i)
-    """
-    j = i + 1  # pose_tables gives at least two samples
-    u = min(max((tj - ts[i]) / (ts[j] - ts[i]), 0.0), 1.0)
-    # fmt: off
-    return (
-        R[i, 0, 0] + u * (R[j, 0, 0] - R[i, 0, 0]), R[i, 0, 1] + u * (R[j, 0, 1] - R[i, 0, 1]),
-        R[i, 0, 2] + u * (R[j, 0, 2] - R[i, 0, 2]), R[i, 1, 0] + u * (R[j, 1, 0] - R[i, 1, 0]),
-        R[i, 1, 1] + u * (R[j, 1, 1] - R[i, 1, 1]), R[i, 1, 2] + u * (R[j, 1, 2] - R[i, 1, 2]),
-        R[i, 2, 0] + u * (R[j, 2, 0] - R[i, 2, 0]), R[i, 2, 1] + u * (R[j, 2, 1] - R[i, 2, 1]),
-        R[i, 2, 2] + u * (R[j, 2, 2] - R[i, 2, 2]),
-        pos[i, 0] + u * (pos[j, 0] - pos[i, 0]), pos[i, 1] + u * (pos[j, 1] - pos[i, 1]),
-        pos[i, 2] + u * (pos[j, 2] - pos[i, 2]),
-    )
-    # fmt: on
+
+def transform_at_times(
+    pose_t: ArrayLike, poses: ArrayLike, t: ArrayLike, vectors: ArrayLike, translate: bool = True
+) -> FloatArray:
+    """R(t_j) v_j (+ p(t_j)) for rows v_j (N, 3), poses interpolated as ``pose_tables`` says."""
+    ts, R, pos = pose_tables(pose_t, poses)
+    tq = np.ascontiguousarray(np.atleast_1d(np.asarray(t, dtype=np.float64)))
+    V = np.ascontiguousarray(vectors, dtype=np.float64)
+    if V.shape != (len(tq), 3):
+        raise InputError(f"vectors must be ({len(tq)}, 3), got {V.shape}")
+    return _transform_kernel(ts, R, pos, pose_segments(ts, tq), tq, V, translate)
 
 
 def apply_interpolated_poses(
@@ -317,9 +342,8 @@ def apply_interpolated_poses(
     """Rotate ``vectors`` (N, 3) and transform ``points`` (N, 3) by the pose at each time.
 
     Poses between samples as ``interpolate_poses`` gives them, to within
-    MAX_SEGMENT_ANGLE²/8 (see ``pose_tables``), computed point by point without
-    forming N matrices.  ``points`` defaults to the origin, so the second result
-    is then the pose translation.  Returns (R v, R p + t).
+    MAX_SEGMENT_ANGLE²/8 (see ``pose_tables``).  ``points`` defaults to the
+    origin, so the second result is then the pose translation.  Returns (R v, R p + t).
     """
     ts, R, pos = pose_tables(pose_t, poses)
     tq = np.ascontiguousarray(np.atleast_1d(np.asarray(t, dtype=np.float64)))
@@ -327,26 +351,7 @@ def apply_interpolated_poses(
     P = np.zeros_like(V) if points is None else np.ascontiguousarray(points, dtype=np.float64)
     if V.shape != (len(tq), 3) or P.shape != V.shape:
         raise InputError(f"vectors and points must be ({len(tq)}, 3), got {V.shape}, {P.shape}")
-    return _apply_poses_kernel(ts, R, pos, tq, V, P)
-
-
-@nb.njit(cache=True, fastmath=True)
-def _apply_poses_kernel(
-    ts: FloatArray, R: FloatArray, pos: FloatArray, t: FloatArray, V: FloatArray, P: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    n = t.shape[0]
-    out_v = np.empty((n, 3))
-    out_p = np.empty((n, 3))
-    i = 0
-    for j in range(n):
-        i = pose_segment(ts, t[j], i)
-        r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz = pose_at(ts, R, pos, i, t[j])
-        a, b, c = V[j, 0], V[j, 1], V[j, 2]
-        out_v[j, 0] = r00 * a + r01 * b + r02 * c
-        out_v[j, 1] = r10 * a + r11 * b + r12 * c
-        out_v[j, 2] = r20 * a + r21 * b + r22 * c
-        a, b, c = P[j, 0], P[j, 1], P[j, 2]
-        out_p[j, 0] = r00 * a + r01 * b + r02 * c + px
-        out_p[j, 1] = r10 * a + r11 * b + r12 * c + py
-        out_p[j, 2] = r20 * a + r21 * b + r22 * c + pz
-    return out_v, out_p
+    seg = pose_segments(ts, tq)
+    return _transform_kernel(ts, R, pos, seg, tq, V, False), _transform_kernel(
+        ts, R, pos, seg, tq, P, True
+    )

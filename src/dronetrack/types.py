@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray, apply_interpolated_poses, interpolate_poses
+from dronetrack.geometry import FloatArray, interpolate_poses, transform_at_times
 
 __all__ = ["Frame", "TurretCommand", "TurretState"]
 
@@ -69,10 +69,7 @@ class Frame:
         """Points (N, 3) in the world frame, each with the sensor pose at its time."""
         if len(self) == 0:
             return np.empty((0, 3))
-        _, world = apply_interpolated_poses(
-            self.pose_t, self.poses, self.t, self.points, self.points
-        )
-        return world
+        return transform_at_times(self.pose_t, self.poses, self.t, self.points)
 
 
 @dataclass(frozen=True, slots=True)

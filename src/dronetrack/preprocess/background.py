@@ -97,7 +97,8 @@ class VoxelBackground:
         """Whether each world point (N, 3) falls in an occupied cell (non-finite: False)."""
         out = np.zeros(len(points), dtype=bool)
         ok = finite_mask(points)
-        out[ok] = self.cells.contains(voxel_keys(points[ok], self.cell_size))
+        idx = np.floor(points[ok] / self.cell_size).astype(np.int64)
+        out[ok] = self.cells.contains_index(idx)
         return out
 
     def __len__(self) -> int:

@@ -116,32 +116,89 @@ def _build_table(keys: IntArray, size: int, shift: int) -> IntArray:
     return table
 
 
+@nb.njit(cache=True, inline="always")
+def occupied(
+    ix: int,
+    iy: int,
+    iz: int,
+    grid: NDArray[np.uint8],
+    origin: IntArray,
+    table: IntArray,
+    shift: int,
+) -> bool:
+    """Whether voxel (ix, iy, iz) is in the set: the dense grid if there is one, else the hash."""
+    if grid.shape[0] > 0:
+        gx, gy, gz = ix - origin[0], iy - origin[1], iz - origin[2]
+        if gx < 0 or gy < 0 or gz < 0:
+            return False
+        if gx >= grid.shape[0] or gy >= grid.shape[1] or gz >= grid.shape[2]:
+            return False
+        return bool(grid[gx, gy, gz] != 0)
+    if abs(ix) >= OFFSET or abs(iy) >= OFFSET or abs(iz) >= OFFSET:
+        return False
+    return table_contains(table, shift, pack(ix, iy, iz))
+
+
 @nb.njit(cache=True)
-def _contains_many(table: IntArray, shift: int, keys: IntArray) -> NDArray[np.bool_]:
-    out = np.empty(keys.shape[0], dtype=np.bool_)
-    for j in range(keys.shape[0]):
-        out[j] = table_contains(table, shift, keys[j])
+def _contains_many(
+    grid: NDArray[np.uint8], origin: IntArray, table: IntArray, shift: int, idx: IntArray
+) -> NDArray[np.bool_]:
+    out = np.empty(idx.shape[0], dtype=np.bool_)
+    for j in range(idx.shape[0]):
+        out[j] = occupied(idx[j, 0], idx[j, 1], idx[j, 2], grid, origin, table, shift)
     return out
+
+
+DENSE_MAX_CELLS = 1 << 24  # a dense grid up to 16 M voxels (16 MB), else the hash alone
 
 
 @dataclass(frozen=True, slots=True)
 class KeySet:
-    """A set of voxel keys with O(1) membership tests (linear probing, load ≤ ½)."""
+    """A set of voxels with O(1) membership tests.
+
+    A dense occupancy grid over the set's bounding box when that box is small
+    enough (cache-friendly for points that arrive in scan order), and always an
+    open-addressing hash table of the keys (linear probing, load ≤ ½).
+    """
 
     keys: IntArray  # sorted distinct keys
     table: IntArray
     shift: int
+    grid: NDArray[np.uint8]  # (nx, ny, nz), or (0, 0, 0) without a dense grid
+    origin: IntArray  # (3,) voxel index of grid[0, 0, 0]
 
     @staticmethod
     def of(keys: IntArray) -> KeySet:
         distinct = unique_keys(np.asarray(keys, dtype=np.int64))
         bits = max(4, int(np.ceil(np.log2(max(2 * len(distinct), 1)))) + 1)
         shift = 64 - bits
-        return KeySet(distinct, _build_table(distinct, 1 << bits, shift), shift)
+        table = _build_table(distinct, 1 << bits, shift)
+        grid = np.zeros((0, 0, 0), dtype=np.uint8)
+        origin = np.zeros(3, dtype=np.int64)
+        if len(distinct):
+            idx = np.column_stack(_unpack(distinct))
+            origin = idx.min(axis=0)
+            shape = idx.max(axis=0) - origin + 1
+            if int(np.prod(shape)) <= DENSE_MAX_CELLS:
+                grid = np.zeros(tuple(int(v) for v in shape), dtype=np.uint8)
+                rel = idx - origin
+                grid[rel[:, 0], rel[:, 1], rel[:, 2]] = 1
+        return KeySet(distinct, table, shift, grid, origin)
 
     def __len__(self) -> int:
         return len(self.keys)
 
     def contains(self, keys: IntArray) -> NDArray[np.bool_]:
         """Membership of each key."""
-        return _contains_many(self.table, self.shift, np.ascontiguousarray(keys, dtype=np.int64))
+        idx = np.column_stack(_unpack(np.asarray(keys, dtype=np.int64)))
+        return self.contains_index(idx)
+
+    def contains_index(self, idx: IntArray) -> NDArray[np.bool_]:
+        """Membership of voxels given by their integer indices (N, 3)."""
+        return _contains_many(
+            self.grid,
+            self.origin,
+            self.table,
+            self.shift,
+            np.ascontiguousarray(idx, dtype=np.int64),
+        )

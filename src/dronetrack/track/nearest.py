@@ -4,21 +4,26 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from dronetrack.geometry import FloatArray
 
 __all__ = ["nearest_distances"]
 
-BRUTE_FORCE_MAX = 64  # up to this many points a direct scan beats building a k-d tree
+# A direct scan costs about 1 ns per query-point pair here, a k-d tree query ~0.3 µs.
+BRUTE_FORCE_MAX_PAIRS = 20_000_000
 
 
 def nearest_distances(queries: FloatArray, points: FloatArray) -> FloatArray:
     """min_j ‖q_i − p_j‖ for queries (N, 3) against points (M ≥ 1, 3)."""
-    if len(points) <= BRUTE_FORCE_MAX:
+    if len(queries) * len(points) <= BRUTE_FORCE_MAX_PAIRS:
+        # Single precision relative to a point of the set: 0.1 mm resolution within
+        # 1 km, and twice the throughput of doubles.
+        ref = points[0]
         return _brute_force(
-            np.ascontiguousarray(queries, dtype=np.float64),
-            np.ascontiguousarray(points, dtype=np.float64),
+            np.ascontiguousarray(queries - ref, dtype=np.float32),
+            np.ascontiguousarray(points - ref, dtype=np.float32),
         )
     dist, _ = cKDTree(points).query(queries, k=1)
     out: FloatArray = np.asarray(dist, dtype=np.float64)
@@ -26,17 +31,15 @@ def nearest_distances(queries: FloatArray, points: FloatArray) -> FloatArray:
 
 
 @nb.njit(cache=True, fastmath=True)
-def _brute_force(Q: FloatArray, P: FloatArray) -> FloatArray:
+def _brute_force(Q: NDArray[np.float32], P: NDArray[np.float32]) -> FloatArray:
     n, m = Q.shape[0], P.shape[0]
     out = np.empty(n)
     for i in range(n):
-        best = np.inf
+        best = np.float32(np.inf)
         for j in range(m):
             dx = Q[i, 0] - P[j, 0]
             dy = Q[i, 1] - P[j, 1]
             dz = Q[i, 2] - P[j, 2]
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 < best:
-                best = d2
+            best = min(best, dx * dx + dy * dy + dz * dz)
         out[i] = np.sqrt(best)
     return out

@@ -28,7 +28,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import numba as nb
 import numpy as np
+from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError
 from dronetrack.geometry import FloatArray
@@ -89,29 +91,55 @@ def cylinder_particles(
     return X
 
 
+_MODEL_CODE = {"delta": 0, "cv": 1, "ca": 2}
+
+
 def predict(
     X: FloatArray, model: MotionModel, noise: NoiseParameters, rho: float, Z: FloatArray
 ) -> FloatArray:
     """One prediction step of eqs. (1)-(7); Z (N, 9) holds standard normal draws."""
-    T = noise.period
-    p, v, a = X[:, 0:3], X[:, 3:6], X[:, 6:9]
     out = np.empty_like(X)
-    if model == "ca":
-        # x_k = x + v T + ½ a T² + p_x;  v_k = v + a T + p_v;  a_k = a + p_a
-        out[:, 0:3] = p + v * T + 0.5 * a * T**2 + noise.sigma_pos * Z[:, 0:3]
-        out[:, 3:6] = v + a * T + noise.sigma_vel * Z[:, 3:6]
-        out[:, 6:9] = a + noise.sigma_acc * Z[:, 6:9]
-        return out
-    # x_k = x + v T + p_x
-    out[:, 0:3] = p + v * T + noise.sigma_pos * Z[:, 0:3]
-    if model == "delta":
-        # v_k = ρ (x_k − x) / T
-        out[:, 3:6] = rho * (out[:, 0:3] - p) / T
-    else:
-        # v_k = v + p_v
-        out[:, 3:6] = v + noise.sigma_vel * Z[:, 3:6]
-    out[:, 6:9] = 0.0
+    _predict_kernel(
+        X,
+        out,
+        _MODEL_CODE[model],
+        noise.sigma_pos,
+        noise.sigma_vel,
+        noise.sigma_acc,
+        rho,
+        noise.period,
+        Z,
+    )
     return out
+
+
+@nb.njit(cache=True, fastmath=True)
+def _predict_kernel(
+    X: FloatArray,
+    out: FloatArray,
+    model: int,
+    s_pos: float,
+    s_vel: float,
+    s_acc: float,
+    rho: float,
+    T: float,
+    Z: FloatArray,
+) -> None:
+    for i in range(X.shape[0]):
+        for k in range(3):
+            p, v, a = X[i, k], X[i, 3 + k], X[i, 6 + k]
+            if model == 2:
+                # x_k = x + v T + ½ a T² + p_x;  v_k = v + a T + p_v;  a_k = a + p_a
+                out[i, k] = p + v * T + 0.5 * a * T * T + s_pos * Z[i, k]
+                out[i, 3 + k] = v + a * T + s_vel * Z[i, 3 + k]
+                out[i, 6 + k] = a + s_acc * Z[i, 6 + k]
+            else:
+                # x_k = x + v T + p_x
+                p_new = p + v * T + s_pos * Z[i, k]
+                out[i, k] = p_new
+                # delta: v_k = ρ (x_k − x) / T;  constant velocity: v_k = v + p_v
+                out[i, 3 + k] = rho * (p_new - p) / T if model == 0 else v + s_vel * Z[i, 3 + k]
+                out[i, 6 + k] = 0.0
 
 
 def likelihood_weights(distances: FloatArray, sigma_m: float, floor: float) -> FloatArray:
@@ -127,7 +155,56 @@ def likelihood_weights(distances: FloatArray, sigma_m: float, floor: float) -> F
 
 def spread(X: FloatArray) -> float:
     """σ_particles: the mean of the per-axis standard deviations of the positions."""
-    return float(np.mean(np.std(X[:, 0:3], axis=0)))
+    return float(_spread_kernel(X))
+
+
+@nb.njit(cache=True, fastmath=True)
+def _spread_kernel(X: FloatArray) -> float:
+    n = X.shape[0]
+    total = 0.0
+    for k in range(3):
+        mean = 0.0
+        for i in range(n):
+            mean += X[i, k]
+        mean /= n
+        var = 0.0
+        for i in range(n):
+            d = X[i, k] - mean
+            var += d * d
+        total += np.sqrt(var / n)
+    return total / 3.0
+
+
+@nb.njit(cache=True)
+def _position_bounds(X: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Per-axis minimum and maximum of the particle positions."""
+    lo = X[0, 0:3].copy()
+    hi = X[0, 0:3].copy()
+    for i in range(1, X.shape[0]):
+        for k in range(3):
+            lo[k] = min(lo[k], X[i, k])
+            hi[k] = max(hi[k], X[i, k])
+    return lo, hi
+
+
+@nb.njit(cache=True)
+def _column_means(X: FloatArray) -> FloatArray:
+    out = np.zeros(X.shape[1])
+    for i in range(X.shape[0]):
+        for k in range(X.shape[1]):
+            out[k] += X[i, k]
+    for k in range(X.shape[1]):
+        out[k] /= X.shape[0]
+    return out
+
+
+@nb.njit(cache=True)
+def _gather(X: FloatArray, idx: NDArray[np.int64]) -> FloatArray:
+    """The particles X[idx] (resampling's copy)."""
+    out = np.empty((idx.shape[0], X.shape[1]))
+    for j in range(idx.shape[0]):
+        out[j] = X[idx[j]]
+    return out
 
 
 class ParticleFilter:
@@ -176,8 +253,10 @@ class ParticleFilter:
         """Move every particle one period ahead (eqs. 1-7)."""
         # ρ from the spread after the previous step, eq. (2)
         rho = 1.0 if self.tracked else self.noise.sigma_pos / self.sigma_particles
-        dims = STATE_DIM if self.model == "ca" else 6
-        self._Z[:, :dims] = self.rng.standard_normal((self.n, dims))
+        # Draws for the noise terms the model uses: position (delta), + velocity (cv),
+        # + acceleration (ca).
+        dims = {"delta": 3, "cv": 6, "ca": STATE_DIM}[self.model]
+        self._Z[:, :dims] = self.rng.standard_normal((self.n, dims), dtype=np.float32)
         self.X = predict(self.X, self.model, self.noise, rho, self._Z)
         self.sigma_particles = spread(self.X)
 
@@ -188,19 +267,18 @@ class ParticleFilter:
         # Points beyond 8 σ_m of every particle leave all weights at the floor:
         # keep only those near the cloud's bounding box.
         margin = 8.0 * self.noise.sigma_m
-        lo = self.X[:, 0:3].min(axis=0) - margin
-        hi = self.X[:, 0:3].max(axis=0) + margin
-        near = points[np.all((points >= lo) & (points <= hi), axis=1)]
+        lo, hi = _position_bounds(self.X)
+        near = points[np.all((points >= lo - margin) & (points <= hi + margin), axis=1)]
         if len(near) == 0:
             w = np.full(self.n, 1.0 / self.n)
         else:
             d = nearest_distances(self.X[:, 0:3], near)
             w = likelihood_weights(d, self.noise.sigma_m, self.weight_floor)
-        self.X = self.X[self._resample(w, self.rng)]
+        self.X = _gather(self.X, self._resample(w, self.rng))
         self.sigma_particles = spread(self.X)
         return True
 
     def estimate(self) -> tuple[FloatArray, FloatArray]:
         """Mean position and mean velocity of the particles."""
-        mean = self.X.mean(axis=0)
+        mean = _column_means(self.X)
         return mean[0:3].copy(), mean[3:6].copy()
