@@ -35,6 +35,17 @@ class TurretMode(StrEnum):
     fixed = "fixed"
 
 
+class ControlMode(StrEnum):
+    tracking = "tracking"
+    fixed = "fixed"
+
+
+class TrackerName(StrEnum):
+    pf_delta = "pf-delta"
+    pf_cv = "pf-cv"
+    pf_ca = "pf-ca"
+
+
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"dronetrack {__version__}")
@@ -180,6 +191,124 @@ def render(
     )
     for p in paths:
         typer.echo(str(p))
+
+
+@app.command()
+def simulate(
+    scenario: Annotated[
+        str | None,
+        typer.Argument(help="A scenario name or .toml file (default: 'default')."),
+    ] = None,
+    tracker: Annotated[
+        TrackerName | None, typer.Option("--tracker", help="The particle filter's motion model.")
+    ] = None,
+    turret: Annotated[
+        ControlMode | None,
+        typer.Option("--turret", help="Track the estimate, or keep the turret still."),
+    ] = None,
+    particles: Annotated[
+        int | None, typer.Option("--particles", min=10, help="Particle count.")
+    ] = None,
+    seed: Annotated[int | None, typer.Option("--seed", min=0, help="Random seed.")] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option("--duration", "-d", min=0.01, help="Seconds of flight after the scan."),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option("--config", help="A full configuration (a run's config.toml) to run again."),
+    ] = None,
+    trajectory: Annotated[
+        Path | None, typer.Option("--trajectory", help="CSV with columns t,x,y,z.")
+    ] = None,
+    visibility: Annotated[
+        float | None, typer.Option("--visibility", help="Meteorological visibility [m].")
+    ] = None,
+    drone: Annotated[str | None, typer.Option("--drone", help="Target model.")] = None,
+    sensor: Annotated[str | None, typer.Option("--sensor", help="Sensor model.")] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
+    ] = None,
+) -> None:
+    """Run the closed loop: scan the background, then detect, track and follow the drone.
+
+    Writes config.toml (the resolved configuration: re-run it with --config),
+    frames.csv, metrics.json and plots to the output folder, and prints the metrics.
+    """
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from dronetrack.errors import ConfigError
+    from dronetrack.io.runs import default_run_dir
+    from dronetrack.sim.scenario import apply_overrides, load_scenario_file
+    from dronetrack.sim.scenarios import SCENARIOS, get_scenario
+    from dronetrack.simulate import run_simulation, write_run
+
+    if config is not None and scenario is not None:
+        raise ConfigError("give a SCENARIO or --config, not both")
+    base = load_scenario_file(config, SCENARIOS) if config else get_scenario(scenario or "default")
+    cfg = apply_overrides(
+        base,
+        seed=seed,
+        duration=duration,
+        trajectory=trajectory,
+        visibility=visibility,
+        drone=drone,
+        sensor=sensor,
+        tracker=tracker.value if tracker else None,
+        particles=particles,
+        turret_mode=turret.value if turret else None,
+    )
+    out_dir = out if out is not None else default_run_dir()
+    columns = (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>3.0f}%"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=err_console, transient=True) as bar:
+        task = bar.add_task(f"simulating {cfg.name}", total=None)
+        run = run_simulation(cfg, progress=lambda i, n: bar.update(task, completed=i, total=n))
+    metrics = write_run(run, out_dir)
+    _print_metrics(metrics, out_dir)
+
+
+def _print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
+    from rich.table import Table
+
+    def fmt(value: object, unit: str = "", digits: int = 3) -> str:
+        if value is None:
+            return "n/a"
+        if isinstance(value, float):
+            return f"{value:.{digits}f}{unit}"
+        if isinstance(value, list):
+            return "[" + ", ".join(fmt(v, "", digits) for v in value) + "]" + unit
+        return f"{value}{unit}"
+
+    table = Table(title=f"metrics ({out_dir})", show_header=False)
+    rows = [
+        ("frames", fmt(metrics.get("frames"))),
+        ("coverage", fmt(metrics.get("coverage_pct"), " %", 1)),
+        ("max tracking distance", fmt(metrics.get("max_tracking_distance_m"), " m", 1)),
+        ("RMSE (from the first lock)", fmt(metrics.get("rmse_m"), " m")),
+        ("RMSE 95 % interval", fmt(metrics.get("rmse_ci95_m"), " m")),
+        ("RMSE x, y, z", fmt(metrics.get("rmse_xyz_m"), " m")),
+        ("RMSE while tracked", fmt(metrics.get("rmse_tracked_m"), " m")),
+        ("first lock", fmt(metrics.get("first_lock_s"), " s", 1)),
+        (
+            "step time mean / std / max",
+            " / ".join(
+                fmt(metrics.get(k), "", 2) for k in ("step_ms_mean", "step_ms_std", "step_ms_max")
+            )
+            + " ms",
+        ),
+        ("speed", fmt(metrics.get("realtime_factor"), "× real time", 1)),
+    ]
+    for name, value in rows:
+        table.add_row(name, value)
+    Console().print(table)
+    bad = metrics.get("bad_frames")
+    if isinstance(bad, dict) and bad:
+        err_console.print("frames with problems: " + ", ".join(f"{k} {v}" for k, v in bad.items()))
 
 
 def run(argv: list[str] | None = None) -> int:

@@ -13,6 +13,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,11 +21,11 @@ import numpy as np
 from dronetrack.eval.log import TrackLog
 from dronetrack.factory import build_pipeline, resolve_tracker, scan_duration
 from dronetrack.pipeline import Pipeline, StepResult
-from dronetrack.sim.scenario import ScenarioConfig, build_world, resolve_scenario
+from dronetrack.sim.scenario import ScenarioConfig, build_world, dump_scenario, resolve_scenario
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame
 
-__all__ = ["SimulationRun", "resolve_run", "run_simulation"]
+__all__ = ["SimulationRun", "resolve_run", "run_simulation", "write_run"]
 
 Progress = Callable[[int, int], None]
 
@@ -126,3 +127,18 @@ def _record(
         step_ms=result.step_ms,
         flags=result.flags,
     )
+
+
+def write_run(run: SimulationRun, out_dir: Path) -> dict[str, Any]:
+    """Write config.toml, frames.csv, metrics.json and the plots; return the metrics."""
+    from dronetrack.io.runs import write_frames_csv, write_metrics, write_plots
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "config.toml").write_text(dump_scenario(run.config))
+    write_frames_csv(run.log, out_dir / "frames.csv")
+    metrics = run.metrics()
+    write_metrics(metrics, out_dir / "metrics.json")
+    tracker = run.config.pipeline.tracker
+    threshold = 1.5 * max(tracker.sigma_pos or 0.0, tracker.sigma_m or 0.0)
+    write_plots(run.log, out_dir, threshold, run.config.name)
+    return metrics

@@ -209,9 +209,18 @@ def apply_overrides(
     drone: str | None = None,
     sensor: str | None = None,
     noise: bool | None = None,
+    tracker: str | None = None,
+    particles: int | None = None,
+    turret_mode: str | None = None,
 ) -> ScenarioConfig:
     """The scenario with command-line overrides applied (None leaves a value alone)."""
     data = cfg.model_dump()
+    if tracker is not None:
+        data["pipeline"]["tracker"]["kind"] = tracker
+    if particles is not None:
+        data["pipeline"]["tracker"]["particles"] = particles
+    if turret_mode is not None:
+        data["pipeline"]["controller"]["mode"] = turret_mode
     if seed is not None:
         data["seed"] = seed
     if duration is not None:
