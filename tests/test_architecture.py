@@ -10,7 +10,7 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "dronetrack"
 # Algorithm packages and the core modules they build on.
 ALGORITHMS = ["control", "preprocess", "detect", "track", "eval"]
-CORE = ["types.py", "errors.py", "geometry.py", "kinematics.py"]
+CORE = ["types.py", "errors.py", "geometry.py", "kinematics.py", "config.py", "pipeline.py"]
 FORBIDDEN = (
     "dronetrack.sim",
     "dronetrack.io",

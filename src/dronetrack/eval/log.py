@@ -149,6 +149,10 @@ class TrackLog:
             detected = counts > 0
             gaps = detection_gaps(a["t"], detected)
             out["target_points_total"] = int(counts.sum())
+            # The reference's "max return distance": the furthest frame with returns.
+            out["max_return_distance_m"] = (
+                float(a["range_m"][detected].max()) if detected.any() else None
+            )
             out["detections"] = int(detected.sum())
             out["detection_gap_s"] = {
                 "min": float(gaps.min()) if len(gaps) else None,

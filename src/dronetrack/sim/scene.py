@@ -93,7 +93,7 @@ def indoor_room(partition: bool = False) -> Scene:
 
     The turret stands 1 m in from the short wall behind it, looking down the
     8 m length (x from -1 to 7 m, y from -3.5 to 3.5 m).  With ``partition``, a
-    0.7 m wide, 2.2 m tall board at x = 2 m hides what is straight ahead 3-4 m
+    0.35 m wide, 2.2 m tall pillar at x = 2 m hides what is straight ahead 3-4 m
     away: the lost-and-found pattern's middle waypoint.
     """
     t = 0.2  # wall thickness
@@ -114,7 +114,7 @@ def indoor_room(partition: bool = False) -> Scene:
         box((5.5, -3.0, 0.9), (1.2, 0.6, 1.8), 0.3),
     ]
     if partition:
-        parts.append(box((2.0, 0.0, 1.1), (0.3, 0.7, 2.2), 0.5))
+        parts.append(box((2.0, 0.0, 1.1), (0.3, 0.35, 2.2), 0.5))
     name = "indoor-occluded" if partition else "indoor"
     return Scene(name, Primitives.concat(parts), (x0, y0, x1, y1))
 

@@ -1,0 +1,106 @@
+"""Turret control: tracking, holding and searching, fixed mode, scanning, limits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dronetrack.control.aiming import aim_angles
+from dronetrack.control.controller import TurretController
+from dronetrack.control.scan import raster, triangle
+from dronetrack.kinematics import MountGeometry
+from dronetrack.track.tracker import TrackEstimate
+
+MOUNT = MountGeometry((0.0, 0.0, 1.0), (0.0, 0.0, 0.05), (0.025, 0.0, 0.086))
+LIMITS = ((-math.pi, math.pi), (math.radians(-68), math.radians(68)))
+
+
+def _estimate(
+    t: float,
+    p: tuple[float, float, float],
+    tracked: bool = True,
+    v: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> TrackEstimate:
+    return TrackEstimate(t, np.array(p), np.array(v), tracked, 0.1 if tracked else 2.0)
+
+
+def _controller(**kw: object) -> TurretController:
+    return TurretController(MOUNT, *LIMITS, **kw)  # type: ignore[arg-type]
+
+
+def test_tracking_aims_at_the_estimate_and_leads_it() -> None:
+    c = _controller()
+    cmd = c.tracking(1.0, _estimate(1.0, (50.0, 10.0, 20.0)))
+    assert cmd is not None
+    assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles((50.0, 10.0, 20.0), MOUNT))
+    lead = _controller(lead_s=0.2).tracking(1.0, _estimate(1.0, (50.0, 10.0, 20.0), v=(0, 10, 0)))
+    assert lead is not None
+    assert (lead.pan, lead.tilt) == pytest.approx(aim_angles((50.0, 12.0, 20.0), MOUNT))
+
+
+def test_before_the_first_lock_it_looks_home() -> None:
+    c = _controller(home=(60.0, 0.0, 15.0))
+    cmd = c.tracking(0.0, _estimate(0.0, (5.0, 5.0, 5.0), tracked=False))
+    assert cmd is not None
+    assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles((60.0, 0.0, 15.0), MOUNT))
+
+
+def test_a_lost_target_is_held_then_searched_for() -> None:
+    c = _controller(
+        search_hold_s=2.0,
+        search_pan=math.radians(30),
+        search_tilt=math.radians(10),
+        search_period_s=4.0,
+    )
+    last = (40.0, -20.0, 10.0)
+    c.tracking(0.0, _estimate(0.0, last))
+    held = aim_angles(last, MOUNT)
+    pans = []
+    for k in range(1, 200):
+        t = 0.1 * k
+        cmd = c.tracking(t, _estimate(t, (0.0, 0.0, 0.0), tracked=False))
+        assert cmd is not None
+        if t < 2.0:
+            assert (cmd.pan, cmd.tilt) == pytest.approx(held)
+        else:
+            pans.append(cmd.pan - held[0])
+            assert abs(cmd.tilt - held[1]) <= math.radians(10) + 1e-9
+    pans_deg = np.degrees(pans)
+    assert pans_deg.max() == pytest.approx(30.0, abs=1.0)
+    assert pans_deg.min() == pytest.approx(-30.0, abs=1.0)
+    # Found again: back to tracking at once.
+    back = c.tracking(20.0, _estimate(20.0, (30.0, 5.0, 8.0)))
+    assert back is not None
+    assert (back.pan, back.tilt) == pytest.approx(aim_angles((30.0, 5.0, 8.0), MOUNT))
+
+
+def test_fixed_mode_sends_home_once_and_then_nothing() -> None:
+    c = _controller(mode="fixed", home=(80.0, 0.0, 20.0))
+    first = c.tracking(0.0, _estimate(0.0, (10.0, 0.0, 5.0)))
+    assert first is not None
+    assert (first.pan, first.tilt) == pytest.approx(aim_angles((80.0, 0.0, 20.0), MOUNT))
+    assert all(
+        c.tracking(0.1 * k, _estimate(0.1 * k, (10.0, 5.0, 5.0))) is None for k in range(1, 20)
+    )
+
+
+def test_commands_stay_within_the_joint_limits() -> None:
+    c = _controller()
+    # Straight up: the ideal tilt (−90°) is beyond the −68° limit.
+    cmd = c.tracking(0.0, _estimate(0.0, (0.5, 0.0, 50.0)))
+    assert cmd is not None
+    assert cmd.tilt == pytest.approx(LIMITS[1][0])
+
+
+def test_scanning_raster_covers_its_area() -> None:
+    pan = (math.radians(-60), math.radians(60))
+    tilt = (math.radians(-25), math.radians(5))
+    angles = np.array([raster(t, pan, tilt, 4.0) for t in np.linspace(0, 30, 3001)])
+    assert angles[:, 0].min() == pytest.approx(pan[0], abs=1e-3)
+    assert angles[:, 0].max() == pytest.approx(pan[1], abs=1e-3)
+    assert angles[:, 1].min() == pytest.approx(tilt[0], abs=1e-2)
+    assert angles[:, 1].max() == pytest.approx(tilt[1], abs=1e-2)
+    assert triangle(0.0, 1.0, 3.0, 2.0) == 1.0
+    assert triangle(1.0, 1.0, 3.0, 2.0) == 3.0

@@ -1,0 +1,85 @@
+"""Run metrics against hand-computed answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dronetrack.eval.log import TrackLog
+from dronetrack.eval.metrics import (
+    coverage_pct,
+    detection_gaps,
+    max_tracking_distance,
+    points_by_distance,
+    rmse,
+    timing,
+)
+
+
+def test_coverage_and_max_distance() -> None:
+    err = np.array([[0, 0, 1.0], [3, 0, 0], [0, 4.1, 0], [np.nan, 0, 0], [2, 2, 2]])
+    ranges = np.array([10.0, 50.0, 80.0, 90.0, 30.0])
+    # Within 4 m: rows 0, 1 and 4 (‖(2, 2, 2)‖ = 3.46); NaN counts as wrong.
+    assert coverage_pct(err) == pytest.approx(60.0)
+    assert max_tracking_distance(err, ranges) == 50.0
+    assert max_tracking_distance(err[2:4], ranges[2:4]) == 0.0
+    assert coverage_pct(np.empty((0, 3))) == 0.0
+
+
+def test_rmse_and_its_chi_square_interval() -> None:
+    err = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0], [1.0, 2.0, 2.0]])
+    r = rmse(err)
+    # √((25 + 0 + 9) / 3)
+    assert r.value == pytest.approx(np.sqrt(34 / 3))
+    assert r.per_axis == pytest.approx((np.sqrt(10 / 3), np.sqrt(20 / 3), np.sqrt(4 / 3)))
+    assert r.ci95[0] < r.value < r.ci95[1]
+
+
+def test_the_interval_covers_the_truth_95_percent_of_the_time() -> None:
+    g = np.random.default_rng(0)
+    sigma = 0.1  # per axis, so the true RMSE is σ √3
+    hits = 0
+    for _ in range(2000):
+        r = rmse(g.normal(0.0, sigma, (40, 3)))
+        # n·RMSE²/σ_e² ~ χ²(n) holds for the squared 3-D error; here each term is
+        # a χ²(3) sum, so the interval is conservative: it must cover ≥ 95 %.
+        hits += r.ci95[0] <= sigma * np.sqrt(3) <= r.ci95[1]
+    assert hits / 2000 >= 0.95
+
+
+def test_points_by_distance_gaps_and_timing() -> None:
+    rows = points_by_distance(np.array([5.0, 15.0, 16.0, 27.0]), np.array([10, 4, 6, 0]))
+    assert [(r["range_from_m"], r["frames"], r["points_mean"]) for r in rows] == [
+        (0.0, 1, 10.0),
+        (10.0, 2, 5.0),
+        (20.0, 1, 0.0),
+    ]
+    gaps = detection_gaps(
+        np.array([0.0, 0.1, 0.2, 0.3, 0.4]), np.array([True, False, False, True, True])
+    )
+    np.testing.assert_allclose(gaps, [0.3, 0.1])
+    assert timing(np.array([1.0, 3.0])) == {"mean": 2.0, "std": 1.0, "max": 3.0}
+
+
+def test_log_summary_without_ground_truth() -> None:
+    log = TrackLog()
+    for k in range(5):
+        log.append(
+            t=0.1 * k,
+            gt=np.full(3, np.nan),
+            est=np.zeros(3),
+            tracked=k > 1,
+            sigma=0.1,
+            n_points=3,
+            n_target_points=-1,
+            range_m=np.nan,
+            pan=0.0,
+            tilt=0.0,
+            step_ms=1.0,
+            flags=("gap",) if k == 3 else (),
+        )
+    m = log.summary()
+    assert m["frames"] == 5
+    assert m["first_lock_s"] == pytest.approx(0.2)
+    assert m["bad_frames"] == {"gap": 1}
+    assert "coverage_pct" not in m

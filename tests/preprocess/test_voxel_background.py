@@ -1,0 +1,114 @@
+"""Voxel keys, the key set, the background model and its file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from dronetrack.errors import InputError
+from dronetrack.io.background import load_background, save_background
+from dronetrack.preprocess import voxel
+from dronetrack.preprocess.background import VoxelBackground
+from dronetrack.preprocess.voxel import KeySet, coarsen_keys, dilate_keys, unique_keys, voxel_keys
+
+coords = arrays(np.float64, (40, 3), elements=st.floats(-500, 500))
+
+
+@given(coords, st.sampled_from([0.1, 0.25, 1.0, 4.0]))
+def test_keys_identify_voxels(points: np.ndarray, size: float) -> None:
+    keys = voxel_keys(points, size)
+    idx = np.floor(points / size).astype(np.int64)
+    # Same key exactly when same voxel.
+    same_key = keys[:, None] == keys[None, :]
+    same_voxel = np.all(idx[:, None, :] == idx[None, :, :], axis=2)
+    np.testing.assert_array_equal(same_key, same_voxel)
+
+
+def test_dilation_and_coarsening() -> None:
+    one = voxel_keys(np.array([[0.5, 0.5, 0.5]]), 1.0)
+    assert len(dilate_keys(one, 1)) == 27
+    assert len(dilate_keys(one, 2)) == 125
+    # Voxel indices -1 and 0..3 fall in coarse cells -1 and 0 two levels up (4 m).
+    fine = voxel_keys(np.array([[-0.5, 0, 0], [0.5, 0, 0], [3.9, 0, 0]]), 1.0)
+    coarse = coarsen_keys(fine, 2)
+    np.testing.assert_array_equal(
+        coarse, unique_keys(voxel_keys(np.array([[-3.9, 0, 0], [1.0, 0, 0]]), 4.0))
+    )
+
+
+@settings(max_examples=30)
+@given(arrays(np.int64, 60, elements=st.integers(-50, 50)), st.booleans())
+def test_key_set_membership_matches_isin(values: np.ndarray, dense: bool) -> None:
+    pts = np.column_stack([values, np.roll(values, 1), np.roll(values, 2)]).astype(np.float64) + 0.5
+    stored = voxel_keys(pts[:30], 1.0)
+    probe = voxel_keys(pts, 1.0)
+    limit = voxel.DENSE_MAX_CELLS
+    try:
+        voxel.DENSE_MAX_CELLS = limit if dense else 0
+        ks = KeySet.of(stored)
+        assert (ks.grid.size > 0) == dense
+        np.testing.assert_array_equal(ks.contains(probe), np.isin(probe, stored))
+    finally:
+        voxel.DENSE_MAX_CELLS = limit
+
+
+def _wall(n: int = 5000) -> np.ndarray:
+    g = np.random.default_rng(0)
+    return np.column_stack([np.full(n, 20.0), g.uniform(-10, 10, n), g.uniform(0, 8, n)])
+
+
+def test_background_subtracts_the_scanned_scene_and_keeps_the_rest() -> None:
+    bg = VoxelBackground(resolution=0.5, inflate=1, lookup_depth=0)
+    bg.insert(_wall())
+    bg.build()
+    near_wall = np.array([[20.3, 0.0, 4.0], [19.6, 5.0, 1.0]])  # within the inflation
+    free = np.array([[15.0, 0.0, 4.0], [20.0, 30.0, 4.0], [np.nan, 0.0, 0.0]])
+    np.testing.assert_array_equal(bg.is_background(near_wall), [True, True])
+    np.testing.assert_array_equal(bg.is_background(free), [False, False, False])
+
+
+def test_min_hits_drops_sparse_voxels() -> None:
+    bg = VoxelBackground(resolution=1.0, inflate=0, min_hits=3)
+    bg.insert(np.array([[0.5, 0.5, 0.5]] * 3 + [[5.5, 0.5, 0.5]] * 2))
+    bg.build()
+    np.testing.assert_array_equal(
+        bg.is_background(np.array([[0.2, 0.2, 0.2], [5.2, 0.2, 0.2]])), [True, False]
+    )
+
+
+def test_lookup_depth_coarsens_like_an_octree() -> None:
+    bg = VoxelBackground(resolution=1.0, inflate=0, lookup_depth=2)
+    bg.insert(np.array([[0.5, 0.5, 0.5]]))
+    bg.build()
+    assert bg.cell_size == 4.0
+    np.testing.assert_array_equal(
+        bg.is_background(np.array([[3.9, 3.9, 3.9], [4.1, 0, 0]])), [True, False]
+    )
+
+
+def test_background_file_round_trip(tmp_path: Path) -> None:
+    bg = VoxelBackground(resolution=0.5, inflate=1, lookup_depth=1)
+    bg.insert(_wall())
+    bg.build()
+    path = tmp_path / "site.npz"
+    save_background(bg, path)
+    again = load_background(path)
+    assert (again.resolution, again.inflate, again.lookup_depth) == (0.5, 1, 1)
+    probe = np.random.default_rng(1).uniform([15, -12, -1], [25, 12, 10], (2000, 3))
+    np.testing.assert_array_equal(again.is_background(probe), bg.is_background(probe))
+
+
+def test_bad_background_files(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="not found"):
+        load_background(tmp_path / "none.npz")
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(InputError, match="cannot read"):
+        load_background(junk)
+    with pytest.raises(InputError, match="not been built"):
+        VoxelBackground(1.0).is_background(np.zeros((1, 3)))

@@ -1,0 +1,81 @@
+"""Seeded closed-loop runs against seed 000's results.
+
+Each threshold is set from the values measured here (seed 0) with margin, and
+from the seed's published figures where the simulation can be compared:
+
+- default flight, turret tracking against fixed: measured 73 % / 142 m against
+  17 % / 33 m (seed 000 Table II: 71 % / 130 m against 52 % / 103 m);
+- field test, sunny against fog (V = 100 m): 153 m against 65 m (seed: 128 m
+  against 58 m);
+- indoor slow patterns: RMSE 2.9 cm (seed Table IV: 5.4 and 5.7 cm);
+- lost-and-found: recaptured in the frame the drone reappears (seed: "practically
+  instantaneous"; the issue asks for 1 s).
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dronetrack.sim.scenario import apply_overrides
+from dronetrack.sim.scenarios import SCENARIOS
+from dronetrack.simulate import SimulationRun, run_simulation
+
+
+@cache
+def _run(name: str, turret: str | None = None) -> SimulationRun:
+    return run_simulation(apply_overrides(SCENARIOS[name], seed=0, turret_mode=turret))
+
+
+def _metrics(name: str, turret: str | None = None) -> dict[str, Any]:
+    return _run(name, turret).metrics()
+
+
+def test_the_turret_tracks_further_and_longer_than_a_fixed_sensor() -> None:
+    moving = _metrics("default")
+    fixed = _metrics("default", "fixed")
+    assert moving["coverage_pct"] >= 60.0
+    assert moving["coverage_pct"] >= fixed["coverage_pct"] + 30.0
+    assert moving["max_tracking_distance_m"] >= 120.0
+    assert moving["max_tracking_distance_m"] >= fixed["max_tracking_distance_m"] + 40.0
+
+
+def test_fog_cuts_the_reach_as_in_the_field_test() -> None:
+    sunny = _metrics("field-sunny")["max_tracking_distance_m"]
+    foggy = _metrics("field-foggy")["max_tracking_distance_m"]
+    assert sunny >= 120.0
+    assert 45.0 <= foggy <= 80.0
+
+
+@pytest.mark.parametrize("name", ["indoor-horizontal", "indoor-vertical"])
+def test_indoor_slow_patterns_reach_centimetre_accuracy(name: str) -> None:
+    m = _metrics(name)
+    assert m["rmse_m"] < 0.06
+    assert m["rmse_ci95_m"][0] < m["rmse_m"] < m["rmse_ci95_m"][1]
+    assert m["coverage_pct"] == 100.0
+
+
+def test_lost_and_found_recaptures_within_a_second() -> None:
+    a = _run("indoor-lost-and-found").log.arrays()
+    visible = a["n_target_points"] > 0
+    err = np.sqrt(
+        (a["est_x"] - a["gt_x"]) ** 2
+        + (a["est_y"] - a["gt_y"]) ** 2
+        + (a["est_z"] - a["gt_z"]) ** 2
+    )
+    recaptured = a["tracked"] & (err < 0.3)
+    delays = []
+    hidden_for = 0
+    for i in range(1, len(a["t"])):
+        hidden_for = hidden_for + 1 if not visible[i - 1] else 0
+        if visible[i] and hidden_for >= 10:  # back after at least 1 s out of sight
+            later = np.flatnonzero(recaptured[i:])
+            assert len(later), f"never recaptured after t = {a['t'][i]:.1f} s"
+            delays.append(a["t"][i + later[0]] - a["t"][i])
+    assert len(delays) >= 6  # the pattern hides the drone on every pass
+    assert max(delays) <= 1.0
+    # While it is hidden the filter knows it has lost it.
+    assert not a["tracked"][~visible & (np.arange(len(visible)) > 200)].all()

@@ -1,0 +1,203 @@
+"""Seed 000's particle filter: eq. (11), the motion models, weights, resampling, re-detection."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.spatial import cKDTree
+
+from dronetrack.errors import ConfigError
+from dronetrack.track.nearest import nearest_distances
+from dronetrack.track.particle import (
+    NoiseParameters,
+    ParticleFilter,
+    cylinder_particles,
+    eq11_parameters,
+    likelihood_weights,
+    predict,
+    spread,
+)
+from dronetrack.track.resample import multinomial, systematic
+
+
+def test_eq11_gives_the_papers_parameters() -> None:
+    # §III-A: 15 m/s, 15 m/s², s_diag 0.4 m, 10 Hz → σ_pos 0.5, σ_vel 0.5, σ_acc 0, σ_m 0.2.
+    n = eq11_parameters(15.0, 15.0, 0.4, 0.1)
+    assert (n.sigma_pos, n.sigma_vel, n.sigma_acc, n.sigma_m) == pytest.approx((0.5, 0.5, 0.0, 0.2))
+    assert n.threshold == pytest.approx(0.75)
+    # §III-E: Crazyflie, 1.2 m/s, 1.2 m/s², 12 cm → 0.04, 0.04, σ_m 0.06, σ_threshold 0.09.
+    n = eq11_parameters(1.2, 1.2, 0.12, 0.1)
+    assert (n.sigma_pos, n.sigma_vel, n.sigma_m, n.threshold) == pytest.approx(
+        (0.04, 0.04, 0.06, 0.09)
+    )
+
+
+def _state(n: int, g: np.random.Generator) -> np.ndarray:
+    return g.normal(size=(n, 9))
+
+
+@given(st.integers(0, 2**32 - 1), st.floats(0.05, 1.0))
+def test_motion_models_without_noise(seed: int, rho: float) -> None:
+    g = np.random.default_rng(seed)
+    X = _state(50, g)
+    quiet = NoiseParameters(0.0, 0.0, 0.0, 0.1, 0.1)
+    Z = g.normal(size=(50, 9))
+    T = 0.1
+    p, v, a = X[:, :3], X[:, 3:6], X[:, 6:]
+    # Constant acceleration: x + v T + ½ a T², v + a T, a.
+    ca = predict(X, "ca", quiet, 1.0, Z)
+    np.testing.assert_allclose(ca[:, :3], p + v * T + 0.5 * a * T**2, atol=1e-12)
+    np.testing.assert_allclose(ca[:, 3:6], v + a * T, atol=1e-12)
+    np.testing.assert_allclose(ca[:, 6:], a, atol=1e-12)
+    # Constant velocity: x + v T, v, 0.
+    cv = predict(X, "cv", quiet, 1.0, Z)
+    np.testing.assert_allclose(cv[:, :3], p + v * T, atol=1e-12)
+    np.testing.assert_allclose(cv[:, 3:6], v, atol=1e-12)
+    assert not cv[:, 6:].any()
+    # Delta position: x + v T, v = ρ Δx / T.
+    delta = predict(X, "delta", quiet, rho, Z)
+    np.testing.assert_allclose(delta[:, :3], p + v * T, atol=1e-12)
+    np.testing.assert_allclose(delta[:, 3:6], rho * v, atol=1e-12)
+
+
+def test_process_noise_has_the_configured_spread() -> None:
+    g = np.random.default_rng(3)
+    X = np.zeros((200_000, 9))
+    noise = NoiseParameters(0.5, 0.3, 0.2, 0.2, 0.1)
+    out = predict(X, "ca", noise, 1.0, g.standard_normal((200_000, 9)))
+    np.testing.assert_allclose(out.std(axis=0), [0.5] * 3 + [0.3] * 3 + [0.2] * 3, rtol=0.01)
+
+
+def test_cylinder_initialisation() -> None:
+    X = cylinder_particles(np.random.default_rng(0), 20_000, np.array([25.0, 0.0, 1.0]), 20.0, 20.0)
+    r = np.hypot(X[:, 0] - 25.0, X[:, 1])
+    assert r.max() <= 20.0
+    assert X[:, 2].min() >= 1.0
+    assert X[:, 2].max() <= 21.0
+    # r ~ U[0, R] as in the reference: the median radius is R/2 (not R/√2).
+    assert np.median(r) == pytest.approx(10.0, rel=0.03)
+    assert not X[:, 3:].any()
+
+
+@given(arrays(np.float64, 30, elements=st.floats(0.0, 5.0)), st.floats(0.01, 1.0))
+def test_weights_are_normalised_and_fall_with_distance(d: np.ndarray, sigma: float) -> None:
+    w = likelihood_weights(d, sigma, 1e-4)
+    assert w.sum() == pytest.approx(1.0)
+    order = np.argsort(d)
+    assert np.all(np.diff(w[order]) <= 1e-15)
+
+
+@settings(max_examples=20)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 300))
+def test_nearest_distances_match_a_kd_tree(seed: int, m: int) -> None:
+    g = np.random.default_rng(seed)
+    q = g.uniform(-100, 100, (500, 3))
+    p = g.uniform(-100, 100, (m, 3))
+    expected, _ = cKDTree(p).query(q)
+    np.testing.assert_allclose(nearest_distances(q, p), expected, atol=1e-4)
+
+
+@pytest.mark.parametrize("resample", [multinomial, systematic])
+def test_resampling(resample) -> None:  # type: ignore[no-untyped-def]
+    g = np.random.default_rng(0)
+    one_hot = np.zeros(100)
+    one_hot[37] = 1.0
+    assert np.all(resample(one_hot, g) == 37)
+    w = g.uniform(size=1000)
+    w /= w.sum()
+    counts = np.bincount(np.concatenate([resample(w, g) for _ in range(200)]), minlength=1000)
+    np.testing.assert_allclose(counts / counts.sum(), w, atol=0.0015)
+
+
+def test_systematic_counts_are_within_one_of_n_w() -> None:
+    g = np.random.default_rng(1)
+    w = g.uniform(size=500)
+    w /= w.sum()
+    counts = np.bincount(systematic(w, g), minlength=500)
+    assert np.all(np.abs(counts - 500 * w) < 1.0 + 1e-9)
+
+
+def _filter(model: str = "delta", n: int = 5000, seed: int = 0) -> ParticleFilter:
+    pf = ParticleFilter(
+        n, model, eq11_parameters(15.0, 15.0, 0.4, 0.1), np.random.default_rng(seed)
+    )  # type: ignore[arg-type]
+    pf.reset(np.array([25.0, 0.0, 1.0]), 20.0, 20.0)
+    return pf
+
+
+def _drone_points(center: np.ndarray, g: np.random.Generator, n: int = 5) -> np.ndarray:
+    return center + g.normal(0.0, 0.05, (n, 3))
+
+
+@pytest.mark.parametrize("model", ["delta", "cv", "ca"])
+def test_the_filter_locks_on_and_follows(model: str) -> None:
+    g = np.random.default_rng(2)
+    pf = _filter(model)
+    assert not pf.tracked
+    center = np.array([30.0, 5.0, 12.0])
+    velocity = np.array([5.0, 0.0, 0.0])
+    for _ in range(30):
+        pf.predict()
+        center = center + 0.1 * velocity
+        pf.update(_drone_points(center, g))
+    assert pf.tracked
+    pos, vel = pf.estimate()
+    assert np.linalg.norm(pos - center) < 0.3
+    assert np.linalg.norm(vel - velocity) < 2.0
+
+
+def test_redetection_after_the_target_hides() -> None:
+    g = np.random.default_rng(3)
+    pf = _filter()
+    here = np.array([30.0, 0.0, 10.0])
+    for _ in range(20):
+        pf.predict()
+        pf.update(_drone_points(here, g))
+    assert pf.tracked
+    locked = pf.sigma_particles
+    # Hidden for 3 s: no points, the cloud inflates and the filter reports the loss.
+    spreads = []
+    for _ in range(30):
+        pf.predict()
+        pf.update(np.empty((0, 3)))
+        spreads.append(pf.sigma_particles)
+    assert not pf.tracked
+    assert np.all(np.diff(spreads[5:]) > 0)
+    assert spreads[-1] > 3 * locked
+    # It reappears 1.5 m away: two frames condense the cloud on it.
+    there = here + np.array([0.0, 1.5, 0.0])
+    for _ in range(2):
+        pf.predict()
+        pf.update(_drone_points(there, g))
+    pos, _ = pf.estimate()
+    assert pf.tracked
+    assert np.linalg.norm(pos - there) < 0.3
+
+
+def test_delta_velocity_is_damped_while_lost() -> None:
+    # ρ = σ_pos / σ_particles once the spread exceeds σ_threshold (eq. 2).
+    pf = _filter()
+    assert not pf.tracked
+    before = np.abs(pf.X[:, 3:6]).mean()
+    pf.predict()
+    pf.predict()
+    rho = pf.noise.sigma_pos / pf.sigma_particles
+    assert rho < 0.1
+    # Undamped, the velocity would be the position noise over T: σ_pos/T = 5 m/s.
+    assert np.abs(pf.X[:, 3:6]).mean() < 0.2 * 5.0 + before
+
+
+def test_spread_is_the_mean_per_axis_std() -> None:
+    X = np.random.default_rng(0).normal(0, [1.0, 2.0, 3.0, 0, 0, 0, 0, 0, 0], (100_000, 9))
+    assert spread(X) == pytest.approx(2.0, rel=0.01)
+
+
+def test_bad_filter_settings() -> None:
+    noise = eq11_parameters(15.0, 15.0, 0.4, 0.1)
+    with pytest.raises(ConfigError, match="motion model"):
+        ParticleFilter(10, "jerk", noise, np.random.default_rng(0))  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="resampling"):
+        ParticleFilter(10, "cv", noise, np.random.default_rng(0), resampling="stratified")
