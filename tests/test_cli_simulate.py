@@ -77,6 +77,14 @@ def test_outputs_and_exact_reproduction(tmp_path: Path, capsys: pytest.CaptureFi
         ra.pop("step_ms")
         rb.pop("step_ms")
         assert ra == rb
+    # A saved background replaces the scan: tracking starts at once.
+    toml = first / "reuse.toml"  # next to the map: a relative path names it
+    toml.write_text('base = "indoor-vertical"\n[pipeline.background]\nfile = "background.npz"\n')
+    third = tmp_path / "third"
+    assert run(["simulate", str(toml), "--duration", "4", "--out", str(third)]) == 0
+    rows = _rows(third / "frames.csv")
+    assert float(rows[0]["t"]) == pytest.approx(0.1)
+    assert not (third / "background.npz").exists()
 
 
 def test_no_arguments_runs_the_default_scenario(

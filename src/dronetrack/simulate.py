@@ -130,10 +130,15 @@ def _record(
 
 
 def write_run(run: SimulationRun, out_dir: Path) -> dict[str, Any]:
-    """Write config.toml, frames.csv, metrics.json and the plots; return the metrics."""
+    """Write config.toml, frames.csv, metrics.json, the plots and the scanned background
+    (``background.npz``, to load with ``[pipeline.background] file``); return the metrics."""
+    from dronetrack.io.background import save_background
     from dronetrack.io.runs import write_frames_csv, write_metrics, write_plots
 
     out_dir.mkdir(parents=True, exist_ok=True)
+    background = run.pipeline.background
+    if background is not None and background.ready and run.config.pipeline.background.file is None:
+        save_background(background, out_dir / "background.npz")
     (out_dir / "config.toml").write_text(dump_scenario(run.config))
     write_frames_csv(run.log, out_dir / "frames.csv")
     metrics = run.metrics()

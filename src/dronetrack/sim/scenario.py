@@ -196,7 +196,12 @@ def _anchor_paths(cfg: ScenarioConfig, folder: Path) -> ScenarioConfig:
         pattern = Path(sensor.model[5:]).expanduser()
         if not pattern.is_absolute():
             sensor = sensor.model_copy(update={"model": f"file:{folder / pattern}"})
-    return cfg.model_copy(update={"trajectory": traj, "sensor": sensor})
+    pipeline = cfg.pipeline
+    bg_file = pipeline.background.file
+    if bg_file is not None and not Path(bg_file).expanduser().is_absolute():
+        background = pipeline.background.model_copy(update={"file": str(folder / bg_file)})
+        pipeline = pipeline.model_copy(update={"background": background})
+    return cfg.model_copy(update={"trajectory": traj, "sensor": sensor, "pipeline": pipeline})
 
 
 def apply_overrides(
