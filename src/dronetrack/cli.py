@@ -29,6 +29,17 @@ app = typer.Typer(
 )
 err_console = Console(stderr=True)
 
+# Options shared by several commands.
+SeedOption = Annotated[int | None, typer.Option("--seed", min=0, help="Random seed.")]
+TrajectoryOption = Annotated[
+    Path | None, typer.Option("--trajectory", help="CSV with columns t,x,y,z.")
+]
+VisibilityOption = Annotated[
+    float | None, typer.Option("--visibility", help="Meteorological visibility, metres.")
+]
+DroneOption = Annotated[str | None, typer.Option("--drone", help="Target model.")]
+SensorOption = Annotated[str | None, typer.Option("--sensor", help="Sensor model.")]
+
 
 class TurretMode(StrEnum):
     truth = "truth"
@@ -89,10 +100,11 @@ def pattern(
         typer.Option("--duration", "-d", min=0.0, max=3600.0, help="Seconds of pattern."),
     ] = 0.1,
     start: Annotated[
-        float, typer.Option("--start", min=0.0, max=1e6, help="Start time [s].")
+        float, typer.Option("--start", min=0.0, max=1e6, help="Start time, seconds.")
     ] = 0.0,
     rate: Annotated[
-        float | None, typer.Option("--rate", min=1.0, help="Point rate of a file: pattern [1/s].")
+        float | None,
+        typer.Option("--rate", min=1.0, help="Point rate of a file: pattern, points per second."),
     ] = None,
     lines: Annotated[
         int | None, typer.Option("--lines", min=1, help="Line count of a file: pattern.")
@@ -137,18 +149,14 @@ def render(
             help="Seconds to simulate (default: the scenario's).",
         ),
     ] = None,
-    seed: Annotated[int | None, typer.Option("--seed", min=0, help="Random seed.")] = None,
+    seed: SeedOption = None,
     turret: Annotated[
         TurretMode, typer.Option("--turret", help="Follow the true target, or hold still.")
     ] = TurretMode.truth,
-    trajectory: Annotated[
-        Path | None, typer.Option("--trajectory", help="CSV with columns t,x,y,z.")
-    ] = None,
-    visibility: Annotated[
-        float | None, typer.Option("--visibility", help="Meteorological visibility [m].")
-    ] = None,
-    drone: Annotated[str | None, typer.Option("--drone", help="Target model.")] = None,
-    sensor: Annotated[str | None, typer.Option("--sensor", help="Sensor model.")] = None,
+    trajectory: TrajectoryOption = None,
+    visibility: VisibilityOption = None,
+    drone: DroneOption = None,
+    sensor: SensorOption = None,
     noise: Annotated[
         bool | None,
         typer.Option(
@@ -209,7 +217,7 @@ def simulate(
     particles: Annotated[
         int | None, typer.Option("--particles", min=10, help="Particle count.")
     ] = None,
-    seed: Annotated[int | None, typer.Option("--seed", min=0, help="Random seed.")] = None,
+    seed: SeedOption = None,
     duration: Annotated[
         float | None,
         typer.Option("--duration", "-d", min=0.01, help="Seconds of flight after the scan."),
@@ -218,14 +226,10 @@ def simulate(
         Path | None,
         typer.Option("--config", help="A full configuration (a run's config.toml) to run again."),
     ] = None,
-    trajectory: Annotated[
-        Path | None, typer.Option("--trajectory", help="CSV with columns t,x,y,z.")
-    ] = None,
-    visibility: Annotated[
-        float | None, typer.Option("--visibility", help="Meteorological visibility [m].")
-    ] = None,
-    drone: Annotated[str | None, typer.Option("--drone", help="Target model.")] = None,
-    sensor: Annotated[str | None, typer.Option("--sensor", help="Sensor model.")] = None,
+    trajectory: TrajectoryOption = None,
+    visibility: VisibilityOption = None,
+    drone: DroneOption = None,
+    sensor: SensorOption = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
     ] = None,

@@ -21,6 +21,7 @@ __all__ = [
     "LatencyConfig",
     "OutlierConfig",
     "PipelineConfig",
+    "StrictModel",
     "TrackerConfig",
 ]
 
@@ -29,11 +30,14 @@ Pair = tuple[float, float]
 TrackerKind = Literal["pf-delta", "pf-cv", "pf-ca"]
 
 
-class _Section(BaseModel):
+class StrictModel(BaseModel):
+    """A configuration section: unknown keys are errors; NaN and infinity are refused
+    except where a field allows them; values are frozen."""
+
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
-class CropConfig(_Section):
+class CropConfig(StrictModel):
     """World-frame box that keeps the points worth tracking (drops the ground and far points)."""
 
     min_m: Vec3 = (1.0, -200.0, 1.0)
@@ -46,7 +50,7 @@ class CropConfig(_Section):
         return self
 
 
-class BackgroundConfig(_Section):
+class BackgroundConfig(StrictModel):
     """Voxel occupancy map of the static scene, built while the turret scans."""
 
     enabled: bool = True
@@ -62,7 +66,7 @@ class BackgroundConfig(_Section):
     scan_period_s: float = Field(4.0, gt=0)  # one pan sweep there and back
 
 
-class OutlierConfig(_Section):
+class OutlierConfig(StrictModel):
     """PCL-style outlier filters on the foreground points; off by default as in the reference."""
 
     radius_enabled: bool = False
@@ -73,7 +77,7 @@ class OutlierConfig(_Section):
     std_mul: float = Field(1.0, gt=0)
 
 
-class TrackerConfig(_Section):
+class TrackerConfig(StrictModel):
     """Seed 000's particle filter.  σ values default to eq. (11) from v_max, a_max, s_diag and T."""
 
     kind: TrackerKind = "pf-delta"
@@ -92,7 +96,7 @@ class TrackerConfig(_Section):
     cylinder_height_m: float = Field(20.0, gt=0)
 
 
-class ControllerConfig(_Section):
+class ControllerConfig(StrictModel):
     """Turret control: track the estimate, search when lost, or hold still."""
 
     mode: Literal["tracking", "fixed"] = "tracking"
@@ -104,14 +108,14 @@ class ControllerConfig(_Section):
     search_period_s: float = Field(4.0, gt=0)
 
 
-class LatencyConfig(_Section):
+class LatencyConfig(StrictModel):
     """Delays between the end of a frame and the turret command it produces (closed loop)."""
 
     sensor_s: float = Field(0.002, ge=0)  # Livox data latency ≤ 2 ms
     processing_s: float = Field(0.012, ge=0)  # seed 000: 1.45 ms callback + 10.85 ms filter
 
 
-class PipelineConfig(_Section):
+class PipelineConfig(StrictModel):
     crop: CropConfig = CropConfig()
     background: BackgroundConfig = BackgroundConfig()
     outliers: OutlierConfig = OutlierConfig()

@@ -201,3 +201,25 @@ def test_bad_filter_settings() -> None:
         ParticleFilter(10, "jerk", noise, np.random.default_rng(0))  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="resampling"):
         ParticleFilter(10, "cv", noise, np.random.default_rng(0), resampling="stratified")
+
+
+def test_the_tracker_can_be_reset_to_a_new_cylinder() -> None:
+    from dronetrack.track.tracker import ParticleTracker
+
+    tracker = ParticleTracker(
+        3000,
+        "delta",
+        eq11_parameters(15.0, 15.0, 0.4, 0.1),
+        np.random.default_rng(0),
+        np.array([25.0, 0.0, 1.0]),
+        20.0,
+        20.0,
+    )
+    first = tracker.step(0.1, np.empty((0, 3)), 1)
+    assert np.hypot(*(first.position[:2] - [25.0, 0.0])) < 2.0
+    tracker.reset(center=np.array([-40.0, 10.0, 5.0]), radius=2.0, height=1.0)
+    after = tracker.step(0.2, np.empty((0, 3)), 1)
+    assert np.hypot(*(after.position[:2] - [-40.0, 10.0])) < 0.5
+    assert 5.0 <= after.position[2] <= 6.0
+    assert after.particles is not None
+    assert np.all(np.hypot(after.particles[:, 0] + 40.0, after.particles[:, 1] - 10.0) < 2.0 + 2.0)

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 import tomli_w
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
-from dronetrack.config import PipelineConfig
+from dronetrack.config import PipelineConfig, StrictModel
 from dronetrack.errors import ScenarioError
 from dronetrack.kinematics import MountGeometry
 from dronetrack.sim.drones import make_drone
@@ -50,17 +50,12 @@ Vec3 = tuple[float, float, float]
 Pair = tuple[float, float]
 
 
-class _Strict(BaseModel):
-    # Unknown keys are errors; NaN and infinity are refused except where a field allows them.
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-class SceneConfig(_Strict):
+class SceneConfig(StrictModel):
     name: str = "outdoor"
     layout_seed: int = Field(0, ge=0)
 
 
-class DroneConfig(_Strict):
+class DroneConfig(StrictModel):
     model: str = "phantom4"
     reflectivity_scale: float = Field(1.0, gt=0)
 
@@ -68,7 +63,7 @@ class DroneConfig(_Strict):
 DEFAULT_FLIGHT = "horizontal-fast"
 
 
-class TrajectoryConfig(_Strict):
+class TrajectoryConfig(StrictModel):
     name: str | None = None  # a named flight; the default one when no file is given either
     file: str | None = None  # CSV with columns t,x,y,z
     hold_s: float = Field(0.0, ge=0)  # on the ground (or at the first sample) before it starts
@@ -82,7 +77,7 @@ class TrajectoryConfig(_Strict):
         return self
 
 
-class SensorConfig(_Strict):
+class SensorConfig(StrictModel):
     model: str = "avia"  # avia, mid40, mid360, vlp16 or file:PATH
     integration_time_s: float = Field(0.1, ge=1e-3, le=1.0)
     noise: bool = True
@@ -95,7 +90,7 @@ class SensorConfig(_Strict):
     false_alarm_rate: float | None = Field(None, ge=0, le=1)
 
 
-class TurretConfig(_Strict):
+class TurretConfig(StrictModel):
     model: str = "widowx"
     pan_deg: float = 0.0  # initial angles
     tilt_deg: float = 0.0
@@ -111,7 +106,7 @@ class TurretConfig(_Strict):
     profile_time_s: float | None = Field(None, ge=0)
 
 
-class WeatherConfig(_Strict):
+class WeatherConfig(StrictModel):
     # Meteorological visibility [m]; inf is clear air.
     visibility_m: float = Field(math.inf, gt=0, allow_inf_nan=True)
 
@@ -122,7 +117,7 @@ class WeatherConfig(_Strict):
         return self
 
 
-class ScenarioConfig(_Strict):
+class ScenarioConfig(StrictModel):
     name: str = "custom"
     description: str = ""
     duration_s: float = Field(60.0, gt=0, le=MAX_DURATION_S)
