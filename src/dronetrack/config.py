@@ -18,6 +18,7 @@ __all__ = [
     "BackgroundConfig",
     "ControllerConfig",
     "CropConfig",
+    "EvaluationConfig",
     "LatencyConfig",
     "OutlierConfig",
     "PipelineConfig",
@@ -85,15 +86,23 @@ class TrackerConfig(StrictModel):
     resampling: Literal["multinomial", "systematic"] = "multinomial"
     v_max: float = Field(15.0, gt=0)  # expected maximum speed [m/s]
     a_max: float = Field(15.0, gt=0)  # expected maximum acceleration [m/s²]
-    s_diag: float = Field(0.4, gt=0)  # motor-to-motor diagonal [m]
+    s_diag: float | None = Field(None, gt=0)  # motor-to-motor diagonal [m]; default: the drone's
     sigma_pos: float | None = Field(None, ge=0)  # eq. (11): v_max T / 3
     sigma_vel: float | None = Field(None, ge=0)  # eq. (11): a_max T / 3
-    sigma_acc: float | None = Field(None, ge=0)  # eq. (11): 0
+    sigma_acc: float | None = Field(None, ge=0)  # eq. (11): 0; pf-ca: 0.1 (see below)
     sigma_m: float | None = Field(None, gt=0)  # eq. (11): s_diag / 2
     weight_floor: float = Field(1e-4, ge=0)  # added to every weight, keeps far particles alive
     cylinder_center_m: Vec3 = (25.0, 0.0, 1.0)  # centre of the base of the start cylinder
     cylinder_radius_m: float = Field(20.0, gt=0)
     cylinder_height_m: float = Field(20.0, gt=0)
+
+
+class EvaluationConfig(StrictModel):
+    """How a run is scored."""
+
+    # An estimate is correct within this distance of the truth (seed 000: 4 m, the GPS
+    # accuracy outdoors).
+    correct_radius_m: float = Field(4.0, gt=0)
 
 
 class ControllerConfig(StrictModel):
@@ -122,3 +131,4 @@ class PipelineConfig(StrictModel):
     tracker: TrackerConfig = TrackerConfig()
     controller: ControllerConfig = ControllerConfig()
     latency: LatencyConfig = LatencyConfig()
+    evaluation: EvaluationConfig = EvaluationConfig()

@@ -25,20 +25,34 @@ __all__ = ["build_pipeline", "noise_parameters", "resolve_tracker", "scan_durati
 _MODELS: dict[str, MotionModel] = {"pf-delta": "delta", "pf-cv": "cv", "pf-ca": "ca"}
 
 
+# Eq. (11) sets σ_acc = 0, which makes the constant-acceleration model the
+# constant-velocity one; pf-ca defaults to the reference's 0.1 m/s² instead
+# (mav_track_outside_behind_hedges.yaml, its one constant-acceleration setup).
+CA_SIGMA_ACC = 0.1
+DEFAULT_S_DIAG = 0.4  # seed 000's Phantom 4 value, when neither the config nor a drone gives one
+
+
 def noise_parameters(cfg: TrackerConfig, period: float) -> NoiseParameters:
     """The filter's σ values: those given, the rest from eq. (11)."""
-    derived = eq11_parameters(cfg.v_max, cfg.a_max, cfg.s_diag, period)
+    s_diag = DEFAULT_S_DIAG if cfg.s_diag is None else cfg.s_diag
+    derived = eq11_parameters(cfg.v_max, cfg.a_max, s_diag, period)
+    default_acc = CA_SIGMA_ACC if cfg.kind == "pf-ca" else derived.sigma_acc
     return NoiseParameters(
         sigma_pos=derived.sigma_pos if cfg.sigma_pos is None else cfg.sigma_pos,
         sigma_vel=derived.sigma_vel if cfg.sigma_vel is None else cfg.sigma_vel,
-        sigma_acc=derived.sigma_acc if cfg.sigma_acc is None else cfg.sigma_acc,
+        sigma_acc=default_acc if cfg.sigma_acc is None else cfg.sigma_acc,
         sigma_m=derived.sigma_m if cfg.sigma_m is None else cfg.sigma_m,
         period=period,
     )
 
 
-def resolve_tracker(cfg: TrackerConfig, period: float) -> TrackerConfig:
-    """The tracker section with the σ values of eq. (11) written out."""
+def resolve_tracker(
+    cfg: TrackerConfig, period: float, s_diag: float | None = None
+) -> TrackerConfig:
+    """The tracker section with s_diag (default ``s_diag``, the drone's) and the σ values
+    of eq. (11) written out."""
+    if cfg.s_diag is None:
+        cfg = cfg.model_copy(update={"s_diag": DEFAULT_S_DIAG if s_diag is None else s_diag})
     n = noise_parameters(cfg, period)
     return cfg.model_copy(
         update={

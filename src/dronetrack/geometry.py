@@ -220,6 +220,8 @@ def _check_pose_samples(pose_t: ArrayLike, poses: ArrayLike) -> tuple[FloatArray
         raise InputError(
             f"pose samples must be (K,) times and (K, 4, 4) poses, got {ts.shape}, {T.shape}"
         )
+    if not (np.all(np.isfinite(ts)) and np.all(np.isfinite(T))):
+        raise InputError("pose samples must be finite")
     return ts, T
 
 

@@ -17,6 +17,7 @@ latency, so a closed loop is deterministic whatever the machine's speed.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ from dronetrack.types import Frame, TurretCommand
 __all__ = ["OutlierSettings", "Pipeline", "StepResult"]
 
 log = logging.getLogger(__name__)
+MAX_GAP_S = 5.0  # a longer jump in time restarts the filter instead of predicting across it
 Phase = Literal["scan", "track"]
 
 
@@ -87,8 +89,7 @@ class Pipeline:
         self.outliers = outliers
         self.latency_s = latency_s
         self.counts: Counter[str] = Counter()
-        self._last_end: float | None = None
-        self._estimate: TrackEstimate | None = None
+        self._clock: float | None = None  # the filter's time: the end of the last period it ran
 
     @property
     def scanning(self) -> bool:
@@ -106,18 +107,20 @@ class Pipeline:
             if steps > 0:
                 self.background.insert(fg.points)
             command: TurretCommand | None = self.controller.scanning(t_cmd)
-            if frame.end >= self.scan_until:
+            # The scan ends with the frame that ends at scan_until (within half a period).
+            if steps > 0 and frame.end >= self.scan_until - 0.5 * self.tracker.period:
                 self.background.build()
                 log.info("background model built: %d cells", len(self.background))
             result = self._result(frame, "scan", None, fg.points, command, start, flags)
         else:
             points = self._remove_outliers(fg.points)
+            if "time_jump" in flags:
+                self.tracker.reset()
             estimate = self.tracker.step(frame.end, points, steps)
             if not np.all(np.isfinite(estimate.position)):
                 flags.append("nonfinite_estimate")
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
-            self._estimate = estimate
             command = self.controller.tracking(t_cmd, estimate) if steps > 0 else None
             result = self._result(frame, "track", estimate, points, command, start, flags)
         for flag in flags:
@@ -127,19 +130,32 @@ class Pipeline:
         return result
 
     def _periods_since_last(self, end: float, flags: list[str]) -> int:
-        """Filter periods since the previous frame: 0 for a repeated or older frame."""
+        """Filter periods to run for a frame ending at ``end``.
+
+        The filter keeps its own clock, advanced by whole periods, so frames that
+        arrive at other intervals neither drift nor lose time.  A repeated or
+        older frame runs none; a gap runs one per missed period.  A jump of more
+        than MAX_GAP_S either way restarts the filter on the new time line.
+        """
         if not np.isfinite(end):
             flags.append("bad_time")
             return 0
-        if self._last_end is None:
-            self._last_end = end
+        period = self.tracker.period
+        if self._clock is None:
+            self._clock = end
             return 1
-        dt = end - self._last_end
-        if dt <= 0.0:
-            flags.append("repeated" if dt == 0.0 else "out_of_order")
+        elapsed = end - self._clock
+        if elapsed > MAX_GAP_S or elapsed < -MAX_GAP_S:
+            flags.append("time_jump")
+            self._clock = end
+            return 1
+        # Whole periods up to this frame's end (half a period of slack for jitter).
+        steps = math.floor(elapsed / period + 0.5)
+        if steps <= 0:
+            # The clock sums whole periods, so "the same time" allows rounding.
+            flags.append("repeated" if abs(elapsed) <= 1e-6 * period else "out_of_order")
             return 0
-        self._last_end = end
-        steps = max(1, round(dt / self.tracker.period))
+        self._clock += steps * period
         if steps > 1:
             flags.append("gap")
         return steps

@@ -20,7 +20,9 @@ import numpy as np
 
 from dronetrack.eval.log import TrackLog
 from dronetrack.factory import build_pipeline, resolve_tracker, scan_duration
+from dronetrack.io.background import load_background
 from dronetrack.pipeline import Pipeline, StepResult
+from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, build_world, dump_scenario, resolve_scenario
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame
@@ -31,10 +33,28 @@ Progress = Callable[[int, int], None]
 
 
 def resolve_run(cfg: ScenarioConfig) -> ScenarioConfig:
-    """The configuration with every derived value written out (sensor, turret, σ of eq. 11)."""
+    """The configuration with every derived value written out: sensor, turret, the
+    drone's diagonal and the σ values of eq. (11), and a background file's own settings
+    and absolute path."""
     cfg = resolve_scenario(cfg)
-    tracker = resolve_tracker(cfg.pipeline.tracker, cfg.sensor.integration_time_s)
-    return cfg.model_copy(update={"pipeline": cfg.pipeline.model_copy(update={"tracker": tracker})})
+    pipeline = cfg.pipeline
+    drone = make_drone(cfg.drone.model)
+    tracker = resolve_tracker(pipeline.tracker, cfg.sensor.integration_time_s, drone.s_diag)
+    background = pipeline.background
+    if background.file is not None:
+        path = Path(background.file).expanduser().resolve()
+        stored = load_background(path)
+        background = background.model_copy(
+            update={
+                "file": str(path),
+                "resolution_m": stored.resolution,
+                "inflate_voxels": stored.inflate,
+                "lookup_depth": stored.lookup_depth,
+                "min_hits": stored.min_hits,
+            }
+        )
+    pipeline = pipeline.model_copy(update={"tracker": tracker, "background": background})
+    return cfg.model_copy(update={"pipeline": pipeline})
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,7 +74,7 @@ class SimulationRun:
         return self.simulated_s / self.wall_s if self.wall_s > 0 else math.inf
 
     def metrics(self) -> dict[str, Any]:
-        out = self.log.summary()
+        out = self.log.summary(self.config.pipeline.evaluation.correct_radius_m)
         out["realtime_factor"] = self.realtime_factor
         out["wall_s"] = self.wall_s
         return out

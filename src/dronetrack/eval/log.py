@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.eval.metrics import (
+    CORRECT_RADIUS_M,
     coverage_pct,
     detection_gaps,
     max_tracking_distance,
@@ -113,8 +114,11 @@ class TrackLog:
             "flags": np.array(self.flags, dtype=object),
         }
 
-    def summary(self) -> dict[str, Any]:
-        """The run's metrics (metrics.json); those needing ground truth only when it exists."""
+    def summary(self, radius: float = CORRECT_RADIUS_M) -> dict[str, Any]:
+        """The run's metrics (metrics.json); those needing ground truth only when it exists.
+
+        ``radius``: an estimate within this distance of the truth is correct.
+        """
         a = self.arrays()
         out: dict[str, Any] = {"frames": len(self)}
         steps = timing(a["step_ms"])
@@ -128,8 +132,9 @@ class TrackLog:
             return out
         est = np.column_stack([a["est_x"], a["est_y"], a["est_z"]])
         err = est - gt
-        out["coverage_pct"] = coverage_pct(err)
-        out["max_tracking_distance_m"] = max_tracking_distance(err, a["range_m"])
+        out["correct_radius_m"] = radius
+        out["coverage_pct"] = coverage_pct(err, radius)
+        out["max_tracking_distance_m"] = max_tracking_distance(err, a["range_m"], radius)
         # RMSE over the frames from the first lock on (tracked or not), as the
         # reference windows its accuracy runs after the filter has locked.
         start = int(np.argmax(tracked)) if tracked.any() else len(err)

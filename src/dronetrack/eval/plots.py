@@ -35,7 +35,7 @@ def plot_top_view(a: dict[str, NDArray[Any]], out: Path, title: str = "") -> Non
         cmap="viridis",
         norm=plt.matplotlib.colors.LogNorm(vmin=1, vmax=max(2, int(n.max()))),
     )
-    fig.colorbar(sc, ax=ax, label="points on the target per frame")
+    fig.colorbar(sc, ax=ax, label="points on the target per frame", shrink=0.6)
     ax.plot(0, 0, "k^", ms=9, label="turret")
     ok = np.isfinite(a["range_m"]) & (np.hypot(a["est_x"] - x, a["est_y"] - y) <= 4.0)
     if np.any(ok):
@@ -43,7 +43,7 @@ def plot_top_view(a: dict[str, NDArray[Any]], out: Path, title: str = "") -> Non
         ax.annotate(
             f"max tracking distance {a['range_m'][far]:.0f} m",
             (x[far], y[far]),
-            xytext=(10, 10),
+            xytext=(-150, 20),
             textcoords="offset points",
             arrowprops={"arrowstyle": "->"},
         )

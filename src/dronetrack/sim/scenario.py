@@ -235,6 +235,8 @@ def apply_overrides(
         data["weather"]["visibility_m"] = visibility
     if drone is not None:
         data["drone"]["model"] = drone
+        data["pipeline"]["tracker"]["s_diag"] = None  # the new drone's diagonal (eq. 11)
+        data["pipeline"]["tracker"]["sigma_m"] = None
     if sensor is not None:
         data["sensor"]["model"] = sensor
     if noise is not None:
