@@ -30,7 +30,9 @@ def _rows(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
-def test_outputs_and_exact_reproduction(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_outputs_and_exact_reproduction(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     first = tmp_path / "first"
     assert (
         run(
@@ -85,6 +87,17 @@ def test_outputs_and_exact_reproduction(tmp_path: Path, capsys: pytest.CaptureFi
     rows = _rows(third / "frames.csv")
     assert float(rows[0]["t"]) == pytest.approx(0.1)
     assert not (third / "background.npz").exists()
+    # Its config.toml names the map by absolute path with the map's own settings, so
+    # it reproduces the run from anywhere.
+    written = (third / "config.toml").read_text()
+    assert f'file = "{(first / "background.npz").resolve()}"' in written
+    monkeypatch.chdir(tmp_path)  # where a relative "background.npz" would not exist
+    fourth = tmp_path / "fourth"
+    assert run(["simulate", "--config", str(third / "config.toml"), "--out", str(fourth)]) == 0
+    for ra, rb in zip(rows, _rows(fourth / "frames.csv"), strict=True):
+        ra.pop("step_ms")
+        rb.pop("step_ms")
+        assert ra == rb
 
 
 def test_no_arguments_runs_the_default_scenario(

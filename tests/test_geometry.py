@@ -139,3 +139,17 @@ def test_pose_samples_are_checked() -> None:
         interpolate_poses([0.0, 1.0], np.zeros((3, 4, 4)), [0.5])
     with pytest.raises(InputError, match="pose samples"):
         apply_interpolated_poses([], np.zeros((0, 4, 4)), [0.5], np.zeros((1, 3)))
+    good = make_pose(rot_z(np.array([0.0, 0.1])), np.zeros((2, 3)))
+    mirrored = good.copy()
+    mirrored[1, :3, 0] *= -1.0  # det R = −1
+    skewed = good.copy()
+    skewed[0, 0, 1] += 1e-3  # RᵀR off the identity by 10⁻³
+    tilted_row = good.copy()
+    tilted_row[1, 3, 0] = 0.5
+    for bad in (mirrored, skewed, tilted_row):
+        with pytest.raises(InputError, match="rigid"):
+            interpolate_poses([0.0, 1.0], bad, [0.5])
+    # float32 rounding of a recorded pose is accepted.
+    interpolate_poses([0.0, 1.0], good.astype(np.float32), [0.5])
+    with pytest.raises(InputError, match="finite"):
+        interpolate_poses([0.0, 1.0], np.where(good == 0.0, np.nan, good), [0.5])

@@ -73,16 +73,19 @@ def test_tracks_a_drone_and_commands_the_turret() -> None:
     assert result.n_points == 6
 
 
-def test_background_is_scanned_then_subtracted() -> None:
+# Frame stamps 0.1 k carry rounding (0.1 · 43 + 0.1 = 4.3999…): the scan still
+# takes the frames that end by scan_s, to the nearest frame.
+@pytest.mark.parametrize(("scan_s", "frames"), [(1.0, 10), (4.4, 44), (0.36, 4)])
+def test_background_is_scanned_then_subtracted(scan_s: float, frames: int) -> None:
     g = np.random.default_rng(2)
     wall = np.column_stack([np.full(500, 40.0), g.uniform(-10, 10, 500), g.uniform(1, 9, 500)])
-    pipe = _pipeline(scan_s=1.0)
+    pipe = _pipeline(scan_s=scan_s)
     phases = []
-    for k in range(10):
+    for k in range(frames):
         phases.append(pipe.step(_frame(0.1 * k, wall)).phase)
-    assert phases == ["scan"] * 10
+    assert phases == ["scan"] * frames
     assert not pipe.scanning
-    result = pipe.step(_frame(1.0, np.vstack([wall, _drone(g)])))
+    result = pipe.step(_frame(0.1 * frames, np.vstack([wall, _drone(g)])))
     assert result.phase == "track"
     assert result.n_points == 6  # the wall is gone, the drone is left
 
@@ -120,12 +123,48 @@ def test_frames_out_of_order_repeated_and_after_gaps() -> None:
     # A 1 s gap: the filter predicts through it (10 periods) and carries on.
     after_gap = pipe.step(_frame(1.9, _drone(g)))
     assert "gap" in after_gap.flags
+    assert (repeated.periods, older.periods, after_gap.periods) == (0, 0, 10)
     for result in (repeated, older, after_gap):
         assert result.estimate is not None
         assert np.all(np.isfinite(result.estimate.position))
     assert after_gap.estimate is not None
     np.testing.assert_allclose(after_gap.estimate.position, [30.0, 0.0, 6.0], atol=0.5)
     assert (pipe.counts["repeated"], pipe.counts["out_of_order"], pipe.counts["gap"]) == (1, 1, 1)
+
+
+def test_the_filter_clock_follows_frames_at_another_rate() -> None:
+    """Frames every 0.14 s against a 0.1 s filter period: no drift, no lost time."""
+    g = np.random.default_rng(6)
+    pipe = _pipeline()
+    results = [pipe.step(_frame(0.14 * k, _drone(g))) for k in range(60)]
+    periods = np.cumsum([r.periods for r in results[1:]])
+    elapsed = 0.14 * np.arange(1, 60) / 0.1  # periods since the first frame
+    assert np.all(np.abs(periods - elapsed) <= 0.5 + 1e-9)
+    assert {r.periods for r in results[1:]} == {1, 2}
+    assert sum("gap" in r.flags for r in results) == np.count_nonzero(
+        [r.periods == 2 for r in results]
+    )
+    assert results[-1].estimate is not None
+    np.testing.assert_allclose(results[-1].estimate.position, [30.0, 0.0, 6.0], atol=0.3)
+
+
+@pytest.mark.parametrize("jump_to", [100.0, -50.0])
+def test_a_jump_in_time_restarts_the_filter(jump_to: float) -> None:
+    g = np.random.default_rng(7)
+    pipe = _pipeline()
+    for k in range(20):
+        pipe.step(_frame(0.1 * k, _drone(g)))
+    assert pipe.tracker.filter.tracked  # type: ignore[attr-defined]
+    jumped = pipe.step(_frame(jump_to, _drone(g, at=(40.0, 5.0, 6.0))))
+    assert "time_jump" in jumped.flags
+    assert jumped.periods == 1
+    assert jumped.estimate is not None
+    # Restarted from the cylinder and updated once: not yet locked.
+    assert not jumped.estimate.tracked
+    after = pipe.step(_frame(jump_to + 0.1, _drone(g, at=(40.0, 5.0, 6.0))))
+    assert after.flags == ()
+    assert after.periods == 1
+    assert pipe.counts["time_jump"] == 1
 
 
 def test_bad_time_and_bad_poses() -> None:
@@ -136,7 +175,15 @@ def test_bad_time_and_bad_poses() -> None:
     assert "bad_time" in pipe.step(nan_time).flags
     frame = _frame(0.2, _drone(g))
     bad_pose = replace(frame, pose_t=np.array([0.3, 0.3]))  # pose times must increase
-    result = pipe.step(bad_pose)
-    assert "bad_pose" in result.flags
-    assert result.estimate is not None
-    assert np.all(np.isfinite(result.estimate.position))
+    nan_pose = replace(
+        _frame(0.3, _drone(g)), poses=np.full((2, 4, 4), np.nan)
+    )  # a NaN pose from a broken sensor driver
+    scaled = _frame(0.4, _drone(g))
+    scaled = replace(scaled, poses=scaled.poses * np.array([2.0, 2.0, 2.0, 1.0])[:, None])
+    for bad in (bad_pose, nan_pose, scaled):
+        result = pipe.step(bad)
+        assert "bad_pose" in result.flags
+        assert result.n_points == 0
+        assert result.estimate is not None
+        assert np.all(np.isfinite(result.estimate.position))
+    assert pipe.counts["bad_pose"] == 3

@@ -23,9 +23,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dronetrack.sim.scenario import apply_overrides
+from dronetrack.sim.drones import DRONE_NAMES, make_drone
+from dronetrack.sim.scenario import ScenarioConfig, apply_overrides
 from dronetrack.sim.scenarios import SCENARIOS
-from dronetrack.simulate import SimulationRun, run_simulation
+from dronetrack.simulate import SimulationRun, resolve_run, run_simulation
 
 
 @cache
@@ -100,3 +101,16 @@ def test_lost_and_found_recaptures_within_a_second() -> None:
         hidden_long[i] = run > 5
     assert hidden_long.sum() >= 100
     assert not a["tracked"][hidden_long].any()
+
+
+@pytest.mark.parametrize("drone", DRONE_NAMES)
+def test_the_drone_sets_the_measurement_noise(drone: str) -> None:
+    """σ_m = s_diag / 2 of the flown drone (eq. 11), also when the preset named another."""
+    cfg = resolve_run(apply_overrides(SCENARIOS["default"], drone=drone))
+    assert cfg.pipeline.tracker.s_diag == make_drone(drone).s_diag
+    assert cfg.pipeline.tracker.sigma_m == pytest.approx(make_drone(drone).s_diag / 2)
+    # An explicit value in the configuration wins over the drone.
+    data = SCENARIOS["default"].model_dump()
+    data["drone"]["model"] = drone
+    data["pipeline"]["tracker"]["sigma_m"] = 0.33
+    assert resolve_run(ScenarioConfig.model_validate(data)).pipeline.tracker.sigma_m == 0.33

@@ -213,6 +213,33 @@ def interpolate_poses(
     return quaternion_to_matrix(qi), p
 
 
+RIGID_TOL = 1e-4  # float32 rounding of a recorded pose passes
+
+
+@nb.njit(cache=True)
+def _rigid_error(T: FloatArray) -> float:
+    """Largest departure of poses (K, 4, 4) from rigid transforms: |RᵀR − I|, the
+    bottom row against (0, 0, 0, 1), and ∞ for a reflection (det R < 0)."""
+    worst = 0.0
+    for k in range(T.shape[0]):
+        for i in range(3):
+            for j in range(3):
+                # (RᵀR)_ij = Σ_m R_mi R_mj
+                g = T[k, 0, i] * T[k, 0, j] + T[k, 1, i] * T[k, 1, j] + T[k, 2, i] * T[k, 2, j]
+                worst = max(worst, abs(g - (1.0 if i == j else 0.0)))
+        for j in range(4):
+            worst = max(worst, abs(T[k, 3, j] - (1.0 if j == 3 else 0.0)))
+        # det R = r₀ · (r₁ × r₂) over the rows
+        det = (
+            T[k, 0, 0] * (T[k, 1, 1] * T[k, 2, 2] - T[k, 1, 2] * T[k, 2, 1])
+            - T[k, 0, 1] * (T[k, 1, 0] * T[k, 2, 2] - T[k, 1, 2] * T[k, 2, 0])
+            + T[k, 0, 2] * (T[k, 1, 0] * T[k, 2, 1] - T[k, 1, 1] * T[k, 2, 0])
+        )
+        if det < 0.0:
+            worst = np.inf
+    return worst
+
+
 def _check_pose_samples(pose_t: ArrayLike, poses: ArrayLike) -> tuple[FloatArray, FloatArray]:
     ts = np.asarray(pose_t, dtype=np.float64)
     T = np.asarray(poses, dtype=np.float64)
@@ -222,6 +249,8 @@ def _check_pose_samples(pose_t: ArrayLike, poses: ArrayLike) -> tuple[FloatArray
         )
     if not (np.all(np.isfinite(ts)) and np.all(np.isfinite(T))):
         raise InputError("pose samples must be finite")
+    if _rigid_error(T) > RIGID_TOL:
+        raise InputError("pose samples must be rigid transforms (orthonormal rotation)")
     return ts, T
 
 

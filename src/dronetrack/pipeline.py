@@ -64,6 +64,7 @@ class StepResult:
     step_ms: float  # wall time spent in step()
     flags: tuple[str, ...] = ()
     foreground: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
+    periods: int = 0  # filter periods this frame advanced (0: repeated or older)
 
 
 class Pipeline:
@@ -111,7 +112,7 @@ class Pipeline:
             if steps > 0 and frame.end >= self.scan_until - 0.5 * self.tracker.period:
                 self.background.build()
                 log.info("background model built: %d cells", len(self.background))
-            result = self._result(frame, "scan", None, fg.points, command, start, flags)
+            result = self._result(frame, "scan", None, fg.points, command, start, flags, steps)
         else:
             points = self._remove_outliers(fg.points)
             if "time_jump" in flags:
@@ -122,7 +123,7 @@ class Pipeline:
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
             command = self.controller.tracking(t_cmd, estimate) if steps > 0 else None
-            result = self._result(frame, "track", estimate, points, command, start, flags)
+            result = self._result(frame, "track", estimate, points, command, start, flags, steps)
         for flag in flags:
             self.counts[flag] += 1
         if flags:
@@ -191,6 +192,7 @@ class Pipeline:
         command: TurretCommand | None,
         start: float,
         flags: list[str],
+        periods: int,
     ) -> StepResult:
         return StepResult(
             t=frame.end,
@@ -202,6 +204,7 @@ class Pipeline:
             step_ms=1e3 * (time.perf_counter() - start),
             flags=tuple(flags),
             foreground=points,
+            periods=periods,
         )
 
 

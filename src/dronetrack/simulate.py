@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from dronetrack.eval.log import TrackLog
-from dronetrack.factory import build_pipeline, resolve_tracker, scan_duration
+from dronetrack.factory import build_pipeline, noise_parameters, resolve_tracker, scan_duration
 from dronetrack.io.background import load_background
 from dronetrack.pipeline import Pipeline, StepResult
 from dronetrack.sim.drones import make_drone
@@ -163,7 +163,8 @@ def write_run(run: SimulationRun, out_dir: Path) -> dict[str, Any]:
     write_frames_csv(run.log, out_dir / "frames.csv")
     metrics = run.metrics()
     write_metrics(metrics, out_dir / "metrics.json")
-    tracker = run.config.pipeline.tracker
-    threshold = 1.5 * max(tracker.sigma_pos or 0.0, tracker.sigma_m or 0.0)
-    write_plots(run.log, out_dir, threshold, run.config.name)
+    noise = noise_parameters(run.config.pipeline.tracker, run.config.sensor.integration_time_s)
+    threshold = noise.threshold
+    radius = run.config.pipeline.evaluation.correct_radius_m
+    write_plots(run.log, out_dir, threshold, run.config.name, radius)
     return metrics

@@ -54,6 +54,12 @@ def test_points_by_distance_gaps_and_timing() -> None:
         (10.0, 2, 5.0),
         (20.0, 1, 0.0),
     ]
+    # A stray huge range adds one row; a bin edge belongs to the upper bin.
+    far = points_by_distance(np.array([10.0, 1e9, np.nan]), np.array([3, 1, 7]))
+    assert [(r["range_from_m"], r["range_to_m"], r["frames"]) for r in far] == [
+        (10.0, 20.0, 1),
+        (1e9, 1e9 + 10.0, 1),
+    ]
     gaps = detection_gaps(
         np.array([0.0, 0.1, 0.2, 0.3, 0.4]), np.array([True, False, False, True, True])
     )

@@ -99,6 +99,9 @@ def test_csv_trajectory_is_smooth_and_exact_at_samples(tmp_path: Path) -> None:
         ("t,x,y,z\n0,0,0,0\n1,nan,1,1\n", "NaN"),
         ("t,x,y,z\n0,0,0,0\n", "at least 2 rows"),
         ("t,x,y,z\n0,0,0,0\n1,a,1,1\n", "not a number"),
+        # Positions in millimetres: 5 m/s reads as 5000 m/s.
+        ("t,x,y,z\n0,0,0,0\n1,5000,0,0\n2,10000,0,0\n", "line 3\\) exceeds 100 m/s"),
+        ("t,x,y,z\n0,0,0,0\n1,1e300,0,0\n", "exceeds 100 m/s"),
     ],
 )
 def test_malformed_csv_trajectories(tmp_path: Path, content: str, message: str) -> None:

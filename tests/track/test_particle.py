@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial import cKDTree
+from scipy.stats import chisquare
 
 from dronetrack.errors import ConfigError
 from dronetrack.track.nearest import nearest_distances
@@ -16,6 +17,7 @@ from dronetrack.track.particle import (
     ParticleFilter,
     cylinder_particles,
     eq11_parameters,
+    gate_margin,
     likelihood_weights,
     predict,
     spread,
@@ -90,8 +92,26 @@ def test_weights_are_normalised_and_fall_with_distance(d: np.ndarray, sigma: flo
     assert np.all(np.diff(w[order]) <= 1e-15)
 
 
+@given(st.floats(0.01, 1.0), st.floats(1e-6, 1e-2), st.floats(1.0, 100.0))
+def test_points_beyond_the_gate_cannot_change_the_weights(
+    sigma: float, floor: float, beyond: float
+) -> None:
+    margin = gate_margin(sigma, floor)
+    assert margin == pytest.approx(8.0 * sigma)
+    d = margin * np.linspace(1.0, beyond, 50)
+    w = likelihood_weights(d, sigma, floor)
+    np.testing.assert_allclose(w, 1.0 / len(d), rtol=1e-6)
+
+
+def test_no_gate_without_a_floor() -> None:
+    assert gate_margin(0.2, 0.0) == np.inf
+    # Without the floor, far points still rank the particles.
+    w = likelihood_weights(np.array([1.6, 2.0]), 0.2, 0.0)
+    assert w[0] > 0.99
+
+
 @settings(max_examples=20)
-@given(st.integers(0, 2**32 - 1), st.integers(1, 300))
+@given(st.integers(0, 2**32 - 1), st.integers(1, 1500))  # both sides of the switch
 def test_nearest_distances_match_a_kd_tree(seed: int, m: int) -> None:
     g = np.random.default_rng(seed)
     q = g.uniform(-100, 100, (500, 3))
@@ -100,16 +120,49 @@ def test_nearest_distances_match_a_kd_tree(seed: int, m: int) -> None:
     np.testing.assert_allclose(nearest_distances(q, p), expected, atol=1e-4)
 
 
+def _skewed_weights() -> np.ndarray:
+    """Geometric weights over 60 particles with a heavy last one (30 %)."""
+    w = 0.9 ** np.arange(59.0)
+    return np.append(0.7 * w / w.sum(), 0.3)
+
+
+def _chi_square_p(resample, w: np.ndarray, g: np.random.Generator) -> float:  # type: ignore[no-untyped-def]
+    """p-value of the counts of 100 resamplings against the expected n·w."""
+    draws = np.concatenate([resample(w, g) for _ in range(100)])
+    counts = np.bincount(draws, minlength=len(w))
+    expected = len(draws) * w
+    # Pool the sparse tail so every bin expects ≥ 5 (the χ² approximation).
+    order = np.argsort(expected)
+    small = order[np.cumsum(expected[order]) < 5.0 * 3]
+    keep = np.setdiff1d(np.arange(len(w)), small)
+    obs = np.append(counts[keep], counts[small].sum())
+    exp = np.append(expected[keep], expected[small].sum())
+    return float(chisquare(obs, exp).pvalue)
+
+
 @pytest.mark.parametrize("resample", [multinomial, systematic])
-def test_resampling(resample) -> None:  # type: ignore[no-untyped-def]
+def test_resampling_draws_in_proportion_to_the_weights(resample) -> None:  # type: ignore[no-untyped-def]
     g = np.random.default_rng(0)
     one_hot = np.zeros(100)
     one_hot[37] = 1.0
     assert np.all(resample(one_hot, g) == 37)
-    w = g.uniform(size=1000)
-    w /= w.sum()
-    counts = np.bincount(np.concatenate([resample(w, g) for _ in range(200)]), minlength=1000)
-    np.testing.assert_allclose(counts / counts.sum(), w, atol=0.0015)
+    assert len(resample(_skewed_weights(), g)) == 60
+    assert _chi_square_p(resample, _skewed_weights(), g) > 1e-3
+
+
+def test_the_chi_square_check_rejects_a_biased_resampler() -> None:
+    """The check above has power: drawing uniformly, or never the last index, fails it."""
+    g = np.random.default_rng(0)
+    w = _skewed_weights()
+
+    def uniform(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return rng.integers(0, len(weights), len(weights))
+
+    def drops_last(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return multinomial(np.append(weights[:-1], 0.0) / weights[:-1].sum(), rng)
+
+    assert _chi_square_p(uniform, w, g) < 1e-6
+    assert _chi_square_p(drops_last, w, g) < 1e-6
 
 
 def test_systematic_counts_are_within_one_of_n_w() -> None:

@@ -25,6 +25,7 @@ from dronetrack.geometry import FloatArray
 __all__ = [
     "CORRECT_RADIUS_M",
     "Rmse",
+    "correct",
     "coverage_pct",
     "detection_gaps",
     "max_tracking_distance",
@@ -36,7 +37,7 @@ __all__ = [
 CORRECT_RADIUS_M = 4.0
 
 
-def _correct(errors: FloatArray, radius: float) -> NDArray[np.bool_]:
+def correct(errors: FloatArray, radius: float) -> NDArray[np.bool_]:
     """Frames whose 3-D error (N, 3) is within ``radius`` (NaN counts as wrong)."""
     norm = np.linalg.norm(errors, axis=1)
     ok: NDArray[np.bool_] = np.isfinite(norm) & (norm <= radius)
@@ -47,14 +48,14 @@ def coverage_pct(errors: FloatArray, radius: float = CORRECT_RADIUS_M) -> float:
     """Share of frames with a correct estimate [%]; errors (N, 3) = estimate − truth."""
     if len(errors) == 0:
         return 0.0
-    return 100.0 * float(np.mean(_correct(errors, radius)))
+    return 100.0 * float(np.mean(correct(errors, radius)))
 
 
 def max_tracking_distance(
     errors: FloatArray, ranges: FloatArray, radius: float = CORRECT_RADIUS_M
 ) -> float:
     """Largest sensor-to-target range [m] among the correct frames (0 if none)."""
-    ok = _correct(errors, radius)
+    ok = correct(errors, radius)
     return float(ranges[ok].max()) if np.any(ok) else 0.0
 
 
@@ -91,21 +92,21 @@ def points_by_distance(
     r, c = ranges[ok], np.asarray(counts, dtype=np.float64)[ok]
     if len(r) == 0:
         return []
-    edges = np.arange(0.0, r.max() + bin_m, bin_m)
-    which = np.digitize(r, edges) - 1
+    # Bin b holds ranges in [b·bin, (b+1)·bin); only occupied bins are listed, so a
+    # stray far range costs one row, not a row per empty bin.
+    which = np.floor(r / bin_m).astype(np.int64)
     rows = []
-    for b in range(len(edges) - 1):
+    for b in np.unique(which):
         sel = which == b
-        if np.any(sel):
-            rows.append(
-                {
-                    "range_from_m": float(edges[b]),
-                    "range_to_m": float(edges[b + 1]),
-                    "frames": int(sel.sum()),
-                    "points_mean": float(c[sel].mean()),
-                    "points_max": float(c[sel].max()),
-                }
-            )
+        rows.append(
+            {
+                "range_from_m": float(b * bin_m),
+                "range_to_m": float((b + 1) * bin_m),
+                "frames": int(sel.sum()),
+                "points_mean": float(c[sel].mean()),
+                "points_max": float(c[sel].max()),
+            }
+        )
     return rows
 
 

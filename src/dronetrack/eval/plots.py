@@ -8,6 +8,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dronetrack.eval.metrics import CORRECT_RADIUS_M, correct
+
 __all__ = ["plot_error_and_spread", "plot_points_vs_distance", "plot_top_view"]
 
 
@@ -20,8 +22,11 @@ def _pyplot() -> Any:
     return plt
 
 
-def plot_top_view(a: dict[str, NDArray[Any]], out: Path, title: str = "") -> None:
-    """The flight from above, coloured by the points returned from the target (Fig. 2)."""
+def plot_top_view(
+    a: dict[str, NDArray[Any]], out: Path, title: str = "", radius: float = CORRECT_RADIUS_M
+) -> None:
+    """The flight from above, coloured by the points returned from the target (Fig. 2),
+    with the maximum tracking distance (3-D error within ``radius``) marked."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 7))
     x, y, n = a["gt_x"], a["gt_y"], a["n_target_points"]
@@ -37,7 +42,8 @@ def plot_top_view(a: dict[str, NDArray[Any]], out: Path, title: str = "") -> Non
     )
     fig.colorbar(sc, ax=ax, label="points on the target per frame", shrink=0.6)
     ax.plot(0, 0, "k^", ms=9, label="turret")
-    ok = np.isfinite(a["range_m"]) & (np.hypot(a["est_x"] - x, a["est_y"] - y) <= 4.0)
+    err = np.column_stack([a["est_x"] - x, a["est_y"] - y, a["est_z"] - a["gt_z"]])
+    ok = correct(err, radius) & np.isfinite(a["range_m"])
     if np.any(ok):
         far = np.argmax(np.where(ok, a["range_m"], -np.inf))
         ax.annotate(

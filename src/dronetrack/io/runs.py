@@ -73,8 +73,11 @@ def write_metrics(metrics: dict[str, Any], path: Path) -> None:
     path.write_text(json.dumps(_json_safe(metrics), indent=2) + "\n")
 
 
-def write_plots(log: TrackLog, out_dir: Path, threshold: float, title: str) -> list[Path]:
-    """The seed-style figures: top view, error and spread, points against distance."""
+def write_plots(
+    log: TrackLog, out_dir: Path, threshold: float, title: str, radius: float
+) -> list[Path]:
+    """The seed-style figures: top view, error and spread, points against distance;
+    ``radius``: an estimate this close to the truth is correct [m]."""
     from dronetrack.eval.plots import plot_error_and_spread, plot_points_vs_distance, plot_top_view
 
     a = log.arrays()
@@ -85,7 +88,7 @@ def write_plots(log: TrackLog, out_dir: Path, threshold: float, title: str) -> l
     ]
     if len(log) == 0:
         return []
-    plot_top_view(a, paths[0], f"{title}: returned points along the flight")
+    plot_top_view(a, paths[0], f"{title}: returned points along the flight", radius)
     plot_error_and_spread(a, threshold, paths[1], f"{title}: error and particle spread")
     plot_points_vs_distance(a, paths[2], f"{title}: points on the target against range")
     return paths

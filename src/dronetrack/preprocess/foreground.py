@@ -43,10 +43,10 @@ def extract_foreground(
     if background is not None and background.ready:
         cells = background.cells
         grid, origin, table, shift = cells.grid, cells.origin, cells.table, cells.shift
-        inv_cell = 1.0 / background.cell_size
+        cell = background.cell_size
     else:
         grid, origin = np.zeros((0, 0, 0), dtype=np.uint8), np.zeros(3, dtype=np.int64)
-        table, shift, inv_cell = np.full(1, -1, dtype=np.int64), 63, 0.0
+        table, shift, cell = np.full(1, -1, dtype=np.int64), 63, 0.0
     verdict = _classify(
         world,
         np.asarray(lo, dtype=np.float64),
@@ -55,7 +55,7 @@ def extract_foreground(
         origin,
         table,
         shift,
-        inv_cell,
+        cell,
     )
     counts = np.bincount(verdict, minlength=4)
     index = np.flatnonzero(verdict == KEEP)
@@ -73,12 +73,13 @@ def _classify(
     origin: NDArray[np.int64],
     table: NDArray[np.int64],
     shift: int,
-    inv_cell: float,
+    cell: float,
 ) -> NDArray[np.uint8]:
     """Per point: KEEP, NONFINITE, OUTSIDE the box [lo, hi), or in the BACKGROUND.
 
     The dense-grid and the hash lookups run in separate loops: a loop that holds
-    both compiles to much slower code.
+    both compiles to much slower code.  Cell index i = ⌊x / cell⌋, divided as in
+    VoxelBackground.is_background so a point on a cell boundary gets the same cell.
     """
     n = W.shape[0]
     out = np.empty(n, dtype=np.uint8)
@@ -92,22 +93,22 @@ def _classify(
             out[j] = OUTSIDE
         else:
             out[j] = KEEP
-    if inv_cell <= 0.0:
+    if cell <= 0.0:  # no background model
         return out
     if use_grid:
         for j in range(n):
             if out[j] == KEEP:
-                gx = int(np.floor(W[j, 0] * inv_cell)) - origin[0]
-                gy = int(np.floor(W[j, 1] * inv_cell)) - origin[1]
-                gz = int(np.floor(W[j, 2] * inv_cell)) - origin[2]
+                gx = int(np.floor(W[j, 0] / cell)) - origin[0]
+                gy = int(np.floor(W[j, 1] / cell)) - origin[1]
+                gz = int(np.floor(W[j, 2] / cell)) - origin[2]
                 if 0 <= gx < nx and 0 <= gy < ny and 0 <= gz < nz and grid[gx, gy, gz] != 0:
                     out[j] = BACKGROUND
     else:
         for j in range(n):
             if out[j] == KEEP:
-                ix = int(np.floor(W[j, 0] * inv_cell))
-                iy = int(np.floor(W[j, 1] * inv_cell))
-                iz = int(np.floor(W[j, 2] * inv_cell))
+                ix = int(np.floor(W[j, 0] / cell))
+                iy = int(np.floor(W[j, 1] / cell))
+                iz = int(np.floor(W[j, 2] / cell))
                 if occupied(ix, iy, iz, grid, origin, table, shift):
                     out[j] = BACKGROUND
     return out

@@ -304,26 +304,22 @@ class LidarSimulator:
 
         # The same uniform draws every frame whatever is hit, so a run depends on its seed only.
         u = rng.random((n, 3))
-        from_target = u[:, 0] < pd_target
-        from_scene = ~from_target & (u[:, 1] < pd_scene)
-        range_m = t_s.copy()
-        range_m[echo.index] = np.where(from_target[echo.index], echo.range_m, t_s[echo.index])
-        in_range = (range_m >= sensor.min_range_m) & (range_m <= sensor.max_range_m)
-        returned = (from_target | from_scene) & in_range
-        # False alarms on pulses that returned nothing, uniform in range: given
-        # u < p_fa, u / p_fa is uniform on [0, 1).
-        false_alarm = ~returned & (u[:, 2] < sensor.false_alarm_rate)
-        keep = np.flatnonzero(returned | false_alarm)
-        fa = false_alarm[keep]
-        r = range_m[keep]
-        r[fa] = sensor.min_range_m + (sensor.max_range_m - sensor.min_range_m) * (
-            u[keep[fa], 2] / sensor.false_alarm_rate
+        target_range = np.full(n, np.inf)
+        target_range[echo.index] = echo.range_m
+        target_rho = np.zeros(n)
+        target_rho[echo.index] = echo.surface
+        keep, r, rho, from_target = _first_returns(
+            u,
+            pd_target,
+            pd_scene,
+            t_s,
+            target_range,
+            target_rho,
+            self._scene_rho[hit_s],
+            sensor.min_range_m,
+            sensor.max_range_m,
+            sensor.false_alarm_rate,
         )
-        rho = self._scene_rho[hit_s[keep]]
-        rho_by_pulse = np.zeros(n)
-        rho_by_pulse[echo.index] = echo.surface
-        rho = np.where(from_target[keep], rho_by_pulse[keep], rho)
-        rho[fa] = 0.0
 
         noise = rng.standard_normal((len(keep), 3))
         points = _noisy_points(
@@ -339,6 +335,51 @@ class LidarSimulator:
             t=pulses.t[keep],
             line=pulses.line[keep],
             intensity=np.clip(LIVOX_DIFFUSE_MAX * rho, 0.0, LIVOX_DIFFUSE_MAX).astype(np.float32),
-            hit_target=from_target[keep],
+            hit_target=from_target,
             n_pulses=n,
         )
+
+
+@nb.njit(cache=True)
+def _first_returns(
+    u: FloatArray,
+    pd_target: FloatArray,
+    pd_scene: FloatArray,
+    scene_range: FloatArray,
+    target_range: FloatArray,
+    target_rho: FloatArray,
+    scene_rho: FloatArray,
+    r_min: float,
+    r_max: float,
+    p_fa: float,
+) -> tuple[NDArray[np.int64], FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Which pulses return, from what range and reflectivity, and whether from the target.
+
+    Per pulse with uniforms u = (u₀, u₁, u₂): the target echoes if u₀ < P_d,target,
+    else the scene if u₁ < P_d,scene; a return counts within [r_min, r_max].  A pulse
+    without one is a false alarm if u₂ < p_fa, at range r_min + (r_max − r_min) u₂ / p_fa
+    (given u₂ < p_fa, u₂ / p_fa is uniform on [0, 1)) and reflectivity 0.
+    """
+    n = u.shape[0]
+    keep = np.empty(n, dtype=np.int64)
+    r = np.empty(n)
+    rho = np.empty(n)
+    from_target = np.empty(n, dtype=np.bool_)
+    m = 0
+    for i in range(n):
+        hit_target = u[i, 0] < pd_target[i]
+        hit_scene = not hit_target and u[i, 1] < pd_scene[i]
+        rng_i = target_range[i] if hit_target else scene_range[i]
+        if (hit_target or hit_scene) and r_min <= rng_i <= r_max:
+            keep[m] = i
+            r[m] = rng_i
+            rho[m] = target_rho[i] if hit_target else scene_rho[i]
+            from_target[m] = hit_target
+            m += 1
+        elif u[i, 2] < p_fa:
+            keep[m] = i
+            r[m] = r_min + (r_max - r_min) * (u[i, 2] / p_fa)
+            rho[m] = 0.0
+            from_target[m] = False
+            m += 1
+    return keep[:m], r[:m], rho[:m], from_target[:m]

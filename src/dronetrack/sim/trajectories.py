@@ -257,11 +257,15 @@ class SplineTrajectory:
         return self._held(t, np.asarray(self.spline(self._clamped(t), 2), dtype=np.float64))
 
 
+MAX_CSV_SPEED = 100.0  # [m/s] faster than any multirotor; more means wrong units
+
+
 def load_csv_trajectory(path: Path, t0: float = 0.0) -> SplineTrajectory:
     """A trajectory from a CSV with columns ``t,x,y,z`` [s, m], shifted to start at t0.
 
     Raises TrajectoryError for a missing file or column, fewer than two rows,
-    non-numeric or non-finite values, or times that do not strictly increase.
+    non-numeric or non-finite values, times that do not strictly increase, or a
+    speed between samples above MAX_CSV_SPEED (times in ms, positions in mm).
     """
     data = read_csv_columns(path, ("t", "x", "y", "z"), TrajectoryError, "trajectory CSV")
     if len(data) < 2:
@@ -274,6 +278,19 @@ def load_csv_trajectory(path: Path, t0: float = 0.0) -> SplineTrajectory:
     if np.any(dt <= 0):
         row = int(np.argmax(dt <= 0)) + 3
         raise TrajectoryError(f"trajectory CSV {path}: time t must strictly increase (line {row})")
+    # Mean speed between samples: |p_{k+1} − p_k| / (t_{k+1} − t_k)
+    with np.errstate(over="ignore"):  # absurd values give inf, caught below
+        speed = np.linalg.norm(np.diff(data[:, 1:], axis=0), axis=1) / dt
+    if np.any(speed > MAX_CSV_SPEED):
+        row = int(np.argmax(speed > MAX_CSV_SPEED)) + 3
+        raise TrajectoryError(
+            f"trajectory CSV {path}: {speed.max():.0f} m/s between samples (line {row}) exceeds "
+            f"{MAX_CSV_SPEED:.0f} m/s; times must be in seconds and positions in metres"
+        )
     t = data[:, 0] - data[0, 0] + t0
     bc = "not-a-knot" if len(t) >= 4 else "natural"
-    return SplineTrajectory(CubicSpline(t, data[:, 1:], axis=0, bc_type=bc))
+    try:
+        spline = CubicSpline(t, data[:, 1:], axis=0, bc_type=bc)
+    except ValueError as exc:
+        raise TrajectoryError(f"trajectory CSV {path}: cannot fit a spline: {exc}") from exc
+    return SplineTrajectory(spline)

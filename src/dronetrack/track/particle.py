@@ -43,6 +43,7 @@ __all__ = [
     "ParticleFilter",
     "cylinder_particles",
     "eq11_parameters",
+    "gate_margin",
     "likelihood_weights",
     "predict",
     "spread",
@@ -153,6 +154,15 @@ def likelihood_weights(distances: FloatArray, sigma_m: float, floor: float) -> F
     return out
 
 
+def gate_margin(sigma_m: float, floor: float) -> float:
+    """Distance [m] beyond which a point cannot change a weight: 8 σ_m, where
+    N(8 σ_m; 0, σ_m²) = e^{−32} / (σ_m √(2π)) is below 10⁻⁶ of the floor; ∞ (no
+    gate) without a floor, as then even tiny likelihoods set the weights' ratios.
+    """
+    density = np.exp(-32.0) / (sigma_m * np.sqrt(2.0 * np.pi))
+    return 8.0 * sigma_m if density < 1e-6 * floor else np.inf
+
+
 def spread(X: FloatArray) -> float:
     """σ_particles: the mean of the per-axis standard deviations of the positions."""
     return float(_spread_kernel(X))
@@ -232,6 +242,7 @@ class ParticleFilter:
         self.noise = noise
         self.rng = rng
         self.weight_floor = weight_floor
+        self._gate_m = gate_margin(noise.sigma_m, weight_floor)
         self._resample = RESAMPLERS[resampling]
         self.X = np.zeros((n, STATE_DIM))
         self.sigma_particles = np.inf
@@ -264,11 +275,13 @@ class ParticleFilter:
         """Weight by the nearest point and resample (eqs. 8-9); False if there are no points."""
         if len(points) == 0:
             return False
-        # Points beyond 8 σ_m of every particle leave all weights at the floor:
-        # keep only those near the cloud's bounding box.
-        margin = 8.0 * self.noise.sigma_m
-        lo, hi = _position_bounds(self.X)
-        near = points[np.all((points >= lo - margin) & (points <= hi + margin), axis=1)]
+        # Points far from every particle leave all weights at the floor: keep only
+        # those near the cloud's bounding box.
+        near = points
+        if np.isfinite(self._gate_m):
+            lo, hi = _position_bounds(self.X)
+            m = self._gate_m
+            near = points[np.all((points >= lo - m) & (points <= hi + m), axis=1)]
         if len(near) == 0:
             w = np.full(self.n, 1.0 / self.n)
         else:
