@@ -265,7 +265,7 @@ def load_csv_trajectory(path: Path, t0: float = 0.0) -> SplineTrajectory:
 
     Raises TrajectoryError for a missing file or column, fewer than two rows,
     non-numeric or non-finite values, times that do not strictly increase, or a
-    speed between samples above MAX_CSV_SPEED (times in ms, positions in mm).
+    speed between samples above MAX_CSV_SPEED (positions in millimetres, say).
     """
     data = read_csv_columns(path, ("t", "x", "y", "z"), TrajectoryError, "trajectory CSV")
     if len(data) < 2:
