@@ -20,7 +20,7 @@ import numpy as np
 
 from dronetrack.eval.log import TrackLog
 from dronetrack.factory import build_pipeline, noise_parameters, resolve_tracker, scan_duration
-from dronetrack.io.background import load_background
+from dronetrack.io.background import read_background_settings
 from dronetrack.pipeline import Pipeline, StepResult
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, build_world, dump_scenario, resolve_scenario
@@ -43,7 +43,7 @@ def resolve_run(cfg: ScenarioConfig) -> ScenarioConfig:
     background = pipeline.background
     if background.file is not None:
         path = Path(background.file).expanduser().resolve()
-        stored = load_background(path)
+        stored = read_background_settings(path)
         background = background.model_copy(
             update={
                 "file": str(path),

@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from dronetrack.errors import InputError
 from dronetrack.preprocess.background import VoxelBackground
+from dronetrack.preprocess.voxel import IntArray
 
-__all__ = ["load_background", "save_background"]
+__all__ = [
+    "BackgroundSettings",
+    "load_background",
+    "read_background_settings",
+    "save_background",
+]
 
 FORMAT = "dronetrack-background-1"
 
@@ -29,20 +36,44 @@ def save_background(model: VoxelBackground, path: Path) -> None:
     )
 
 
-def load_background(path: Path) -> VoxelBackground:
-    """Read a model written by ``save_background``."""
+@dataclass(frozen=True, slots=True)
+class BackgroundSettings:
+    """How a saved model was built: voxel size [m], inflation and lookup depth
+    [levels], and the returns a voxel needed."""
+
+    resolution: float
+    inflate: int
+    lookup_depth: int
+    min_hits: int
+
+
+def _read(path: Path, cells: bool) -> tuple[BackgroundSettings, IntArray | None]:
+    """The settings of a model written by ``save_background``, and its cells if asked
+    (the npz members load lazily, so settings alone skip the cells)."""
     if not path.is_file():
         raise InputError(f"background file not found: {path}")
     try:
         with np.load(path, allow_pickle=False) as data:
             if str(data["format"]) != FORMAT:
                 raise InputError(f"{path} is not a dronetrack background model")
-            return VoxelBackground.from_cells(
-                data["cells"],
+            settings = BackgroundSettings(
                 float(data["resolution"]),
                 int(data["inflate"]),
                 int(data["lookup_depth"]),
                 int(data["min_hits"]),
             )
+            return settings, (data["cells"] if cells else None)
     except (KeyError, ValueError, OSError, zipfile.BadZipFile) as err:
         raise InputError(f"cannot read background model {path}: {err}") from None
+
+
+def read_background_settings(path: Path) -> BackgroundSettings:
+    """The settings of a saved model, without reading its cells."""
+    return _read(path, cells=False)[0]
+
+
+def load_background(path: Path) -> VoxelBackground:
+    """Read a model written by ``save_background``."""
+    s, keys = _read(path, cells=True)
+    assert keys is not None
+    return VoxelBackground.from_cells(keys, s.resolution, s.inflate, s.lookup_depth, s.min_hits)
