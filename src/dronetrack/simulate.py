@@ -66,8 +66,6 @@ class SimulationRun:
     pipeline: Pipeline
     wall_s: float
     simulated_s: float
-    last_frame: Frame | None
-    last_result: StepResult | None
 
     @property
     def realtime_factor(self) -> float:
@@ -111,8 +109,6 @@ def run_simulation(cfg: ScenarioConfig, progress: Progress | None = None) -> Sim
         world.place_turret(*pipeline.controller.home)
     n_frames = max(1, math.ceil((scan_s + cfg.duration_s) / period - 1e-9))
     log = TrackLog()
-    frame: Frame | None = None
-    result: StepResult | None = None
     begin = time.perf_counter()
     for i in range(n_frames):
         frame, truth = world.step()
@@ -124,7 +120,7 @@ def run_simulation(cfg: ScenarioConfig, progress: Progress | None = None) -> Sim
         if progress is not None:
             progress(i + 1, n_frames)
     wall = time.perf_counter() - begin
-    return SimulationRun(cfg, log, pipeline, wall, n_frames * period, frame, result)
+    return SimulationRun(cfg, log, pipeline, wall, n_frames * period)
 
 
 def _record(
