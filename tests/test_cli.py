@@ -166,7 +166,10 @@ def test_console_script_exit_code_and_no_traceback(tmp_path: Path) -> None:
         check=False,
     )
     assert proc.returncode == 2
-    expected = "error: unknown sensor 'nosuch'; choose one of avia, mid40, mid360, vlp16, file:PATH"
+    expected = (
+        "error: unknown sensor 'nosuch'; "
+        "choose one of avia, mid40, mid360, vlp16, vlp16-side, file:PATH"
+    )
     assert proc.stderr.strip().splitlines() == [expected]
     usage = subprocess.run(
         [sys.executable, "-m", "dronetrack", "render"], capture_output=True, text=True, check=False

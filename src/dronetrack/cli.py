@@ -14,6 +14,7 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.console import Console
+from rich.progress import ProgressColumn
 
 from dronetrack import __version__
 from dronetrack.errors import DronetrackError
@@ -49,12 +50,25 @@ class TurretMode(StrEnum):
 class ControlMode(StrEnum):
     tracking = "tracking"
     fixed = "fixed"
+    truth = "truth"
+    sweep = "sweep"
+    swing = "swing"
+    slowdown = "slowdown"
+    stop = "stop"
+    adaptive = "adaptive"
 
 
 class TrackerName(StrEnum):
     pf_delta = "pf-delta"
     pf_cv = "pf-cv"
     pf_ca = "pf-ca"
+    pf_systematic = "pf-systematic"
+    ekf_dogru = "ekf-dogru"
+    ekf_catalano = "ekf-catalano"
+    ekf_catalano_mod = "ekf-catalano-mod"
+    ekf_cv = "ekf-cv"
+    kf_ca = "kf-ca"
+    aekf_ca = "aekf-ca"
 
 
 def _version(value: bool) -> None:
@@ -92,7 +106,10 @@ def scenarios(
 @app.command()
 def pattern(
     sensor: Annotated[
-        str, typer.Argument(help="avia, mid40, mid360, vlp16, or file:PATH (Livox CSV / .npy)")
+        str,
+        typer.Argument(
+            help="avia, mid40, mid360, vlp16, vlp16-side, or file:PATH (Livox CSV / .npy)"
+        ),
     ],
     out: Annotated[Path, typer.Option("--out", "-o", help="CSV file to write.")],
     duration: Annotated[
@@ -208,11 +225,16 @@ def simulate(
         typer.Argument(help="A scenario name or .toml file (default: 'default')."),
     ] = None,
     tracker: Annotated[
-        TrackerName | None, typer.Option("--tracker", help="The particle filter's motion model.")
+        TrackerName | None,
+        typer.Option("--tracker", help="The tracking method (see the README's method table)."),
     ] = None,
     turret: Annotated[
         ControlMode | None,
-        typer.Option("--turret", help="Track the estimate, or keep the turret still."),
+        typer.Option(
+            "--turret",
+            help="Track the estimate, hold still, follow the true target, "
+            "or run one of seed 003's scan strategies.",
+        ),
     ] = None,
     particles: Annotated[
         int | None, typer.Option("--particles", min=10, help="Particle count.")
@@ -239,7 +261,7 @@ def simulate(
     Writes config.toml (the resolved configuration: re-run it with --config),
     frames.csv, metrics.json and plots to the output folder, and prints the metrics.
     """
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import Progress
 
     from dronetrack.errors import ConfigError
     from dronetrack.io.runs import default_run_dir
@@ -263,17 +285,83 @@ def simulate(
         turret_mode=turret.value if turret else None,
     )
     out_dir = out if out is not None else default_run_dir()
-    columns = (
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-    )
+    columns = _progress_columns()
     with Progress(*columns, console=err_console, transient=True) as bar:
         task = bar.add_task(f"simulating {cfg.name}", total=None)
         run = run_simulation(cfg, progress=lambda i, n: bar.update(task, completed=i, total=n))
     metrics = write_run(run, out_dir)
     _print_metrics(metrics, out_dir)
+
+
+@app.command()
+def compare(
+    suite: Annotated[
+        str,
+        typer.Option(
+            "--suite",
+            help="seed000-outdoor, seed000-ablation, seed000-indoor, seed002 or seed003.",
+        ),
+    ],
+    runs: Annotated[int, typer.Option("--runs", min=1, help="Seeded runs per method.")] = 5,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
+    ] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option("--duration", "-d", min=0.01, help="Shorten every flight to these seconds."),
+    ] = None,
+    methods: Annotated[
+        str | None,
+        typer.Option("--methods", help="Comma-separated subset of the suite's methods."),
+    ] = None,
+) -> None:
+    """Run every method of a seed's table on the same seeded scenarios, side by side.
+
+    Writes table.csv (scenario,method,metric,mean,std,paper), table.md and, for
+    seed003, the seed's CSV logs of every run.
+    """
+    from rich.progress import Progress
+
+    from dronetrack.compare.runner import run_suite
+    from dronetrack.compare.suites import get_suite
+    from dronetrack.compare.tables import aggregate, write_tables
+    from dronetrack.io.runs import default_run_dir
+
+    chosen = get_suite(suite)
+    subset = [m.strip() for m in methods.split(",") if m.strip()] if methods else None
+    out_dir = out if out is not None else default_run_dir()
+    columns = _progress_columns()
+    with Progress(*columns, console=err_console, transient=True) as bar:
+        task = bar.add_task(chosen.name, total=None)
+
+        def report(what: str, i: int, n: int) -> None:
+            bar.update(task, description=f"{chosen.name}: {what}", completed=i, total=n)
+
+        results = run_suite(
+            chosen,
+            runs,
+            duration=duration,
+            methods=subset,
+            log_dir=out_dir / "logs" if chosen.tracker is not None else None,
+            progress=report,
+        )
+    rows = aggregate(chosen, results)
+    paths = write_tables(chosen, rows, out_dir)
+    Console().print((out_dir / "table.md").read_text(), markup=False, highlight=False)
+    for p in paths:
+        typer.echo(str(p))
+
+
+def _progress_columns() -> tuple[ProgressColumn, ...]:
+    """A progress bar with percentage and time left."""
+    from rich.progress import BarColumn, TextColumn, TimeRemainingColumn
+
+    return (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>3.0f}%"),
+        TimeRemainingColumn(),
+    )
 
 
 def _print_metrics(metrics: dict[str, object], out_dir: Path) -> None:

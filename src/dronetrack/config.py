@@ -18,7 +18,9 @@ __all__ = [
     "BackgroundConfig",
     "ControllerConfig",
     "CropConfig",
+    "DetectorConfig",
     "EvaluationConfig",
+    "KalmanConfig",
     "LatencyConfig",
     "OutlierConfig",
     "PipelineConfig",
@@ -28,7 +30,18 @@ __all__ = [
 
 Vec3 = tuple[float, float, float]
 Pair = tuple[float, float]
-TrackerKind = Literal["pf-delta", "pf-cv", "pf-ca"]
+TrackerKind = Literal[
+    "pf-delta",
+    "pf-cv",
+    "pf-ca",
+    "pf-systematic",
+    "ekf-dogru",
+    "ekf-catalano",
+    "ekf-catalano-mod",
+    "ekf-cv",
+    "kf-ca",
+    "aekf-ca",
+]
 
 
 class StrictModel(BaseModel):
@@ -43,6 +56,8 @@ class CropConfig(StrictModel):
 
     min_m: Vec3 = (1.0, -200.0, 1.0)
     max_m: Vec3 = (300.0, 200.0, 100.0)
+    # Seed 003's second filter: keep only points inside the convex hull of these vertices.
+    hull_m: tuple[Vec3, ...] | None = None
 
     @model_validator(mode="after")
     def _ordered(self) -> CropConfig:
@@ -78,8 +93,37 @@ class OutlierConfig(StrictModel):
     std_mul: float = Field(1.0, gt=0)
 
 
+class KalmanConfig(StrictModel):
+    """The Kalman-filter trackers.  A value left out takes the tracker's own default,
+    from its paper (see track/sphere_kalman.py and track/cluster_kalman.py)."""
+
+    sigma_acc: float | None = Field(None, gt=0)  # Q = σ_acc² I (seed 000's baselines: 0.05)
+    sigma_lidar: float | None = Field(None, gt=0)  # R = σ_lidar² I (0.1)
+    # ekf-catalano: the fixed search radius (0.2; -mod 1.5); ekf-dogru: its minimum radius
+    search_radius_m: float | None = Field(None, gt=0)
+    # ekf-dogru / ekf-catalano report "tracked" while Pxx, Pyy and Pzz are all below this
+    # (the reference compares them with its search-radius setting: 1.5 outdoors, 0.12 inside)
+    tracked_variance_m2: float | None = Field(None, gt=0)
+    lost_after_s: float | None = Field(None, gt=0)  # ekf-cv: 2 s; kf-ca / aekf-ca t_occ: 1 s
+    alpha: float | None = Field(None, ge=0, le=1)  # aekf-ca eq. (6) forgetting factor
+    beta: float | None = Field(None, ge=0, le=1)  # aekf-ca eq. (8) weighting factor
+    gate: float | None = Field(None, gt=0)  # Mahalanobis threshold τ, eq. (9)
+
+
+class DetectorConfig(StrictModel):
+    """Clustering in front of ekf-cv, kf-ca and aekf-ca (seed 002's Algorithm 1)."""
+
+    voxel_m: float | None = Field(None, ge=0)  # 0: no voxel grid
+    eps_m: float | None = Field(None, gt=0)  # DBSCAN ε
+    min_points: int | None = Field(None, ge=1)
+    max_extent_m: float | None = Field(None, gt=0)  # a drone is at most this long
+    roi_radius_m: float | None = Field(None, gt=0)  # cylindrical ROI around the turret base
+    roi_z_m: Pair | None = None  # (z_min, z_max) of the ROI
+
+
 class TrackerConfig(StrictModel):
-    """Seed 000's particle filter.  σ values default to eq. (11) from v_max, a_max, s_diag and T."""
+    """The tracker: seed 000's particle filters (pf-*; σ values default to eq. (11) from
+    v_max, a_max, s_diag and T) or a Kalman filter of seeds 000, 002 and 003."""
 
     kind: TrackerKind = "pf-delta"
     particles: int = Field(5000, ge=10, le=2_000_000)
@@ -95,6 +139,8 @@ class TrackerConfig(StrictModel):
     cylinder_center_m: Vec3 = (25.0, 0.0, 1.0)  # centre of the base of the start cylinder
     cylinder_radius_m: float = Field(20.0, gt=0)
     cylinder_height_m: float = Field(20.0, gt=0)
+    kalman: KalmanConfig = KalmanConfig()
+    detector: DetectorConfig = DetectorConfig()
 
 
 class EvaluationConfig(StrictModel):
@@ -106,15 +152,23 @@ class EvaluationConfig(StrictModel):
 
 
 class ControllerConfig(StrictModel):
-    """Turret control: track the estimate, search when lost, or hold still."""
+    """Turret control: track the estimate, search when lost, or hold still; or (``truth``,
+    simulation only) follow the true target so that every tracker sees the same frames."""
 
-    mode: Literal["tracking", "fixed"] = "tracking"
+    # tracking / fixed / truth, or one of seed 003's scan strategies for a pan-only PTU
+    mode: Literal[
+        "tracking", "fixed", "truth", "sweep", "swing", "slowdown", "stop", "adaptive"
+    ] = "tracking"
     home_m: Vec3 = (60.0, 0.0, 15.0)  # where the sensor looks before a lock, and in fixed mode
     lead_s: float = Field(0.0, ge=0)  # aim at p + v·lead (0: at the estimate, as the reference)
     search_hold_s: float = Field(2.0, ge=0)  # hold after losing the target, then scan
     search_pan_deg: float = Field(30.0, ge=0)  # scan ± this around the last bearing
     search_tilt_deg: float = Field(10.0, ge=0)
     search_period_s: float = Field(4.0, gt=0)
+    # Seed 003's scan strategies (pan only): the sweep's range and rate, and the fixed tilt.
+    sweep_pan_deg: Pair = (-90.0, 90.0)
+    sweep_rate_deg_s: float = Field(30.0, gt=0)
+    sweep_tilt_deg: float = 0.0
 
 
 class LatencyConfig(StrictModel):

@@ -7,22 +7,57 @@ that maps configuration sections (degrees, optional values) onto them.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
+from typing import Any, cast, get_args
 
 import numpy as np
 
-from dronetrack.config import ControllerConfig, PipelineConfig, TrackerConfig
-from dronetrack.control.controller import TurretController
+from dronetrack.config import ControllerConfig, PipelineConfig, TrackerConfig, TrackerKind
+from dronetrack.control.controller import Controller, TurretController
+from dronetrack.control.strategies import MODES as STRATEGIES
+from dronetrack.control.strategies import Mode as StrategyMode
+from dronetrack.control.strategies import ScanStrategyController
+from dronetrack.geometry import FloatArray
 from dronetrack.io.background import load_background
 from dronetrack.kinematics import MountGeometry
 from dronetrack.pipeline import OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
+from dronetrack.preprocess.crop import HullCrop
+from dronetrack.track.cluster_kalman import (
+    SEED002_DETECTOR,
+    SEED003_DETECTOR,
+    AdaptiveEKF,
+    CandidateDetector,
+    CentroidEKF,
+    ConstantAccelerationKF,
+)
 from dronetrack.track.particle import MotionModel, NoiseParameters, eq11_parameters
-from dronetrack.track.tracker import ParticleTracker
+from dronetrack.track.sphere_kalman import CatalanoEKF, DogruEKF
+from dronetrack.track.tracker import ParticleTracker, Tracker
 
-__all__ = ["build_pipeline", "noise_parameters", "resolve_tracker", "scan_duration"]
+__all__ = [
+    "TRACKER_NAMES",
+    "build_pipeline",
+    "build_tracker",
+    "noise_parameters",
+    "resolve_tracker",
+    "scan_duration",
+]
 
-_MODELS: dict[str, MotionModel] = {"pf-delta": "delta", "pf-cv": "cv", "pf-ca": "ca"}
+_MODELS: dict[str, MotionModel] = {
+    "pf-delta": "delta",
+    "pf-cv": "cv",
+    "pf-ca": "ca",
+    "pf-systematic": "cv",
+}
+TRACKER_NAMES: tuple[str, ...] = get_args(TrackerKind)
+# Seed 002's particle-filter baseline: 2,000 particles, systematic resampling.  The
+# paper names no motion model; constant velocity, as a random-walk acceleration
+# extrapolates without bound through the long gaps of its flight.
+SEED002_PF_PARTICLES = 2000
+# Seed 000's fixed search radii for Catalano et al.'s EKF: theirs, and 1.5 m ("mod.").
+CATALANO_RADIUS = {"ekf-catalano": 0.2, "ekf-catalano-mod": 1.5}
 
 
 # Eq. (11) sets σ_acc = 0, which makes the constant-acceleration model the
@@ -70,13 +105,24 @@ def _controller(
     mount: MountGeometry,
     pan_limits: tuple[float, float],
     tilt_limits: tuple[float, float],
-) -> TurretController:
+) -> Controller:
+    if cfg.mode in STRATEGIES:
+        rad = math.radians
+        return ScanStrategyController(
+            mount,
+            pan_limits,
+            tilt_limits,
+            cast(StrategyMode, cfg.mode),
+            sweep_limits=(rad(cfg.sweep_pan_deg[0]), rad(cfg.sweep_pan_deg[1])),
+            sweep_rate=rad(cfg.sweep_rate_deg_s),
+            tilt=rad(cfg.sweep_tilt_deg),
+        )
     bg = scan.background
     return TurretController(
         mount=mount,
         pan_limits=pan_limits,
         tilt_limits=tilt_limits,
-        mode=cfg.mode,
+        mode="tracking" if cfg.mode == "tracking" else "fixed" if cfg.mode == "fixed" else "truth",
         home=np.asarray(cfg.home_m),
         lead_s=cfg.lead_s,
         search_hold_s=cfg.search_hold_s,
@@ -104,18 +150,7 @@ def build_pipeline(
     ``background.scan_s`` seconds after ``start``; with the background disabled
     tracking starts at once.
     """
-    tc = cfg.tracker
-    tracker = ParticleTracker(
-        n=tc.particles,
-        model=_MODELS[tc.kind],
-        noise=noise_parameters(tc, period),
-        rng=rng,
-        cylinder_center=np.asarray(tc.cylinder_center_m),
-        cylinder_radius=tc.cylinder_radius_m,
-        cylinder_height=tc.cylinder_height_m,
-        resampling=tc.resampling,
-        weight_floor=tc.weight_floor,
-    )
+    tracker = build_tracker(cfg.tracker, period, rng, home=mount.base_vec)
     bg_cfg = cfg.background
     background: VoxelBackground | None = None
     if bg_cfg.enabled:
@@ -141,6 +176,95 @@ def build_pipeline(
         scan_until=start + bg_cfg.scan_s,
         outliers=outliers,
         latency_s=cfg.latency.sensor_s + cfg.latency.processing_s,
+        hull=HullCrop(cfg.crop.hull_m) if cfg.crop.hull_m is not None else None,
+    )
+
+
+def _kwargs(**values: Any) -> dict[str, Any]:
+    """The keyword arguments that were given (None: the tracker's own default)."""
+    return {k: v for k, v in values.items() if v is not None}
+
+
+def _detector(cfg: TrackerConfig, base: CandidateDetector, home: FloatArray) -> CandidateDetector:
+    d = cfg.detector
+    z = d.roi_z_m
+    return replace(
+        base,
+        **_kwargs(
+            voxel_size=d.voxel_m,
+            eps=d.eps_m,
+            min_points=d.min_points,
+            max_extent=d.max_extent_m,
+            roi_radius=d.roi_radius_m,
+            roi_center_xy=(float(home[0]), float(home[1])) if d.roi_radius_m else None,
+            z_min=z[0] if z else None,
+            z_max=z[1] if z else None,
+        ),
+    )
+
+
+def build_tracker(
+    cfg: TrackerConfig,
+    period: float,
+    rng: np.random.Generator,
+    home: FloatArray | None = None,
+) -> Tracker:
+    """The tracker ``cfg.kind`` names; ``home`` (the turret base) is where a Kalman
+    filter reports itself before its first fix, and the centre of a detector's ROI."""
+    kind = cfg.kind
+    base = np.zeros(3) if home is None else np.asarray(home, dtype=np.float64)
+    if kind in _MODELS:
+        pf_sys = kind == "pf-systematic"
+        return ParticleTracker(
+            n=SEED002_PF_PARTICLES
+            if pf_sys and "particles" not in cfg.model_fields_set
+            else cfg.particles,
+            model=_MODELS[kind],
+            noise=noise_parameters(cfg, period),
+            rng=rng,
+            cylinder_center=np.asarray(cfg.cylinder_center_m),
+            cylinder_radius=cfg.cylinder_radius_m,
+            cylinder_height=cfg.cylinder_height_m,
+            resampling="systematic" if pf_sys else cfg.resampling,
+            weight_floor=cfg.weight_floor,
+        )
+    k = cfg.kalman
+    common = _kwargs(period=period, home=base)
+    if kind == "ekf-dogru":
+        return DogruEKF(
+            **common,
+            **_kwargs(
+                sigma_acc=k.sigma_acc,
+                sigma_lidar=k.sigma_lidar,
+                min_search_radius=k.search_radius_m,
+                tracked_threshold=k.tracked_variance_m2,
+            ),
+        )
+    if kind in CATALANO_RADIUS:
+        return CatalanoEKF(
+            **common,
+            **_kwargs(
+                search_radius=k.search_radius_m or CATALANO_RADIUS[kind],
+                sigma_acc=k.sigma_acc,
+                sigma_lidar=k.sigma_lidar,
+                tracked_threshold=k.tracked_variance_m2,
+            ),
+        )
+    if kind == "ekf-cv":
+        return CentroidEKF(
+            **common,
+            detector=_detector(cfg, SEED003_DETECTOR, base),
+            **_kwargs(lost_after_s=k.lost_after_s),
+        )
+    cls = AdaptiveEKF if kind == "aekf-ca" else ConstantAccelerationKF
+    extra = _kwargs(alpha=k.alpha, beta=k.beta) if kind == "aekf-ca" else {}
+    return cls(
+        **common,
+        detector=_detector(cfg, SEED002_DETECTOR, base),
+        **_kwargs(
+            sigma_acc=k.sigma_acc, sigma_lidar=k.sigma_lidar, gate=k.gate, t_occ=k.lost_after_s
+        ),
+        **extra,
     )
 
 

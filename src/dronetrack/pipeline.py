@@ -2,7 +2,8 @@
 
 Per frame:
 1. check the frame (time order, finite values, sensor poses) and count problems;
-2. transform to the world frame with each point's sensor pose, crop to a box;
+2. transform to the world frame with each point's sensor pose, crop to a box
+   (and optionally to a convex hull, seed 003's filter node);
 3. while the background is being scanned: add the points to the background model
    and command the scanning raster; when the scan ends, build the model;
 4. otherwise subtract the background, optionally remove outliers, and step the
@@ -20,15 +21,16 @@ import logging
 import math
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
 
-from dronetrack.control.controller import TurretController
+from dronetrack.control.controller import Controller
 from dronetrack.errors import InputError
 from dronetrack.geometry import FloatArray
 from dronetrack.preprocess.background import VoxelBackground
+from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.track.tracker import Tracker, TrackEstimate
@@ -73,13 +75,14 @@ class Pipeline:
     def __init__(
         self,
         tracker: Tracker,
-        controller: TurretController,
+        controller: Controller,
         crop_min: FloatArray,
         crop_max: FloatArray,
         background: VoxelBackground | None = None,
         scan_until: float = 0.0,
         outliers: OutlierSettings = OutlierSettings(),
         latency_s: float = 0.0,
+        hull: HullCrop | None = None,
     ) -> None:
         self.tracker = tracker
         self.controller = controller
@@ -89,6 +92,7 @@ class Pipeline:
         self.scan_until = scan_until if background is not None and not background.ready else 0.0
         self.outliers = outliers
         self.latency_s = latency_s
+        self.hull = hull
         self.counts: Counter[str] = Counter()
         self._clock: float | None = None  # the filter's time: the end of the last period it ran
 
@@ -122,7 +126,7 @@ class Pipeline:
                 flags.append("nonfinite_estimate")
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
-            command = self.controller.tracking(t_cmd, estimate) if steps > 0 else None
+            command = self.controller.tracking(t_cmd, estimate, points) if steps > 0 else None
             result = self._result(frame, "track", estimate, points, command, start, flags, steps)
         for flag in flags:
             self.counts[flag] += 1
@@ -173,6 +177,14 @@ class Pipeline:
             return _no_foreground()
         if fg.n_nonfinite:
             flags.append("nonfinite_points")
+        if self.hull is not None and len(fg.points):
+            keep = self.hull.mask(fg.points)
+            fg = replace(
+                fg,
+                points=fg.points[keep],
+                index=fg.index[keep],
+                n_outside=fg.n_outside + int(np.count_nonzero(~keep)),
+            )
         return fg
 
     def _remove_outliers(self, points: FloatArray) -> FloatArray:

@@ -11,23 +11,27 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from dronetrack.config import TrackerConfig
+from dronetrack.control.aiming import aim_angles
+from dronetrack.errors import ConfigError
 from dronetrack.eval.log import TrackLog
 from dronetrack.factory import build_pipeline, noise_parameters, resolve_tracker, scan_duration
+from dronetrack.geometry import FloatArray
 from dronetrack.io.background import read_background_settings
 from dronetrack.pipeline import Pipeline, StepResult
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, build_world, dump_scenario, resolve_scenario
-from dronetrack.sim.world import FrameTruth, SimWorld
-from dronetrack.types import Frame
+from dronetrack.sim.world import FrameTruth
+from dronetrack.types import Frame, TurretCommand
 
-__all__ = ["SimulationRun", "resolve_run", "run_simulation", "write_run"]
+__all__ = ["SimulationRun", "resolve_run", "run_lockstep", "run_simulation", "write_run"]
 
 Progress = Callable[[int, int], None]
 
@@ -78,9 +82,61 @@ class SimulationRun:
         return out
 
 
-def run_simulation(cfg: ScenarioConfig, progress: Progress | None = None) -> SimulationRun:
-    """Run the scenario closed-loop; ``cfg`` is resolved first (see ``resolve_run``)."""
-    cfg = resolve_run(cfg)
+FrameHook = Callable[[Frame, FrameTruth, StepResult], None]
+
+
+def run_simulation(
+    cfg: ScenarioConfig,
+    progress: Progress | None = None,
+    *,
+    init_on_clean_view: bool = False,
+    hook: FrameHook | None = None,
+) -> SimulationRun:
+    """Run the scenario closed-loop; ``cfg`` is resolved first (see ``resolve_run``).
+
+    ``init_on_clean_view``: a tracker that can be initialised on a position (the
+    Kalman filters) is, once, on the centroid of the first frame whose foreground
+    holds only the drone's points, as seed 000 did for its EKF baselines.
+    ``hook`` sees every frame with its ground truth and the pipeline's result.
+    """
+    return run_lockstep(
+        cfg,
+        [cfg.pipeline.tracker],
+        progress,
+        init_on_clean_view=init_on_clean_view,
+        hooks=[hook] if hook is not None else None,
+    )[0]
+
+
+def run_lockstep(
+    cfg: ScenarioConfig,
+    trackers: Sequence[TrackerConfig],
+    progress: Progress | None = None,
+    *,
+    init_on_clean_view: bool = False,
+    hooks: Sequence[FrameHook] | None = None,
+) -> list[SimulationRun]:
+    """One simulated world feeding one pipeline per tracker configuration, frame by frame.
+
+    The frames can be shared only if no tracker moves the turret, so with more
+    than one tracker the controller must be ``truth`` or ``fixed``.  Each run is
+    the same as ``run_simulation`` of the scenario with that tracker alone: the
+    world and every filter draw from the seeds ``cfg.seed`` gives.
+    """
+    mode = cfg.pipeline.controller.mode
+    if len(trackers) > 1 and mode not in ("truth", "fixed"):
+        raise ConfigError(
+            f"trackers can share frames only with the turret on 'truth' or 'fixed', not {mode!r}"
+        )
+    if hooks is not None and len(hooks) != len(trackers):
+        raise ConfigError("give one hook per tracker")
+    configs = [
+        resolve_run(
+            cfg.model_copy(update={"pipeline": cfg.pipeline.model_copy(update={"tracker": t})})
+        )
+        for t in trackers
+    ]
+    cfg = configs[0]
     scan_s = scan_duration(cfg.pipeline)
     # The flight starts after the background scan: the target waits on the ground.
     flight = cfg.model_copy(
@@ -94,41 +150,71 @@ def run_simulation(cfg: ScenarioConfig, progress: Progress | None = None) -> Sim
     world = build_world(flight, np.random.default_rng(sim_seed))
     turret = world.plant.spec
     period = cfg.sensor.integration_time_s
-    pipeline = build_pipeline(
-        cfg.pipeline,
-        period,
-        world.mount,
-        (turret.pan.lower, turret.pan.upper),
-        (turret.tilt.lower, turret.tilt.upper),
-        np.random.default_rng(filter_seed),
-    )
-    start_cmd = pipeline.controller.scanning(0.0) if pipeline.scanning else None
+    pipelines = [
+        build_pipeline(
+            c.pipeline,
+            period,
+            world.mount,
+            (turret.pan.lower, turret.pan.upper),
+            (turret.tilt.lower, turret.tilt.upper),
+            np.random.default_rng(filter_seed),
+        )
+        for c in configs
+    ]
+    lead = pipelines[0]
+    s_diag = make_drone(cfg.drone.model).s_diag
+    start_cmd = lead.controller.scanning(0.0) if lead.scanning else None
     if start_cmd is not None:
         world.place_turret(start_cmd.pan, start_cmd.tilt)
-    elif cfg.pipeline.controller.mode == "fixed":
-        world.place_turret(*pipeline.controller.home)
+    elif mode == "fixed":
+        world.place_turret(*lead.controller.home)
+    elif mode == "truth":
+        world.place_turret(*aim_angles(world.target_position(0.0), world.mount))
     n_frames = max(1, math.ceil((scan_s + cfg.duration_s) / period - 1e-9))
-    log = TrackLog()
+    logs = [TrackLog() for _ in pipelines]
+    waiting = [init_on_clean_view and hasattr(p.tracker, "initialize") for p in pipelines]
     begin = time.perf_counter()
     for i in range(n_frames):
         frame, truth = world.step()
-        result = pipeline.step(frame)
-        if result.command is not None:
-            world.command(result.command)
-        if result.phase == "track":
-            _record(log, world, frame, truth, result)
+        results = [p.step(frame) for p in pipelines]
+        command = results[0].command
+        if mode == "truth" and results[0].phase == "track":
+            t_cmd = frame.end + lead.latency_s
+            command = TurretCommand(t_cmd, *aim_angles(world.target_position(t_cmd), world.mount))
+        if command is not None:
+            world.command(command)
+        for k, result in enumerate(results):
+            if result.phase != "track":
+                continue
+            _record(logs[k], frame, truth, result)
+            if waiting[k] and _clean_view(result.foreground, truth, s_diag, period):
+                pipelines[k].tracker.initialize(result.foreground.mean(axis=0))  # type: ignore[attr-defined]
+                waiting[k] = False
+            if hooks is not None:
+                hooks[k](frame, truth, result)
         if progress is not None:
             progress(i + 1, n_frames)
     wall = time.perf_counter() - begin
-    return SimulationRun(cfg, log, pipeline, wall, n_frames * period)
+    return [
+        SimulationRun(c, log, p, wall, n_frames * period)
+        for c, log, p in zip(configs, logs, pipelines, strict=True)
+    ]
 
 
-def _record(
-    log: TrackLog, world: SimWorld, frame: Frame, truth: FrameTruth, result: StepResult
-) -> None:
+def _clean_view(points: FloatArray, truth: FrameTruth, s_diag: float, period: float) -> bool:
+    """The foreground holds the drone's points and nothing else: every point lies within
+    the drone's diagonal (plus a frame's motion) of its true position."""
+    if len(points) == 0:
+        return False
+    reach = s_diag + float(np.linalg.norm(truth.target_velocity)) * period
+    return bool(np.all(np.linalg.norm(points - truth.target_position, axis=1) <= reach))
+
+
+def _record(log: TrackLog, frame: Frame, truth: FrameTruth, result: StepResult) -> None:
     est = result.estimate
     assert est is not None
     sensor = frame.poses[-1, :3, 3]
+    var = est.variance
     log.append(
         t=frame.end,
         gt=truth.target_position,
@@ -142,6 +228,9 @@ def _record(
         tilt=truth.turret.tilt,
         step_ms=result.step_ms,
         flags=result.flags,
+        pos_var=float(var[0]) if var is not None else math.nan,
+        vel_var=float(var[3]) if var is not None else math.nan,
+        measured=est.measurement is not None,
     )
 
 

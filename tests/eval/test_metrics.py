@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dronetrack.eval.log import TrackLog
 from dronetrack.eval.metrics import (
     coverage_pct,
     detection_gaps,
+    longest_run,
     max_tracking_distance,
     points_by_distance,
     rmse,
@@ -89,3 +92,13 @@ def test_log_summary_without_ground_truth() -> None:
     assert m["first_lock_s"] == pytest.approx(0.2)
     assert m["bad_frames"] == {"gap": 1}
     assert "coverage_pct" not in m
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.booleans(), max_size=60))
+def test_longest_run_counts_the_longest_stretch(values: list[bool]) -> None:
+    best = current = 0
+    for v in values:
+        current = current + 1 if v else 0
+        best = max(best, current)
+    assert longest_run(np.array(values, dtype=bool)) == best

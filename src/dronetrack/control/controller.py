@@ -6,6 +6,8 @@
   look at ``home``.  Once the target is lost, hold on the last position for
   ``search_hold_s``, then sweep around the last bearing until it is found again.
 - Fixed: look at ``home`` and never move (the ablation of seed 000 Table II).
+- Truth: the estimate is ignored; whoever runs the loop aims the turret at the
+  ground truth (seed 000 Table III, so every tracker sees the same frames).
 
 Every command is clipped to the turret's joint limits.
 """
@@ -13,7 +15,7 @@ Every command is clipped to the turret's joint limits.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Literal, Protocol
 
 import numpy as np
 
@@ -24,9 +26,33 @@ from dronetrack.kinematics import MountGeometry
 from dronetrack.track.tracker import TrackEstimate
 from dronetrack.types import TurretCommand
 
-__all__ = ["TurretController"]
+__all__ = ["Controller", "TurretController"]
 
-Mode = Literal["tracking", "fixed"]
+Mode = Literal["tracking", "fixed", "truth"]
+
+
+class Controller(Protocol):
+    """What the pipeline asks of a turret controller."""
+
+    @property
+    def mode(self) -> str:
+        """How the turret is driven (``tracking``, ``fixed``, ``truth``, a scan strategy)."""
+        ...
+
+    @property
+    def home(self) -> tuple[float, float]:
+        """(pan, tilt) [rad] to hold before a lock, and when fixed."""
+        ...
+
+    def scanning(self, t: float) -> TurretCommand:
+        """The command while the background is scanned."""
+        ...
+
+    def tracking(
+        self, t: float, estimate: TrackEstimate, points: FloatArray | None = None
+    ) -> TurretCommand | None:
+        """The command after a tracking step; ``points`` is the frame's foreground (world)."""
+        ...
 
 
 class TurretController:
@@ -72,8 +98,15 @@ class TurretController:
         pan, tilt, period = self.scan
         return self._command(t, *raster(t, pan, tilt, period))
 
-    def tracking(self, t: float, estimate: TrackEstimate) -> TurretCommand | None:
-        """The command after a tracking step whose result is ``estimate``; None to stay put."""
+    def tracking(
+        self, t: float, estimate: TrackEstimate, points: FloatArray | None = None
+    ) -> TurretCommand | None:
+        """The command after a tracking step whose result is ``estimate``; None to stay put.
+
+        ``points`` (this frame's foreground) is not needed to aim at the estimate.
+        """
+        if self.mode == "truth":
+            return None
         if self.mode == "fixed":
             if self._fixed_sent:
                 return None

@@ -19,7 +19,7 @@ from dronetrack.eval.metrics import (
 )
 from dronetrack.geometry import FloatArray
 
-__all__ = ["FRAME_COLUMNS", "TrackLog"]
+__all__ = ["EXTRA_COLUMNS", "FRAME_COLUMNS", "TrackLog"]
 
 # The frames.csv contract, in this order (more columns may follow).
 FRAME_COLUMNS = (
@@ -39,6 +39,9 @@ FRAME_COLUMNS = (
     "tilt_rad",
     "step_ms",
 )
+# Written after ``flags``: a Kalman filter's x and v_x variances, and whether the
+# frame's update used a measurement.
+EXTRA_COLUMNS = ("pos_var", "vel_var", "measured")
 
 
 @dataclass(slots=True)
@@ -57,6 +60,9 @@ class TrackLog:
     tilt: list[float] = field(default_factory=list)
     step_ms: list[float] = field(default_factory=list)
     flags: list[str] = field(default_factory=list)
+    pos_var: list[float] = field(default_factory=list)  # P(x, x) of a Kalman filter [m²]
+    vel_var: list[float] = field(default_factory=list)  # P(vx, vx) [(m/s)²]
+    measured: list[bool] = field(default_factory=list)  # the filter used a measurement
 
     def append(
         self,
@@ -73,6 +79,9 @@ class TrackLog:
         tilt: float,
         step_ms: float,
         flags: tuple[str, ...] = (),
+        pos_var: float = float("nan"),
+        vel_var: float = float("nan"),
+        measured: bool = False,
     ) -> None:
         self.t.append(t)
         self.gt.append(np.asarray(gt, dtype=np.float64))
@@ -86,6 +95,9 @@ class TrackLog:
         self.tilt.append(float(tilt))
         self.step_ms.append(float(step_ms))
         self.flags.append(";".join(flags))
+        self.pos_var.append(float(pos_var))
+        self.vel_var.append(float(vel_var))
+        self.measured.append(bool(measured))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -111,6 +123,9 @@ class TrackLog:
             "pan_rad": np.array(self.pan, dtype=np.float64),
             "tilt_rad": np.array(self.tilt, dtype=np.float64),
             "step_ms": np.array(self.step_ms, dtype=np.float64),
+            "pos_var": np.array(self.pos_var, dtype=np.float64),
+            "vel_var": np.array(self.vel_var, dtype=np.float64),
+            "measured": np.array(self.measured, dtype=bool),
             "flags": np.array(self.flags, dtype=object),
         }
 

@@ -28,6 +28,7 @@ __all__ = [
     "correct",
     "coverage_pct",
     "detection_gaps",
+    "longest_run",
     "max_tracking_distance",
     "points_by_distance",
     "rmse",
@@ -126,3 +127,13 @@ def timing(step_ms: FloatArray) -> dict[str, float]:
         "std": float(np.std(step_ms)),
         "max": float(np.max(step_ms)),
     }
+
+
+def longest_run(mask: NDArray[np.bool_]) -> int:
+    """The longest stretch of consecutive True values."""
+    m = np.asarray(mask, dtype=bool)
+    if not m.any():
+        return 0
+    # Run boundaries: indices where the value changes, padded with False at both ends.
+    edges = np.flatnonzero(np.diff(np.r_[False, m, False].astype(np.int8)))
+    return int(np.max(edges[1::2] - edges[0::2]))

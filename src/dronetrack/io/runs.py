@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from dronetrack.eval.log import FRAME_COLUMNS, TrackLog
+from dronetrack.eval.log import EXTRA_COLUMNS, FRAME_COLUMNS, TrackLog
 
 __all__ = ["default_run_dir", "write_frames_csv", "write_metrics", "write_plots"]
 
@@ -28,20 +28,22 @@ def default_run_dir(root: Path = Path("runs")) -> Path:
 
 
 def write_frames_csv(log: TrackLog, path: Path) -> None:
-    """One row per frame: the FRAME_COLUMNS contract, then ``flags``."""
+    """One row per frame: the FRAME_COLUMNS contract, then ``flags``, then EXTRA_COLUMNS."""
     a = log.arrays()
     with path.open("w", newline="") as fh:
         writer = csv.writer(fh)
-        writer.writerow([*FRAME_COLUMNS, "flags"])
+        writer.writerow([*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS])
+        integer = ("tracked", "n_points", "n_target_points", "measured")
         for i in range(len(log)):
             row: list[Any] = []
-            for col in FRAME_COLUMNS:
+            for col in (*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS):
                 v = a[col][i]
-                if col == "tracked" or col in ("n_points", "n_target_points"):
+                if col == "flags":
+                    row.append(v)
+                elif col in integer:
                     row.append(int(v))
                 else:
                     row.append(_number(float(v)))
-            row.append(a["flags"][i])
             writer.writerow(row)
 
 

@@ -1,13 +1,15 @@
-"""Point masks: finite values and an axis-aligned box."""
+"""Point masks: finite values, an axis-aligned box, and a convex hull."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import ConvexHull, QhullError
 
+from dronetrack.errors import ConfigError
 from dronetrack.geometry import FloatArray
 
-__all__ = ["box_mask", "finite_mask"]
+__all__ = ["HullCrop", "box_mask", "finite_mask"]
 
 
 def finite_mask(points: FloatArray) -> NDArray[np.bool_]:
@@ -22,3 +24,32 @@ def box_mask(points: FloatArray, lo: ArrayLike, hi: ArrayLike) -> NDArray[np.boo
     hi_a = np.asarray(hi, dtype=np.float64)
     mask: NDArray[np.bool_] = np.all((points >= lo_a) & (points < hi_a), axis=1)
     return mask
+
+
+class HullCrop:
+    """Seed 003's second filter (PCL CropHull): keep the points inside the convex hull
+    of ``vertices`` (K, 3), K ≥ 4 and not all in one plane.
+
+    Each hull facet is a half-space nᵢ·p + dᵢ ≤ 0 (outward unit normal nᵢ), so a
+    point is inside when it satisfies all of them.
+    """
+
+    def __init__(self, vertices: ArrayLike) -> None:
+        v = np.asarray(vertices, dtype=np.float64)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) < 4 or not np.all(np.isfinite(v)):
+            raise ConfigError(
+                f"a crop hull needs at least 4 finite (x, y, z) vertices, got {v.shape}"
+            )
+        try:
+            hull = ConvexHull(v)
+        except QhullError:
+            raise ConfigError("the crop hull's vertices are flat (all in one plane)") from None
+        self.vertices = v[hull.vertices]
+        self.normals: FloatArray = hull.equations[:, :3]
+        self.offsets: FloatArray = hull.equations[:, 3]
+
+    def mask(self, points: FloatArray, tol: float = 1e-9) -> NDArray[np.bool_]:
+        """Rows of ``points`` (N, 3) inside the hull or on its surface (within ``tol`` m)."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        inside: NDArray[np.bool_] = np.all(pts @ self.normals.T + self.offsets <= tol, axis=1)
+        return inside

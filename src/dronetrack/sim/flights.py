@@ -15,19 +15,35 @@ exactly those leg times: t = L/v + v/a.
 Seed 003 (Cerutti): a walker holding a board above their head, walking straight
 towards the sensor and back, across it at 3, 7 and 12 m, and in a square.
 
-Every flight starts on the ground below its first waypoint, where it waits
-``hold`` seconds (the background scan) before it takes off.
+Seed 002 (Khosravi et al.): a DJI F550 observer carrying a Mid-360 tracks
+another F550 in randomised manoeuvres; tracking broke down when the target went
+beyond about 50 m.  ``relative-out-and-back`` flies such manoeuvres about a path
+out to 55 m and back; ``observer-hover`` and ``observer-orbit`` are flights for
+the observer (``[observer]`` in a scenario), at 10 m altitude.
+
+Every seed 000 and 003 flight starts on the ground below its first waypoint,
+where it waits ``hold`` seconds (the background scan) before it takes off; the
+random manoeuvres and the observer flights start in the air and hold there.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from dronetrack.errors import TrajectoryError
-from dronetrack.sim.trajectories import Trajectory, Waypoint, fly_waypoints, random_manoeuvres
+from dronetrack.geometry import FloatArray
+from dronetrack.sim.trajectories import (
+    PiecewiseAcceleration,
+    Trajectory,
+    Waypoint,
+    fly_waypoints,
+    random_manoeuvres,
+)
 
 __all__ = ["FLIGHTS", "Flight", "make_flight"]
 
@@ -117,6 +133,114 @@ def _aggressive(hold: float, duration: float, rng: np.random.Generator) -> Traje
     )
 
 
+@dataclass(frozen=True, slots=True)
+class _Superposed:
+    """A path plus a motion about zero:  p(t) = p_path(t) + p_wobble(t), and so for v and a.
+
+    Speeds and accelerations add at most: |v| ≤ |v_path| + |v_wobble|.
+    """
+
+    path: Trajectory
+    wobble: Trajectory
+
+    @property
+    def start(self) -> float:
+        return min(self.path.start, self.wobble.start)
+
+    @property
+    def end(self) -> float:
+        return max(self.path.end, self.wobble.end)
+
+    def position(self, t: ArrayLike) -> FloatArray:
+        p: FloatArray = self.path.position(t) + self.wobble.position(t)
+        return p
+
+    def velocity(self, t: ArrayLike) -> FloatArray:
+        v: FloatArray = self.path.velocity(t) + self.wobble.velocity(t)
+        return v
+
+    def acceleration(self, t: ArrayLike) -> FloatArray:
+        a: FloatArray = self.path.acceleration(t) + self.wobble.acceleration(t)
+        return a
+
+
+# Seed 002's target: a loop out to 55 m and back at 12 m altitude, flown at 5 m/s
+# (2.5 m/s² at the corners), with random manoeuvres (≤ 4 m/s, ≤ 4 m/s²) inside a
+# ±4 × 4 × 1.5 m box about it: at most 9 m/s and 6.5 m/s² in all.
+_RELATIVE_LOOP = [(30.0, 10.0, 12.0), (55.0, 0.0, 12.0), (30.0, -10.0, 12.0), (12.0, 0.0, 12.0)]
+_RELATIVE_LOOP_S = 27.0  # one loop at 5 m/s with its corners, a little over
+
+
+def _relative_out_and_back(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
+    loops = max(1, math.ceil(max(duration, 1.0) / _RELATIVE_LOOP_S))
+    path = fly_waypoints((12.0, 0.0, 12.0), _route(_RELATIVE_LOOP * loops, 5.0, 2.5), hold=hold)
+    wobble = random_manoeuvres(
+        rng,
+        max(duration, 1.0),
+        v_max=4.0,
+        a_max=4.0,
+        center=(0.0, 0.0, 0.0),
+        half_extent=(4.0, 4.0, 1.5),
+        t0=hold,
+    )
+    return _Superposed(path, wobble)
+
+
+# The observer flights: at 10 m altitude, 5 m behind the turret-site origin, where a
+# target flying ``relative-out-and-back`` or ``aggressive`` never comes within 5 m.
+_OBSERVER_CENTER = (-5.0, 0.0, 10.0)
+_ORBIT_RADIUS = 8.0  # [m]
+_ORBIT_SPEED = 2.5  # [m/s]
+_ORBIT_ACCEL = 1.0  # tangential, while it speeds up [m/s²]
+_ORBIT_DT = 0.05  # [s]
+
+
+def _observer_hover(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
+    # A hovering drone wanders: ≤ 0.3 m/s within ±1 × 1 × 0.3 m, slowly changing course.
+    return random_manoeuvres(
+        rng,
+        max(duration, 1.0) + 10.0,
+        v_max=0.3,
+        a_max=0.3,
+        center=_OBSERVER_CENTER,
+        half_extent=(1.0, 1.0, 0.3),
+        mean_hold=3.0,
+        t0=hold,
+    )
+
+
+def _observer_orbit(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
+    """A counter-clockwise circle of radius r at speed v, from rest at centre + (r, 0, 0).
+
+    Arc length s(τ) = ½ a τ² until τ_v = v / a, then s(τ_v) + v (τ − τ_v); the
+    position c + r (cos s/r, sin s/r, 0) is sampled every dt and joined by constant
+    accelerations, each chosen so the segment ends exactly at the next sample.
+    """
+    r, v, acc, dt = _ORBIT_RADIUS, _ORBIT_SPEED, _ORBIT_ACCEL, _ORBIT_DT
+    n = max(2, math.ceil((max(duration, 1.0) + 10.0) / dt))
+    tau = dt * np.arange(n + 1, dtype=np.float64)
+    t_v = v / acc
+    s = np.where(tau < t_v, 0.5 * acc * tau**2, 0.5 * acc * t_v**2 + v * (tau - t_v))
+    speed = np.minimum(acc * tau, v)
+    theta = s / r
+    c = np.asarray(_OBSERVER_CENTER, dtype=np.float64)
+    zeros = np.zeros_like(theta)
+    p = c + r * np.column_stack([np.cos(theta), np.sin(theta), zeros])
+    vel = speed[:, None] * np.column_stack([-np.sin(theta), np.cos(theta), zeros])
+    # p_{k+1} = p_k + v_k dt + ½ a_k dt²
+    a = 2.0 * (p[1:] - p[:-1] - vel[:-1] * dt) / dt**2
+    segments = PiecewiseAcceleration(knots=hold + tau, p=p[:-1], v=vel[:-1], a=a)
+    if hold <= 0:
+        return segments
+    zero = np.zeros((1, 3))
+    return PiecewiseAcceleration(
+        knots=np.concatenate([[0.0], segments.knots]),
+        p=np.concatenate([p[:1], segments.p]),
+        v=np.concatenate([zero, segments.v]),
+        a=np.concatenate([zero, segments.a]),
+    )
+
+
 _SIGN_Z = 2.3  # the board held above the walker's head [m]
 
 FLIGHTS: dict[str, Flight] = {
@@ -160,6 +284,27 @@ FLIGHTS: dict[str, Flight] = {
             ],
             6.0,
             3.0,
+        ),
+    ),
+    "seed003-field": Flight(
+        "seed 003: laps of a 25 × 25 m loop out to 33 m at 4 m/s, 8-14 m altitude",
+        _outdoor(
+            [
+                (8.0, -5.0, 8.0),
+                (30.0, -15.0, 12.0),
+                (33.0, 10.0, 14.0),
+                (12.0, 12.0, 10.0),
+                (8.0, -5.0, 8.0),
+                (30.0, -15.0, 12.0),
+                (33.0, 10.0, 14.0),
+                (12.0, 12.0, 10.0),
+                (8.0, -5.0, 8.0),
+                (30.0, -15.0, 12.0),
+                (33.0, 10.0, 14.0),
+                (12.0, 12.0, 10.0),
+            ],
+            4.0,
+            2.0,
         ),
     ),
     "indoor-horizontal": Flight(
@@ -209,6 +354,19 @@ FLIGHTS: dict[str, Flight] = {
     "aggressive": Flight(
         "random aggressive manoeuvres (≤ 8 m/s, ≤ 6 m/s²) in a 16 × 16 × 6 m box 15 m out",
         _aggressive,
+    ),
+    "relative-out-and-back": Flight(
+        "seed 002: random manoeuvres (≤ 4 m/s, ≤ 4 m/s²) about a loop out to 55 m and back "
+        "at 5 m/s, 12 m altitude",
+        _relative_out_and_back,
+    ),
+    "observer-hover": Flight(
+        "seed 002 observer: hovering at 10 m, wandering ≤ 0.3 m/s within ±1 m",
+        _observer_hover,
+    ),
+    "observer-orbit": Flight(
+        "seed 002 observer: a circle of 8 m radius at 2.5 m/s, 10 m altitude, behind the origin",
+        _observer_orbit,
     ),
 }
 

@@ -1,5 +1,9 @@
 """Scenarios: a scene, a target and its trajectory, a sensor on a turret, and the weather.
 
+The turret stands on the ground at the world origin, or, with an ``[observer]``
+section, rides on a drone flying its own trajectory (seed 002's relative
+tracking); its base is then an offset in the drone's body frame.
+
 A scenario is a validated configuration (TOML at the edge, degrees where humans
 type angles) that builds a ``SimWorld``.  Named scenarios live in
 ``scenarios.py``; a TOML file can start from one with ``base = "name"`` and
@@ -11,7 +15,7 @@ from __future__ import annotations
 import math
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import tomli_w
@@ -27,10 +31,11 @@ from dronetrack.sim.scene import make_scene
 from dronetrack.sim.sensors import SensorModel, make_sensor
 from dronetrack.sim.trajectories import Trajectory, load_csv_trajectory
 from dronetrack.sim.turret import AxisSpec, TurretSpec, make_turret
-from dronetrack.sim.world import SimWorld
+from dronetrack.sim.world import Observer, SimWorld
 
 __all__ = [
     "DroneConfig",
+    "ObserverConfig",
     "ScenarioConfig",
     "SceneConfig",
     "SensorConfig",
@@ -77,11 +82,41 @@ class TrajectoryConfig(StrictModel):
         return self
 
 
+DEFAULT_OBSERVER_FLIGHT = "observer-hover"
+
+
+class ObserverConfig(StrictModel):
+    """A moving observer: the turret and sensor ride on a drone flying this trajectory.
+
+    With one, the turret's base (``turret.base_height_m``) is its offset in the
+    drone's body frame (x forward, y left, z up; roll and pitch taken as zero).
+    The body's yaw follows the velocity heading with a lag (``heading``; held
+    while hovering, ``yaw_deg`` before the first move) or stays at ``yaw_deg``
+    (``fixed``).  The frames carry the poses the drone's odometry reports:
+    the true ones plus a random walk of ``odometry_sigma_m`` m/√s per axis.
+    """
+
+    name: str | None = None  # a named flight; the default one when no file is given either
+    file: str | None = None  # CSV with columns t,x,y,z
+    hold_s: float = Field(0.0, ge=0)  # at the first sample before it starts
+    yaw: Literal["heading", "fixed"] = "heading"
+    yaw_deg: float = Field(0.0, allow_inf_nan=False)
+    odometry_sigma_m: float = Field(0.0, ge=0, allow_inf_nan=False)  # [m/√s]
+
+    @model_validator(mode="after")
+    def _one_source(self) -> ObserverConfig:
+        if self.file is not None and self.name is not None:
+            raise ValueError("give either observer.name or observer.file, not both")
+        if self.file is None and self.name is None:
+            object.__setattr__(self, "name", DEFAULT_OBSERVER_FLIGHT)
+        return self
+
+
 class SensorConfig(StrictModel):
-    model: str = "avia"  # avia, mid40, mid360, vlp16 or file:PATH
+    model: str = "avia"  # avia, mid40, mid360, vlp16, vlp16-side or file:PATH
     integration_time_s: float = Field(0.1, ge=1e-3, le=1.0)
     noise: bool = True
-    rpm: float | None = None  # vlp16 spin rate
+    rpm: float | None = None  # vlp16 and vlp16-side spin rate
     rate_hz: float | None = Field(None, gt=0, le=1e7)  # file: patterns
     lines: int | None = Field(None, ge=1, le=255)  # file: patterns
     physics: str | None = None  # whose range physics a file: pattern uses (default avia)
@@ -128,6 +163,7 @@ class ScenarioConfig(StrictModel):
     sensor: SensorConfig = SensorConfig()
     turret: TurretConfig = TurretConfig()
     weather: WeatherConfig = WeatherConfig()
+    observer: ObserverConfig | None = None  # None: the turret stands on the ground
     # How the run is processed by ``dronetrack simulate``; the simulator ignores it.
     pipeline: PipelineConfig = PipelineConfig()
 
@@ -178,15 +214,25 @@ def load_scenario_file(path: Path, named: dict[str, ScenarioConfig]) -> Scenario
         base = named[base_name].model_dump()
         if "file" in data.get("trajectory", {}):
             base["trajectory"]["name"] = None  # a file replaces the base's named flight
+        observer = data.get("observer")
+        if isinstance(observer, dict) and "file" in observer and base.get("observer"):
+            base["observer"]["name"] = None
         data = _merge(base, {"name": path.stem, **data})
     return _anchor_paths(validate_scenario(data, str(path)), path.parent)
 
 
 def _anchor_paths(cfg: ScenarioConfig, folder: Path) -> ScenarioConfig:
     """Files named in a scenario file are relative to that file's folder."""
-    traj, sensor = cfg.trajectory, cfg.sensor
+    traj, sensor, observer = cfg.trajectory, cfg.sensor, cfg.observer
     if traj.file is not None and not Path(traj.file).expanduser().is_absolute():
         traj = traj.model_copy(update={"file": str(folder / traj.file)})
+    obs_file = None if observer is None else observer.file
+    if (
+        observer is not None
+        and obs_file is not None
+        and not Path(obs_file).expanduser().is_absolute()
+    ):
+        observer = observer.model_copy(update={"file": str(folder / obs_file)})
     if sensor.model.lower().startswith("file:"):
         pattern = Path(sensor.model[5:]).expanduser()
         if not pattern.is_absolute():
@@ -196,7 +242,9 @@ def _anchor_paths(cfg: ScenarioConfig, folder: Path) -> ScenarioConfig:
     if bg_file is not None and not Path(bg_file).expanduser().is_absolute():
         background = pipeline.background.model_copy(update={"file": str(folder / bg_file)})
         pipeline = pipeline.model_copy(update={"background": background})
-    return cfg.model_copy(update={"trajectory": traj, "sensor": sensor, "pipeline": pipeline})
+    return cfg.model_copy(
+        update={"trajectory": traj, "sensor": sensor, "pipeline": pipeline, "observer": observer}
+    )
 
 
 def apply_overrides(
@@ -314,6 +362,18 @@ def _trajectory(cfg: ScenarioConfig, rng: np.random.Generator) -> Trajectory:
     return make_flight(t.name, t.hold_s, cfg.duration_s, rng)
 
 
+def _observer(cfg: ObserverConfig, duration: float, rng: np.random.Generator) -> Observer:
+    if cfg.file is not None:
+        trajectory: Trajectory = load_csv_trajectory(Path(cfg.file).expanduser(), t0=cfg.hold_s)
+    else:
+        assert cfg.name is not None
+        trajectory = make_flight(cfg.name, cfg.hold_s, duration, rng)
+    yaw = math.radians(cfg.yaw_deg)
+    if cfg.yaw == "fixed":
+        return Observer.fixed(trajectory, yaw)
+    return Observer.heading(trajectory, yaw)
+
+
 def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
     """The scenario with every preset value written out, so a re-run needs nothing else."""
     sensor = _sensor(cfg.sensor)
@@ -359,19 +419,33 @@ def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
     if sensor_cfg.model.lower().startswith("file:"):
         absolute = str(Path(sensor_cfg.model[5:]).expanduser().resolve())
         sensor_cfg = sensor_cfg.model_copy(update={"model": f"file:{absolute}"})
+    observer_cfg = cfg.observer
+    if observer_cfg is not None and observer_cfg.file is not None:
+        absolute = str(Path(observer_cfg.file).expanduser().resolve())
+        observer_cfg = observer_cfg.model_copy(update={"file": absolute})
     return cfg.model_copy(
-        update={"sensor": sensor_cfg, "turret": turret_cfg, "trajectory": trajectory_cfg}
+        update={
+            "sensor": sensor_cfg,
+            "turret": turret_cfg,
+            "trajectory": trajectory_cfg,
+            "observer": observer_cfg,
+        }
     )
 
 
 def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> SimWorld:
-    """The simulator for a scenario; ``rng`` defaults to one seeded with ``cfg.seed``."""
+    """The simulator for a scenario; ``rng`` defaults to one seeded with ``cfg.seed``.
+
+    The observer's flight (if any) is built after the target's, so the target flies
+    the same path with or without one.
+    """
     rng = np.random.default_rng(cfg.seed) if rng is None else rng
     sensor = _sensor(cfg.sensor)
     turret = _turret(cfg.turret)
     scene = make_scene(cfg.scene.name, cfg.scene.layout_seed)
     drone = make_drone(cfg.drone.model, cfg.drone.reflectivity_scale)
     trajectory = _trajectory(cfg, rng)
+    observer = None if cfg.observer is None else _observer(cfg.observer, cfg.duration_s, rng)
     return SimWorld(
         sensor=sensor,
         scene=scene,
@@ -384,4 +458,6 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
         integration_time=cfg.sensor.integration_time_s,
         pan=math.radians(cfg.turret.pan_deg),
         tilt=math.radians(cfg.turret.tilt_deg),
+        observer=observer,
+        odometry_sigma=0.0 if cfg.observer is None else cfg.observer.odometry_sigma_m,
     )

@@ -19,6 +19,7 @@ from dronetrack.config import (
 from dronetrack.errors import ScenarioError
 from dronetrack.sim.scenario import (
     DroneConfig,
+    ObserverConfig,
     ScenarioConfig,
     SceneConfig,
     SensorConfig,
@@ -27,6 +28,7 @@ from dronetrack.sim.scenario import (
     WeatherConfig,
     load_scenario_file,
 )
+from dronetrack.sim.turret import make_turret
 
 __all__ = ["SCENARIOS", "get_scenario"]
 
@@ -90,6 +92,39 @@ AGGRESSIVE = PipelineConfig(
     ),
     controller=ControllerConfig(home_m=(15.0, 0.0, 6.0)),
 )
+# Seed 002's relative tracking: the Mid-360 rides on an F550 (a fixed mount 0.1 m above
+# its body), so there is no static background to learn: tracking starts at once.  The
+# crop box is in the odometry (world) frame around the observer's orbit and the target's
+# loop out to 55 m; its floor drops the ground.  The controller's home is a point in the
+# observer's body frame: 20 m ahead, at the sensor's height, so the mount stays level.
+RELATIVE_BASE_HEIGHT_M = 0.1
+_WIDOWX = make_turret("widowx").mount
+_RELATIVE_SENSOR_Z = RELATIVE_BASE_HEIGHT_M + _WIDOWX.pan_to_tilt[2] + _WIDOWX.tilt_to_sensor[2]
+RELATIVE = PipelineConfig(
+    crop=CropConfig(min_m=(-25.0, -35.0, 1.5), max_m=(80.0, 35.0, 30.0)),
+    background=BackgroundConfig(enabled=False),
+    tracker=TrackerConfig(
+        v_max=9.0,
+        a_max=7.0,
+        s_diag=0.55,
+        cylinder_center_m=(30.0, 0.0, 5.0),
+        cylinder_radius_m=35.0,
+        cylinder_height_m=15.0,
+    ),
+    controller=ControllerConfig(mode="fixed", home_m=(20.0, 0.0, _RELATIVE_SENSOR_Z)),
+)
+
+# Seed 003's field test: a VLP-16 on its side on a pan-only PTU-E46 sweeps ±90°; its
+# filter node keeps the points in a box and then in a convex hull over the field,
+# drawn clear of trees and lamps (here: above 5 m, 4-40 m out), with no background
+# model.  The EKF (ekf-cv) is fed with cluster centroids.
+_FIELD_HULL = tuple((x, y, z) for x in (4.0, 40.0) for y in (-25.0, 25.0) for z in (5.0, 25.0))
+FIELD = PipelineConfig(
+    crop=CropConfig(min_m=(-40.0, -40.0, 5.0), max_m=(40.0, 40.0, 25.0), hull_m=_FIELD_HULL),
+    background=BackgroundConfig(enabled=False),
+    tracker=TrackerConfig(kind="ekf-cv", v_max=4.0, a_max=2.0, s_diag=0.85),
+    controller=ControllerConfig(mode="sweep", home_m=(20.0, 0.0, 10.0)),
+)
 
 
 def _scenario(
@@ -104,6 +139,7 @@ def _scenario(
     base_height: float,
     visibility: float = float("inf"),
     pipeline: PipelineConfig = OUTDOOR,
+    observer: ObserverConfig | None = None,
 ) -> ScenarioConfig:
     return ScenarioConfig(
         name=name,
@@ -115,6 +151,7 @@ def _scenario(
         sensor=SensorConfig(model=sensor),
         turret=TurretConfig(model=turret, base_height_m=base_height),
         weather=WeatherConfig(visibility_m=visibility),
+        observer=observer,
         pipeline=pipeline,
     )
 
@@ -235,6 +272,31 @@ _LIST = [
         "widowx",
         1.0,
         pipeline=AGGRESSIVE,
+    ),
+    _scenario(
+        "seed003-field",
+        "seed 003: a Spyder X4 flying laps to 33 m, a sideways VLP-16 sweeping on a PTU-E46",
+        100.0,
+        "outdoor",
+        "spyder-x4",
+        "seed003-field",
+        "vlp16-side",
+        "ptu-e46",
+        1.0,
+        pipeline=FIELD,
+    ),
+    _scenario(
+        "seed002-relative",
+        "seed 002: a Mid-360 on an F550 circling at 10 m tracks another F550 out to 55 m",
+        60.0,
+        "outdoor",
+        "f550",
+        "relative-out-and-back",
+        "mid360",
+        "widowx",
+        RELATIVE_BASE_HEIGHT_M,
+        pipeline=RELATIVE,
+        observer=ObserverConfig(name="observer-orbit"),
     ),
 ]
 SCENARIOS: dict[str, ScenarioConfig] = {s.name: s for s in _LIST}

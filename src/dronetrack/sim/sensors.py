@@ -6,6 +6,7 @@ Numbers from the team's research notes (shared/research/sensor_physics.md);
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from dronetrack.errors import SensorError
+from dronetrack.sim.mounted import RotatedPattern, side_mount
 from dronetrack.sim.patterns import (
     MID360_PATTERN,
     ScanPattern,
@@ -116,7 +118,34 @@ def _vlp16(rpm: float = 600.0) -> SensorModel:
     )
 
 
-_BUILDERS = {"avia": _avia, "mid40": _mid40, "mid360": _mid360, "vlp16": _vlp16}
+def _vlp16_side(rpm: float = 600.0) -> SensorModel:
+    # Seed 003's mounting: the VLP-16 on its side on the PTU-E46, rolled 90° about its
+    # forward axis (sim/mounted.py).  The spin sweeps elevation and the 16 beams fan out
+    # ±15° in azimuth, 2° apart.  The footprint turns with the head: its 3.0 mrad along
+    # the spin now lies in the vertical, its 1.5 mrad across the beams in the horizontal
+    # (the simulator's footprint axes are the sensor's horizontal and vertical).
+    upright = _vlp16(rpm)
+    return replace(
+        upright,
+        name="vlp16-side",
+        pattern=RotatedPattern(upright.pattern, side_mount()),
+        divergence_h=upright.divergence_v,
+        divergence_v=upright.divergence_h,
+    )
+
+
+# Spinning heads, whose spin rate (rpm) can be set.
+_SPINNING: dict[str, Callable[[float], SensorModel]] = {
+    "vlp16": _vlp16,
+    "vlp16-side": _vlp16_side,
+}
+_BUILDERS: dict[str, Callable[[], SensorModel]] = {
+    "avia": _avia,
+    "mid40": _mid40,
+    "mid360": _mid360,
+    "vlp16": _vlp16,
+    "vlp16-side": _vlp16_side,
+}
 SENSOR_NAMES = (*_BUILDERS, "file:PATH")
 
 
@@ -130,21 +159,25 @@ def make_sensor(
     physics: str | None = None,
     **overrides: Any,
 ) -> SensorModel:
-    """Build a sensor by name: ``avia``, ``mid40``, ``mid360``, ``vlp16`` or ``file:PATH``.
+    """Build a sensor by name: one of ``SENSOR_NAMES``.
 
-    ``file:PATH`` replays a scan-pattern table (Livox CSV or (N, 2) .npy) at
-    ``rate_hz`` (default 240,000 points/s) over ``lines`` lines, with the
-    physics of the sensor named by ``physics`` (default ``avia``).  ``rpm`` sets the
-    VLP-16's spin rate.  Other keyword arguments replace
-    fields of the model (for example ``range_sigma_m``).
+    ``vlp16-side`` is the VLP-16 lying on its side (seed 003): its spin sweeps
+    elevation and its beams fan out in azimuth.  ``file:PATH`` replays a
+    scan-pattern table (Livox CSV or (N, 2) .npy) at ``rate_hz`` (default
+    240,000 points/s) over ``lines`` lines, with the physics of the sensor named
+    by ``physics`` (default ``avia``).  ``rpm`` sets a VLP-16's spin rate, upright
+    or on its side.  Other keyword arguments replace fields of the model (for
+    example ``range_sigma_m``).
     """
     key = name.strip()
     lowered = key.lower()
     is_file = lowered.startswith("file:")
     if not is_file and lowered not in _BUILDERS:
         raise SensorError(f"unknown sensor {name!r}; choose one of {', '.join(SENSOR_NAMES)}")
-    if rpm is not None and lowered != "vlp16":
-        raise SensorError(f"a spin rate (rpm) applies to vlp16 only, not to {name!r}")
+    if rpm is not None and lowered not in _SPINNING:
+        raise SensorError(
+            f"a spin rate (rpm) applies to vlp16 only ({', '.join(_SPINNING)}), not to {name!r}"
+        )
     if not is_file and (rate_hz is not None or lines is not None or physics is not None):
         raise SensorError(
             f"point rate, line count and physics apply to file: patterns, not {name!r}"
@@ -160,7 +193,7 @@ def make_sensor(
         pattern = TablePattern(az, el, rate_hz=rate_hz or 240_000.0, n_lines=lines or 1)
         model = replace(_BUILDERS[physics](), name=f"file:{path}", pattern=pattern)
     else:
-        model = _vlp16(rpm) if rpm is not None else _BUILDERS[lowered]()
+        model = _SPINNING[lowered](rpm) if rpm is not None else _BUILDERS[lowered]()
     if overrides:
         unknown = set(overrides) - set(SensorModel.__dataclass_fields__)
         if unknown:

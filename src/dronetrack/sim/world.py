@@ -2,16 +2,33 @@
 
 Ground truth travels on a separate channel (``FrameTruth``), so whatever
 consumes the frames sees only what a real sensor would give it.
+
+The turret stands on the ground, or rides on a moving observer (a drone, seed
+002).  With an observer the mount's ``base`` is the turret's offset in the
+observer's body frame, and at every pose sample
+
+    world_T_sensor(t) = world_T_body(t) · body_T_sensor(pan(t), tilt(t))
+    world_T_body(t)   = [Rz(ψ(t)) | p(t)]
+
+with p(t) the observer's trajectory and ψ(t) its yaw (roll and pitch are taken
+as zero: a multirotor tilts a few degrees when it accelerates, which this leaves
+out).  The sensor fires from this true pose; the frame carries the pose the
+observer's odometry reports, world_T_body with p(t) + d(t), where d is a random
+walk of σ m/√s per axis (zero by default).  Without an observer world_T_body is
+the identity and the frames are exactly those of a turret on the ground.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+from scipy.signal import lfilter
 
-from dronetrack.geometry import FloatArray
+from dronetrack.errors import InputError
+from dronetrack.geometry import FloatArray, make_pose, rot_z
 from dronetrack.kinematics import MountGeometry, sensor_poses
 from dronetrack.sim.drones import DroneModel
 from dronetrack.sim.lidar import LidarSimulator
@@ -21,7 +38,107 @@ from dronetrack.sim.trajectories import Trajectory
 from dronetrack.sim.turret import TurretPlant, TurretSpec
 from dronetrack.types import Frame, TurretCommand, TurretState
 
-__all__ = ["FrameTruth", "SimWorld"]
+__all__ = ["FrameTruth", "Observer", "OdometryDrift", "SimWorld"]
+
+HEADING_TAU_S = 1.0  # time constant of the yaw lag behind the velocity heading [s]
+HEADING_MIN_SPEED = 0.5  # below this horizontal speed the yaw holds [m/s]
+YAW_TABLE_DT = 0.02  # yaw table step [s]
+
+
+@dataclass(frozen=True, slots=True)
+class Observer:
+    """The platform the turret rides on: a trajectory and a body yaw table.
+
+    The body frame is x forward, y left, z up, at the trajectory's point, turned
+    by the yaw ψ about world z; roll and pitch are zero.
+    """
+
+    trajectory: Trajectory
+    yaw_t: FloatArray  # (M,) times of the yaw samples [s], increasing
+    yaw: FloatArray  # (M,) yaw ψ at those times [rad]; linear between, held outside
+
+    @classmethod
+    def fixed(cls, trajectory: Trajectory, yaw: float = 0.0) -> Observer:
+        """An observer whose body keeps the yaw ``yaw`` [rad]."""
+        return cls(trajectory, np.array([trajectory.start]), np.array([float(yaw)]))
+
+    @classmethod
+    def heading(
+        cls,
+        trajectory: Trajectory,
+        yaw0: float = 0.0,
+        tau: float = HEADING_TAU_S,
+        min_speed: float = HEADING_MIN_SPEED,
+        dt: float = YAW_TABLE_DT,
+    ) -> Observer:
+        """An observer whose body turns to its velocity heading with a first-order lag.
+
+        h_k = atan2(v_y, v_x) where the horizontal speed is at least ``min_speed``,
+        else the last such heading (``yaw0`` before the first), unwrapped; then
+        ψ_k = ψ_{k−1} + α (h_k − ψ_{k−1}),  α = 1 − exp(−dt / τ),  ψ_{−1} = yaw0.
+        The table runs 5 τ past the trajectory's end, where it comes to rest.
+        """
+        if tau <= 0 or dt <= 0:
+            raise InputError(f"heading lag and table step must be positive, got {tau}, {dt}")
+        t0 = trajectory.start
+        n = max(2, math.ceil((trajectory.end + 5.0 * tau - t0) / dt) + 1)
+        t = t0 + dt * np.arange(n, dtype=np.float64)
+        v = trajectory.velocity(t)
+        moving = np.hypot(v[:, 0], v[:, 1]) >= min_speed
+        last = np.maximum.accumulate(np.where(moving, np.arange(n), -1))
+        raw = np.where(last >= 0, np.arctan2(v[:, 1], v[:, 0])[np.maximum(last, 0)], yaw0)
+        raw = np.unwrap(np.concatenate([[yaw0], raw]))[1:]
+        alpha = 1.0 - math.exp(-dt / tau)
+        psi, _ = lfilter([alpha], [1.0, alpha - 1.0], raw, zi=[(1.0 - alpha) * yaw0])
+        return cls(trajectory, t, np.asarray(psi, dtype=np.float64))
+
+    def yaw_at(self, t: ArrayLike) -> FloatArray:
+        """Body yaw ψ [rad] at times t, (N,)."""
+        tq = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        psi: FloatArray = np.interp(tq, self.yaw_t, self.yaw)
+        return psi
+
+    def body_poses(self, t: ArrayLike) -> FloatArray:
+        """world_T_body = [Rz(ψ(t)) | p(t)] at times t, (N, 4, 4)."""
+        return make_pose(rot_z(self.yaw_at(t)), self.trajectory.position(t))
+
+
+class OdometryDrift:
+    """The error of the observer's reported position: a random walk, d(t) = σ W(t) per axis.
+
+    Sampled at increasing times, each call continuing where the last ended:
+    d(t_k) = d(t_{k−1}) + σ √(t_k − t_{k−1}) n_k with n_k standard normal (3,).
+    ``sigma`` is in m/√s, so after t seconds each axis is off by σ √t (1σ).
+    """
+
+    def __init__(self, sigma: float, rng: np.random.Generator, t0: float = 0.0) -> None:
+        if not sigma >= 0:
+            raise InputError(f"odometry drift sigma must be ≥ 0, got {sigma}")
+        self.sigma = float(sigma)
+        self.rng = rng
+        self._t = float(t0)
+        self._d = np.zeros(3)
+
+    @property
+    def current(self) -> FloatArray:
+        """The drift at the last time sampled, (3,)."""
+        return self._d.copy()
+
+    def sample(self, times: ArrayLike) -> FloatArray:
+        """The drift at ``times`` (K,), none before the last time sampled; (K, 3)."""
+        t = np.atleast_1d(np.asarray(times, dtype=np.float64))
+        if self.sigma == 0.0 or len(t) == 0:
+            return np.zeros((len(t), 3))
+        dt = np.diff(t, prepend=self._t)
+        if np.any(dt < -1e-12):
+            raise InputError("odometry drift is sampled forwards in time only")
+        steps = (
+            self.rng.standard_normal((len(t), 3))
+            * (self.sigma * np.sqrt(np.maximum(dt, 0.0)))[:, None]
+        )
+        d: FloatArray = self._d + np.cumsum(steps, axis=0)
+        self._t, self._d = float(t[-1]), d[-1].copy()
+        return d
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,6 +152,10 @@ class FrameTruth:
     hit_target: NDArray[np.bool_]  # (N,) per point of the frame
     n_pulses: int
     turret: TurretState
+    # With a moving observer: its body position at the frame end [m], (3,), the true one
+    # and the one its odometry reports (the frame's poses use the reported one).
+    observer_position: FloatArray | None = None
+    observer_reported: FloatArray | None = None
 
     @property
     def n_target_points(self) -> int:
@@ -42,7 +163,13 @@ class FrameTruth:
 
 
 class SimWorld:
-    """Scene + target + sensor on a turret, stepped one integration period at a time."""
+    """Scene + target + sensor on a turret, stepped one integration period at a time.
+
+    With an ``observer`` the turret rides on it (``mount.base`` in its body frame)
+    and ``odometry_sigma`` [m/√s] makes the reported poses drift from the true
+    ones; the drift draws from a child of ``rng``, so the returns are the same
+    with and without it.
+    """
 
     def __init__(
         self,
@@ -58,6 +185,8 @@ class SimWorld:
         pan: float = 0.0,
         tilt: float = 0.0,
         t0: float = 0.0,
+        observer: Observer | None = None,
+        odometry_sigma: float = 0.0,
     ) -> None:
         self.lidar = LidarSimulator(sensor, scene, drone, trajectory, extinction)
         self.trajectory = trajectory
@@ -68,6 +197,10 @@ class SimWorld:
         self._t0 = t0
         self._frames = 0
         self.rng = rng
+        self.observer = observer
+        self.odometry: OdometryDrift | None = None
+        if observer is not None and odometry_sigma > 0:
+            self.odometry = OdometryDrift(odometry_sigma, rng.spawn(1)[0], t0)
 
     @property
     def time(self) -> float:
@@ -91,13 +224,36 @@ class SimWorld:
         p: FloatArray = self.trajectory.position(t)[0]
         return p
 
+    def observer_position(self, t: float) -> FloatArray:
+        """Ground-truth position of the observer's body at time t, (3,); the origin without one."""
+        if self.observer is None:
+            return np.zeros(3)
+        p: FloatArray = self.observer.trajectory.position(t)[0]
+        return p
+
+    def _poses(
+        self, times: FloatArray, pan: FloatArray, tilt: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray | None]:
+        """True and reported world_T_sensor at the pose times, and the observer's true and
+        reported body positions at the last of them."""
+        poses = sensor_poses(pan, tilt, self.mount)
+        if self.observer is None:
+            return poses, poses, None, None
+        body = self.observer.body_poses(times)
+        true = body @ poses
+        position = body[-1, :3, 3].copy()
+        if self.odometry is None:
+            return true, true, position, position
+        body[:, :3, 3] += self.odometry.sample(times)
+        return true, body @ poses, position, body[-1, :3, 3].copy()
+
     def step(self) -> tuple[Frame, FrameTruth]:
         """Integrate one frame: move the turret, fire the pattern, return frame and truth."""
         t0 = self._t0 + self._frames * self.integration_time
         t1 = self._t0 + (self._frames + 1) * self.integration_time
         self._frames += 1
         times, pan, tilt = self.plant.advance(t1)
-        poses = sensor_poses(pan, tilt, self.mount)
+        poses, reported, observer, observer_reported = self._poses(times, pan, tilt)
         scan = self.lidar.scan(t0, t1, times, poses, self.rng)
         frame = Frame(
             stamp=t0,
@@ -107,7 +263,7 @@ class SimWorld:
             line=scan.line,
             intensity=scan.intensity,
             pose_t=times,
-            poses=poses,
+            poses=reported,
         )
         truth = FrameTruth(
             t=t1,
@@ -117,5 +273,7 @@ class SimWorld:
             hit_target=scan.hit_target,
             n_pulses=scan.n_pulses,
             turret=self.plant.state(),
+            observer_position=observer,
+            observer_reported=observer_reported,
         )
         return frame, truth

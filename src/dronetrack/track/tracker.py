@@ -21,8 +21,11 @@ class TrackEstimate:
     position: FloatArray  # (3,) world [m]
     velocity: FloatArray  # (3,) world [m/s]
     tracked: bool
-    spread: float  # σ_particles for a particle filter [m]
+    spread: float  # σ_particles for a particle filter, √max position variance for a Kalman one [m]
     particles: FloatArray | None = None  # (N, 3) positions, for display
+    # diag of the position and velocity covariance (6,) [m², (m/s)²]
+    variance: FloatArray | None = None
+    measurement: FloatArray | None = None  # (3,) z of this frame's update or (re)start [m]
 
 
 class Tracker(Protocol):
@@ -95,4 +98,6 @@ class ParticleTracker:
             self.filter.tracked,
             self.filter.sigma_particles,
             self.filter.X[:, 0:3],
+            # population variance of the particle positions and velocities
+            np.var(self.filter.X[:, 0:6], axis=0),
         )

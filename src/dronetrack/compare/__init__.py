@@ -1,0 +1,1 @@
+"""Side-by-side comparisons of the seeds' methods: ``dronetrack compare``."""

@@ -1,0 +1,1 @@
+"""Detection: clustering the foreground into candidate targets."""

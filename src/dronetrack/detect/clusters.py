@@ -1,0 +1,138 @@
+"""Clustering the foreground into candidate targets (seeds 002 and 003).
+
+Seed 002's detector (Algorithm 1): voxel-grid centroids, a cylindrical region of
+interest, DBSCAN with ε = 0.5 m and at least 3 points, then per-cluster
+statistics (centroid, covariance, principal extents, planarity).  Seed 003's
+controller node clusters the filtered points the same way and sends the
+centroids to its EKF.
+
+DBSCAN is exact: core points have at least ``min_points`` points (themselves
+included) within ε; clusters are the connected components of core points
+linked within ε; a border point joins the cluster of a core point within ε of
+it.  scipy's k-d tree gives the ε-pairs and its graph module the components,
+which matches scikit-learn's labels at 5× its speed without the dependency
+(research/pointcloud_libs.md §4).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from dronetrack.geometry import FloatArray
+
+__all__ = ["Cluster", "cluster_features", "cylinder_mask", "dbscan", "voxel_centroids"]
+
+IntArray = NDArray[np.int64]
+NOISE = -1
+
+
+def dbscan(points: FloatArray, eps: float, min_points: int) -> IntArray:
+    """DBSCAN labels (M,): clusters 0..k−1 numbered by their first point, −1 for noise."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = len(pts)
+    labels = np.full(n, NOISE, dtype=np.int64)
+    if n == 0:
+        return labels
+    pairs = cKDTree(pts).query_pairs(eps, output_type="ndarray")
+    # Neighbourhood size |N_ε(p)| counts p itself.
+    neighbours = np.bincount(pairs.ravel(), minlength=n) + 1
+    core = neighbours >= min_points
+    if not core.any():
+        return labels
+    linked = pairs[core[pairs[:, 0]] & core[pairs[:, 1]]]
+    graph = coo_matrix(
+        (np.ones(len(linked), dtype=np.int8), (linked[:, 0], linked[:, 1])), shape=(n, n)
+    )
+    _, component = connected_components(graph, directed=False)
+    core_idx = np.flatnonzero(core)
+    # Number the clusters by the order of their first core point.
+    _, first, inverse = np.unique(component[core_idx], return_index=True, return_inverse=True)
+    rank = np.argsort(np.argsort(first))
+    labels[core_idx] = rank[inverse]
+    # Border points: a non-core point within ε of a core point takes that cluster
+    # (the lowest-numbered one, so the result does not depend on pair order).
+    from_core = core[pairs]  # (P, 2): which end of each pair is a core point
+    border = np.concatenate(
+        [
+            pairs[from_core[:, 0] & ~from_core[:, 1]],
+            pairs[from_core[:, 1] & ~from_core[:, 0]][:, ::-1],
+        ]
+    )
+    if len(border):
+        source, target = border[:, 0], border[:, 1]
+        order = np.lexsort((labels[source], target))
+        target, source = target[order], source[order]
+        first = np.r_[True, target[1:] != target[:-1]]
+        labels[target[first]] = labels[source[first]]
+    return labels
+
+
+@dataclass(frozen=True, slots=True)
+class Cluster:
+    """Statistics of one cluster (seed 002 §4.1: centroid, covariance, principal components)."""
+
+    centroid: FloatArray  # (3,) [m]
+    covariance: FloatArray  # (3, 3) population covariance [m²]
+    extent: FloatArray  # (3,) lengths along the principal axes, largest first [m]
+    planarity: float  # (λ₂ − λ₃) / λ₁ of the covariance eigenvalues λ₁ ≥ λ₂ ≥ λ₃; 0 if λ₁ = 0
+    n: int  # points
+
+
+def _features(pts: FloatArray) -> Cluster:
+    centroid = pts.mean(axis=0)
+    centred = pts - centroid
+    # Σ = (1/n) Σᵢ (pᵢ − p̄)(pᵢ − p̄)ᵀ
+    cov = centred.T @ centred / len(pts)
+    eigval, eigvec = np.linalg.eigh(cov)  # ascending
+    lam = np.clip(eigval[::-1], 0.0, None)
+    axes = eigvec[:, ::-1]
+    proj = centred @ axes
+    extent = proj.max(axis=0) - proj.min(axis=0)
+    planarity = float((lam[1] - lam[2]) / lam[0]) if lam[0] > 0 else 0.0
+    return Cluster(centroid, cov, extent, planarity, len(pts))
+
+
+def cluster_features(points: FloatArray, labels: IntArray) -> list[Cluster]:
+    """One Cluster per label 0..k−1, in label order (noise is skipped)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    k = int(labels.max()) + 1 if len(labels) else 0
+    if k <= 0:
+        return []
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(k + 1))
+    return [_features(pts[order[bounds[i] : bounds[i + 1]]]) for i in range(k)]
+
+
+def voxel_centroids(points: FloatArray, size: float) -> FloatArray:
+    """Seed 002's voxel-grid filter: the centroid of the points in each occupied cubic voxel."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(pts) == 0:
+        return pts.copy()
+    keys = np.floor(pts / size).astype(np.int64)
+    _, voxel, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    voxel = voxel.ravel()
+    sums = np.zeros((len(counts), 3))
+    np.add.at(sums, voxel, pts)
+    out: FloatArray = sums / counts[:, None]
+    return out
+
+
+def cylinder_mask(
+    points: FloatArray,
+    center_xy: tuple[float, float] | FloatArray,
+    radius: float,
+    z_min: float,
+    z_max: float,
+) -> NDArray[np.bool_]:
+    """Seed 002's region of interest: √((x−cₓ)² + (y−c_y)²) < d_max and z_min < z < z_max."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    c = np.asarray(center_xy, dtype=np.float64)
+    d2 = (pts[:, 0] - c[0]) ** 2 + (pts[:, 1] - c[1]) ** 2
+    inside: NDArray[np.bool_] = (d2 < radius * radius) & (pts[:, 2] > z_min) & (pts[:, 2] < z_max)
+    return inside
