@@ -40,8 +40,16 @@ def test_aggregate_takes_mean_and_sample_std_over_runs() -> None:
     assert by_key["a", "coverage_pct"].std == pytest.approx(np.std([40, 50], ddof=1))
     assert by_key["a", "coverage_pct"].paper == 50.0
     assert math.isnan(by_key["a", "rmse_m"].paper)
-    assert by_key["b", "coverage_pct"].std == 0.0  # one run
+    assert math.isnan(by_key["b", "coverage_pct"].std)  # one run: no spread
+    assert (by_key["a", "rmse_m"].runs, by_key["a", "rmse_m"].finite) == (2, 2)
     assert ("c", "coverage_pct") not in by_key  # a method that did not run
+
+
+def test_runs_without_a_number_are_counted_not_hidden() -> None:
+    rows = aggregate(_SUITE, [_result("a", 0, 40, math.nan), _result("a", 1, 50, 2.0)])
+    (rmse_row,) = [r for r in rows if r.metric == "rmse_m"]
+    assert (rmse_row.mean, rmse_row.finite, rmse_row.runs) == (2.0, 1, 2)
+    assert math.isnan(rmse_row.std)
 
 
 def test_ranking_differences_name_the_disagreements() -> None:

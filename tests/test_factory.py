@@ -10,6 +10,7 @@ from dronetrack.factory import (
     CA_SIGMA_ACC,
     DEFAULT_S_DIAG,
     build_pipeline,
+    build_tracker,
     noise_parameters,
     resolve_tracker,
 )
@@ -62,3 +63,21 @@ def test_s_diag_comes_from_the_config_then_the_drone() -> None:
     assert resolve_tracker(TrackerConfig(), 0.1).s_diag == DEFAULT_S_DIAG
     # Resolved values are written out, and resolving again changes nothing.
     assert resolve_tracker(drone, 0.1, s_diag=0.5) == drone
+
+
+def test_pf_systematic_runs_seed002s_filter_through_the_command_line_path() -> None:
+    """Built the way the CLI builds it (overrides re-validate every field), pf-systematic
+    is 2,000 particles with systematic resampling, and the resolved config says so."""
+    from dronetrack.sim.scenario import apply_overrides
+    from dronetrack.sim.scenarios import SCENARIOS
+    from dronetrack.simulate import resolve_run
+
+    cfg = resolve_run(apply_overrides(SCENARIOS["seed002-relative"], tracker="pf-systematic"))
+    tc = cfg.pipeline.tracker
+    assert (tc.particles, tc.resampling) == (2000, "systematic")
+    tracker = build_tracker(tc, 0.1, np.random.default_rng(0))
+    assert isinstance(tracker, ParticleTracker)
+    assert tracker.filter.X.shape[0] == 2000
+    given = apply_overrides(SCENARIOS["default"], tracker="pf-systematic", particles=300)
+    assert resolve_run(given).pipeline.tracker.particles == 300
+    assert resolve_run(SCENARIOS["default"]).pipeline.tracker.particles == 5000

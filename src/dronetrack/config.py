@@ -126,7 +126,9 @@ class TrackerConfig(StrictModel):
     v_max, a_max, s_diag and T) or a Kalman filter of seeds 000, 002 and 003."""
 
     kind: TrackerKind = "pf-delta"
-    particles: int = Field(5000, ge=10, le=2_000_000)
+    # Default: 5,000 (the reference's outdoor setting); pf-systematic 2,000 (seed 002).
+    particles: int | None = Field(None, ge=10, le=2_000_000)
+    # pf-systematic always resamples systematically
     resampling: Literal["multinomial", "systematic"] = "multinomial"
     v_max: float = Field(15.0, gt=0)  # expected maximum speed [m/s]
     a_max: float = Field(15.0, gt=0)  # expected maximum acceleration [m/s²]

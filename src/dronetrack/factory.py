@@ -56,6 +56,7 @@ TRACKER_NAMES: tuple[str, ...] = get_args(TrackerKind)
 # paper names no motion model; constant velocity, as a random-walk acceleration
 # extrapolates without bound through the long gaps of its flight.
 SEED002_PF_PARTICLES = 2000
+DEFAULT_PARTICLES = 5000  # mav_track_outside.yaml
 # Seed 000's fixed search radii for Catalano et al.'s EKF: theirs, and 1.5 m ("mod.").
 CATALANO_RADIUS = {"ekf-catalano": 0.2, "ekf-catalano-mod": 1.5}
 
@@ -81,16 +82,25 @@ def noise_parameters(cfg: TrackerConfig, period: float) -> NoiseParameters:
     )
 
 
+def particle_count(cfg: TrackerConfig) -> int:
+    """The configured particle count, or the method's default."""
+    if cfg.particles is not None:
+        return cfg.particles
+    return SEED002_PF_PARTICLES if cfg.kind == "pf-systematic" else DEFAULT_PARTICLES
+
+
 def resolve_tracker(
     cfg: TrackerConfig, period: float, s_diag: float | None = None
 ) -> TrackerConfig:
-    """The tracker section with s_diag (default ``s_diag``, the drone's) and the σ values
-    of eq. (11) written out."""
+    """The tracker section with the particle count, resampling, s_diag (default
+    ``s_diag``, the drone's) and the σ values of eq. (11) written out."""
     if cfg.s_diag is None:
         cfg = cfg.model_copy(update={"s_diag": DEFAULT_S_DIAG if s_diag is None else s_diag})
     n = noise_parameters(cfg, period)
     return cfg.model_copy(
         update={
+            "particles": particle_count(cfg),
+            "resampling": "systematic" if cfg.kind == "pf-systematic" else cfg.resampling,
             "sigma_pos": n.sigma_pos,
             "sigma_vel": n.sigma_vel,
             "sigma_acc": n.sigma_acc,
@@ -216,9 +226,7 @@ def build_tracker(
     if kind in _MODELS:
         pf_sys = kind == "pf-systematic"
         return ParticleTracker(
-            n=SEED002_PF_PARTICLES
-            if pf_sys and "particles" not in cfg.model_fields_set
-            else cfg.particles,
+            n=particle_count(cfg),
             model=_MODELS[kind],
             noise=noise_parameters(cfg, period),
             rng=rng,

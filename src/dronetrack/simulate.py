@@ -121,12 +121,17 @@ def run_lockstep(
     The frames can be shared only if no tracker moves the turret, so with more
     than one tracker the controller must be ``truth`` or ``fixed``.  Each run is
     the same as ``run_simulation`` of the scenario with that tracker alone: the
-    world and every filter draw from the seeds ``cfg.seed`` gives.
+    world and every filter draw from the seeds ``cfg.seed`` gives.  Each run's
+    ``wall_s`` is the time of the whole lockstep (all pipelines and the simulator).
     """
     mode = cfg.pipeline.controller.mode
     if len(trackers) > 1 and mode not in ("truth", "fixed"):
         raise ConfigError(
             f"trackers can share frames only with the turret on 'truth' or 'fixed', not {mode!r}"
+        )
+    if cfg.observer is not None and mode != "fixed":
+        raise ConfigError(
+            f"with an [observer] the turret must be 'fixed' (it rides on the drone), not {mode!r}"
         )
     if hooks is not None and len(hooks) != len(trackers):
         raise ConfigError("give one hook per tracker")

@@ -205,7 +205,8 @@ _LIST = [
         init_on_clean_view=True,
         note=(
             "RMSE of every frame from the first one with returns from the drone to the end, "
-            "tracked or not (eq. 13); the interval is the chi-square one of the pooled runs."
+            "tracked or not (eq. 13), per run and then averaged; the interval ends are each "
+            "run's chi-square 95 % interval, averaged (the seed pooled its five runs)."
         ),
     ),
     Suite(
@@ -218,8 +219,9 @@ _LIST = [
         note=(
             "RMSE per axis and 3-D from the first frame with returns from the target.  "
             "cpu_pct: pipeline time per frame over the frame period; memory_mb: the peak "
-            "memory the pipeline allocates (tracemalloc); update_hz: frames the pipeline "
-            "can take per second, capped at the sensor rate.  The paper's 3-D RMSE (13.0 m "
+            "memory a fresh tracker allocates, state included, while it processes the run's "
+            "foreground again (tracemalloc); update_hz: frames the pipeline can take per "
+            "second, capped at the sensor rate.  The paper's 3-D RMSE (13.0 m "
             "for the KF) is below its own x and y RMSE, which a 3-D RMSE cannot be."
         ),
     ),

@@ -43,9 +43,10 @@ class Row:
     method: str
     metric: str
     mean: float
-    std: float  # sample standard deviation over the runs (0 for one run)
+    std: float  # sample standard deviation over the runs (NaN for fewer than two)
     paper: float  # NaN where the seed has no figure
     runs: int
+    finite: int  # runs that gave a number (e.g. an RMSE needs the target seen)
 
 
 def aggregate(suite: Suite, results: Sequence[RunMetrics]) -> list[Row]:
@@ -60,9 +61,11 @@ def aggregate(suite: Suite, results: Sequence[RunMetrics]) -> list[Row]:
                 values = np.array([r.metrics.get(metric, math.nan) for r in mine], dtype=float)
                 finite = values[np.isfinite(values)]
                 mean = float(finite.mean()) if len(finite) else math.nan
-                std = float(finite.std(ddof=1)) if len(finite) > 1 else 0.0
+                std = float(finite.std(ddof=1)) if len(finite) > 1 else math.nan
                 paper = suite.paper.get((case.label, method, metric), math.nan)
-                rows.append(Row(case.label, method, metric, mean, std, paper, len(mine)))
+                rows.append(
+                    Row(case.label, method, metric, mean, std, paper, len(mine), len(finite))
+                )
     return rows
 
 
@@ -121,7 +124,10 @@ def write_tables(suite: Suite, rows: Sequence[Row], out_dir: Path) -> tuple[Path
 def _markdown(suite: Suite, rows: Sequence[Row]) -> str:
     runs = max((r.runs for r in rows), default=0)
     lines = [f"# {suite.title}", "", f"Suite `{suite.name}`, {runs} run(s) per method.", ""]
-    lines.append("Each cell: our mean ± std over the runs, then the seed's figure in brackets.")
+    lines.append(
+        "Each cell: our mean ± sample std over the runs, then the seed's figure in brackets; "
+        "n/a where no run gave a number (e.g. no RMSE without returns from the target)."
+    )
     for scenario in dict.fromkeys(r.scenario for r in rows):
         mine = [r for r in rows if r.scenario == scenario]
         metrics = list(dict.fromkeys(r.metric for r in mine))
@@ -132,7 +138,11 @@ def _markdown(suite: Suite, rows: Sequence[Row]) -> str:
             cells = []
             for metric in metrics:
                 (r,) = [x for x in mine if x.method == method and x.metric == metric]
-                cell = f"{_fmt(r.mean)} ± {_fmt(r.std)}" if math.isfinite(r.mean) else "n/a"
+                cell = _fmt(r.mean) if math.isfinite(r.mean) else "n/a"
+                if math.isfinite(r.std):
+                    cell += f" ± {_fmt(r.std)}"
+                if 0 < r.finite < r.runs:
+                    cell += f" ({r.finite} of {r.runs} runs)"
                 if math.isfinite(r.paper):
                     cell += f" [{_fmt(r.paper)}]"
                 cells.append(cell)
