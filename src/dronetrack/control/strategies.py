@@ -50,7 +50,6 @@ from dronetrack.control.plans import (
     slowdown_plan,
     stop_plan,
     sweep,
-    sweep_plan,
     swing_plan,
     swing_time_bound,
 )
@@ -60,24 +59,7 @@ from dronetrack.kinematics import MountGeometry
 from dronetrack.track.tracker import TrackEstimate
 from dronetrack.types import TurretCommand
 
-__all__ = [
-    "BEAM_GAP",
-    "FAN_HALF_WIDTH",
-    "MODES",
-    "Mode",
-    "Plan",
-    "ScanStrategyController",
-    "State",
-    "Strategy",
-    "Transition",
-    "choose_strategy",
-    "slowdown_plan",
-    "stop_plan",
-    "sweep",
-    "sweep_plan",
-    "swing_plan",
-    "swing_time_bound",
-]
+__all__ = ["MODES", "Mode", "ScanStrategyController", "State", "Transition"]
 
 State = Literal["sweep", "swing", "slowdown", "stop"]
 # "sweep" never reacts (the thesis's Sweeping benchmark); "adaptive" chooses per detection.
