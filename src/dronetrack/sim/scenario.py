@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal, Self
 
 import numpy as np
 import tomli_w
@@ -68,24 +69,35 @@ class DroneConfig(StrictModel):
 DEFAULT_FLIGHT = "horizontal-fast"
 
 
-class TrajectoryConfig(StrictModel):
+class FlightSource(StrictModel):
+    """A path: a named flight (the section's default when no file is given either) or a
+    CSV with columns t,x,y,z, held ``hold_s`` seconds at its start."""
+
+    _section: ClassVar[str] = "trajectory"
+    _default: ClassVar[str] = DEFAULT_FLIGHT
+
     name: str | None = None  # a named flight; the default one when no file is given either
     file: str | None = None  # CSV with columns t,x,y,z
-    hold_s: float = Field(0.0, ge=0)  # on the ground (or at the first sample) before it starts
+    hold_s: float = Field(0.0, ge=0)  # at the start (on the ground, or at the first sample)
 
     @model_validator(mode="after")
-    def _one_source(self) -> TrajectoryConfig:
+    def _one_source(self) -> Self:
         if self.file is not None and self.name is not None:
-            raise ValueError("give either trajectory.name or trajectory.file, not both")
+            section = self._section
+            raise ValueError(f"give either {section}.name or {section}.file, not both")
         if self.file is None and self.name is None:
-            object.__setattr__(self, "name", DEFAULT_FLIGHT)
+            object.__setattr__(self, "name", self._default)
         return self
+
+
+class TrajectoryConfig(FlightSource):
+    """The target's path."""
 
 
 DEFAULT_OBSERVER_FLIGHT = "observer-hover"
 
 
-class ObserverConfig(StrictModel):
+class ObserverConfig(FlightSource):
     """A moving observer: the turret and sensor ride on a drone flying this trajectory.
 
     With one, the turret's base (``turret.base_height_m``) is its offset in the
@@ -96,20 +108,12 @@ class ObserverConfig(StrictModel):
     the true ones plus a random walk of ``odometry_sigma_m`` m/√s per axis.
     """
 
-    name: str | None = None  # a named flight; the default one when no file is given either
-    file: str | None = None  # CSV with columns t,x,y,z
-    hold_s: float = Field(0.0, ge=0)  # at the first sample before it starts
+    _section: ClassVar[str] = "observer"
+    _default: ClassVar[str] = DEFAULT_OBSERVER_FLIGHT
+
     yaw: Literal["heading", "fixed"] = "heading"
     yaw_deg: float = Field(0.0, allow_inf_nan=False)
     odometry_sigma_m: float = Field(0.0, ge=0, allow_inf_nan=False)  # [m/√s]
-
-    @model_validator(mode="after")
-    def _one_source(self) -> ObserverConfig:
-        if self.file is not None and self.name is not None:
-            raise ValueError("give either observer.name or observer.file, not both")
-        if self.file is None and self.name is None:
-            object.__setattr__(self, "name", DEFAULT_OBSERVER_FLIGHT)
-        return self
 
 
 class SensorConfig(StrictModel):
@@ -218,30 +222,35 @@ def load_scenario_file(path: Path, named: dict[str, ScenarioConfig]) -> Scenario
         if isinstance(observer, dict) and "file" in observer and base.get("observer"):
             base["observer"]["name"] = None
         data = _merge(base, {"name": path.stem, **data})
-    return _anchor_paths(validate_scenario(data, str(path)), path.parent)
+    # Files named in a scenario file are relative to that file's folder.
+    return _map_paths(validate_scenario(data, str(path)), lambda p: _anchored(p, path.parent))
 
 
-def _anchor_paths(cfg: ScenarioConfig, folder: Path) -> ScenarioConfig:
-    """Files named in a scenario file are relative to that file's folder."""
+def _anchored(path: str, folder: Path) -> str:
+    """``path`` as given if absolute, else relative to ``folder``."""
+    return path if Path(path).expanduser().is_absolute() else str(folder / path)
+
+
+def _absolute(path: str) -> str:
+    return str(Path(path).expanduser().resolve())
+
+
+def _map_paths(
+    cfg: ScenarioConfig, fix: Callable[[str], str], background: bool = True
+) -> ScenarioConfig:
+    """The scenario with ``fix`` applied to every file it names: the trajectory and
+    observer CSVs, a ``file:`` scan pattern and (with ``background``) a saved background."""
     traj, sensor, observer = cfg.trajectory, cfg.sensor, cfg.observer
-    if traj.file is not None and not Path(traj.file).expanduser().is_absolute():
-        traj = traj.model_copy(update={"file": str(folder / traj.file)})
-    obs_file = None if observer is None else observer.file
-    if (
-        observer is not None
-        and obs_file is not None
-        and not Path(obs_file).expanduser().is_absolute()
-    ):
-        observer = observer.model_copy(update={"file": str(folder / obs_file)})
+    if traj.file is not None:
+        traj = traj.model_copy(update={"file": fix(traj.file)})
+    if observer is not None and observer.file is not None:
+        observer = observer.model_copy(update={"file": fix(observer.file)})
     if sensor.model.lower().startswith("file:"):
-        pattern = Path(sensor.model[5:]).expanduser()
-        if not pattern.is_absolute():
-            sensor = sensor.model_copy(update={"model": f"file:{folder / pattern}"})
+        sensor = sensor.model_copy(update={"model": f"file:{fix(sensor.model[5:])}"})
     pipeline = cfg.pipeline
-    bg_file = pipeline.background.file
-    if bg_file is not None and not Path(bg_file).expanduser().is_absolute():
-        background = pipeline.background.model_copy(update={"file": str(folder / bg_file)})
-        pipeline = pipeline.model_copy(update={"background": background})
+    if background and pipeline.background.file is not None:
+        stored = pipeline.background.model_copy(update={"file": fix(pipeline.background.file)})
+        pipeline = pipeline.model_copy(update={"background": stored})
     return cfg.model_copy(
         update={"trajectory": traj, "sensor": sensor, "pipeline": pipeline, "observer": observer}
     )
@@ -354,20 +363,16 @@ def _turret(cfg: TurretConfig) -> TurretSpec:
     )
 
 
-def _trajectory(cfg: ScenarioConfig, rng: np.random.Generator) -> Trajectory:
-    t = cfg.trajectory
-    if t.file is not None:
-        return load_csv_trajectory(Path(t.file).expanduser(), t0=t.hold_s)
-    assert t.name is not None
-    return make_flight(t.name, t.hold_s, cfg.duration_s, rng)
+def _flight(source: FlightSource, duration: float, rng: np.random.Generator) -> Trajectory:
+    """The path a trajectory or observer section names: its CSV file or a named flight."""
+    if source.file is not None:
+        return load_csv_trajectory(Path(source.file).expanduser(), t0=source.hold_s)
+    assert source.name is not None
+    return make_flight(source.name, source.hold_s, duration, rng)
 
 
 def _observer(cfg: ObserverConfig, duration: float, rng: np.random.Generator) -> Observer:
-    if cfg.file is not None:
-        trajectory: Trajectory = load_csv_trajectory(Path(cfg.file).expanduser(), t0=cfg.hold_s)
-    else:
-        assert cfg.name is not None
-        trajectory = make_flight(cfg.name, cfg.hold_s, duration, rng)
+    trajectory = _flight(cfg, duration, rng)
     yaw = math.radians(cfg.yaw_deg)
     if cfg.yaw == "fixed":
         return Observer.fixed(trajectory, yaw)
@@ -412,25 +417,10 @@ def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
                 "latency_s": turret.pan.latency,
             }
         )
-    trajectory_cfg = cfg.trajectory
-    if trajectory_cfg.file is not None:
-        absolute = str(Path(trajectory_cfg.file).expanduser().resolve())
-        trajectory_cfg = trajectory_cfg.model_copy(update={"file": absolute})
-    if sensor_cfg.model.lower().startswith("file:"):
-        absolute = str(Path(sensor_cfg.model[5:]).expanduser().resolve())
-        sensor_cfg = sensor_cfg.model_copy(update={"model": f"file:{absolute}"})
-    observer_cfg = cfg.observer
-    if observer_cfg is not None and observer_cfg.file is not None:
-        absolute = str(Path(observer_cfg.file).expanduser().resolve())
-        observer_cfg = observer_cfg.model_copy(update={"file": absolute})
-    return cfg.model_copy(
-        update={
-            "sensor": sensor_cfg,
-            "turret": turret_cfg,
-            "trajectory": trajectory_cfg,
-            "observer": observer_cfg,
-        }
-    )
+    # Input files as absolute paths (the background's is written by the pipeline's
+    # resolution, with the map's own settings).
+    resolved = cfg.model_copy(update={"sensor": sensor_cfg, "turret": turret_cfg})
+    return _map_paths(resolved, _absolute, background=False)
 
 
 def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> SimWorld:
@@ -444,7 +434,7 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
     turret = _turret(cfg.turret)
     scene = make_scene(cfg.scene.name, cfg.scene.layout_seed)
     drone = make_drone(cfg.drone.model, cfg.drone.reflectivity_scale)
-    trajectory = _trajectory(cfg, rng)
+    trajectory = _flight(cfg.trajectory, cfg.duration_s, rng)
     observer = None if cfg.observer is None else _observer(cfg.observer, cfg.duration_s, rng)
     return SimWorld(
         sensor=sensor,
