@@ -27,7 +27,7 @@ import numpy as np
 
 from dronetrack.allocator import tune_allocator
 from dronetrack.control.aiming import aim_angles
-from dronetrack.sim.scenario import build_world
+from dronetrack.sim.build import build_world
 from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.types import TurretCommand
 

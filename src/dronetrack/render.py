@@ -15,7 +15,8 @@ from typing import Literal
 import numpy as np
 
 from dronetrack.control.aiming import aim_angles
-from dronetrack.sim.scenario import ScenarioConfig, build_world, dump_scenario, resolve_scenario
+from dronetrack.sim.build import build_world, resolve_scenario
+from dronetrack.sim.scenario import ScenarioConfig, dump_scenario
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame, TurretCommand

@@ -26,8 +26,9 @@ from dronetrack.factory import build_pipeline, noise_parameters, resolve_tracker
 from dronetrack.geometry import FloatArray
 from dronetrack.io.background import read_background_settings
 from dronetrack.pipeline import Pipeline, StepResult
+from dronetrack.sim.build import build_world, resolve_scenario
 from dronetrack.sim.drones import make_drone
-from dronetrack.sim.scenario import ScenarioConfig, build_world, dump_scenario, resolve_scenario
+from dronetrack.sim.scenario import ScenarioConfig, dump_scenario
 from dronetrack.sim.world import FrameTruth
 from dronetrack.types import Frame, TurretCommand
 

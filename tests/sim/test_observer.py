@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from dronetrack.kinematics import sensor_poses
+from dronetrack.sim.build import build_world, resolve_scenario
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.flights import make_flight
 from dronetrack.sim.physics import extinction_coefficient
@@ -20,10 +21,8 @@ from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.scenario import (
     ObserverConfig,
     SensorConfig,
-    build_world,
     dump_scenario,
     load_scenario_file,
-    resolve_scenario,
 )
 from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.scene import Scene, make_scene

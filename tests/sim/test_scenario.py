@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import ScenarioError, SensorError
-from dronetrack.sim.scenario import build_world, dump_scenario, load_scenario_file, resolve_scenario
+from dronetrack.sim.build import build_world, resolve_scenario
+from dronetrack.sim.scenario import dump_scenario, load_scenario_file
 from dronetrack.sim.scenarios import SCENARIOS, get_scenario
 
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from dronetrack.control.aiming import aim_angles
+from dronetrack.sim.build import build_world
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.physics import extinction_coefficient
-from dronetrack.sim.scenario import build_world
 from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.scene import make_scene
 from dronetrack.sim.sensors import make_sensor
