@@ -40,6 +40,9 @@ VisibilityOption = Annotated[
 ]
 DroneOption = Annotated[str | None, typer.Option("--drone", help="Target model.")]
 SensorOption = Annotated[str | None, typer.Option("--sensor", help="Sensor model.")]
+RunDirOption = Annotated[
+    Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
+]
 
 
 class TurretMode(StrEnum):
@@ -252,9 +255,7 @@ def simulate(
     visibility: VisibilityOption = None,
     drone: DroneOption = None,
     sensor: SensorOption = None,
-    out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
-    ] = None,
+    out: RunDirOption = None,
 ) -> None:
     """Run the closed loop: scan the background, then detect, track and follow the drone.
 
@@ -303,9 +304,7 @@ def compare(
         ),
     ],
     runs: Annotated[int, typer.Option("--runs", min=1, help="Seeded runs per method.")] = 5,
-    out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
-    ] = None,
+    out: RunDirOption = None,
     duration: Annotated[
         float | None,
         typer.Option("--duration", "-d", min=0.01, help="Shorten every flight to these seconds."),
