@@ -15,6 +15,7 @@ import numpy as np
 
 from dronetrack.config import ControllerConfig, PipelineConfig, TrackerConfig, TrackerKind
 from dronetrack.control.controller import Controller, TurretController
+from dronetrack.control.controller import Mode as TurretMode
 from dronetrack.control.strategies import MODES as STRATEGIES
 from dronetrack.control.strategies import Mode as StrategyMode
 from dronetrack.control.strategies import ScanStrategyController
@@ -132,7 +133,7 @@ def _controller(
         mount=mount,
         pan_limits=pan_limits,
         tilt_limits=tilt_limits,
-        mode="tracking" if cfg.mode == "tracking" else "fixed" if cfg.mode == "fixed" else "truth",
+        mode=cast(TurretMode, cfg.mode),
         home=np.asarray(cfg.home_m),
         lead_s=cfg.lead_s,
         search_hold_s=cfg.search_hold_s,

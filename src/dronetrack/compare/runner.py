@@ -86,17 +86,14 @@ def run_suite(
     if runs < 1:
         raise ConfigError(f"runs must be at least 1, got {runs}")
     chosen = _select(suite, methods)
+    memory = "memory_mb" in suite.metrics
     out: list[RunMetrics] = []
     for case in suite.cases:
-        names = tuple(m for m in chosen if not case.methods or m in case.methods)
-        if not names:
-            continue
         for r in range(runs):
             what = f"{case.label}, run {r + 1}/{runs}"
-            memory = "memory_mb" in suite.metrics
-            foregrounds: list[list[tuple[float, FloatArray]]] = [[] for _ in names]
+            foregrounds: list[list[tuple[float, FloatArray]]] = [[] for _ in chosen]
             if suite.lockstep:
-                cfgs = [case_config(case, m, suite, r, duration) for m in names]
+                cfgs = [case_config(case, m, suite, r, duration) for m in chosen]
                 done = run_lockstep(
                     cfgs[0],
                     [c.pipeline.tracker for c in cfgs],
@@ -106,7 +103,7 @@ def run_suite(
                 )
             else:
                 done = []
-                for m in names:
+                for m in chosen:
                     logger = None
                     if log_dir is not None:
                         logger = StrategyLogger(log_dir / case.label / m / f"run{r}")
@@ -121,7 +118,7 @@ def run_suite(
                     )
                     if logger is not None:
                         logger.close(done[-1].pipeline.controller)
-            for m, sim, fg in zip(names, done, foregrounds, strict=True):
+            for m, sim, fg in zip(chosen, done, foregrounds, strict=True):
                 values = run_metrics(suite, sim)
                 if memory:
                     values["memory_mb"] = tracker_memory_mb(sim.config, fg)

@@ -23,7 +23,6 @@ class Case:
     label: str  # as the paper names it
     scenario: str  # a named scenario
     turret: str  # controller mode: truth, fixed, or a seed 003 scan strategy
-    methods: tuple[str, ...] = ()  # only these methods (default: all of the suite's)
 
 
 @dataclass(frozen=True, slots=True)

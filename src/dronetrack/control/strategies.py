@@ -54,7 +54,7 @@ from dronetrack.control.plans import (
     swing_time_bound,
 )
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry import FloatArray, wrap_angle
 from dronetrack.kinematics import MountGeometry
 from dronetrack.track.tracker import TrackEstimate
 from dronetrack.types import TurretCommand
@@ -67,11 +67,6 @@ Mode = Literal["sweep", "swing", "slowdown", "stop", "adaptive"]
 MODES: tuple[str, ...] = get_args(Mode)
 
 RETRIGGER_ANGLE = math.radians(5.0)  # [A] "significant movement" between centroids
-
-
-def _wrap(angle: float) -> float:
-    """An angle wrapped to [-π, π)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class Transition(NamedTuple):
@@ -202,7 +197,7 @@ class ScanStrategyController:
             centroid = pts.mean(axis=0)
             rel = centroid - self.mount.base_vec
             bearing = math.atan2(float(rel[1]), float(rel[0]))
-            moved = self._bearing is None or abs(_wrap(bearing - self._bearing)) > (
+            moved = self._bearing is None or abs(float(wrap_angle(bearing - self._bearing))) > (
                 self.retrigger_angle
             )
             if moved or (self._state == "sweep" and self._left_fan):
@@ -233,7 +228,7 @@ class ScanStrategyController:
             self._left_fan = False
         if self._state == "sweep" and self._bearing is not None and not self._left_fan:
             pan = self._position(t)[0]
-            self._left_fan = abs(_wrap(pan - self._bearing)) > self.fan_half_width
+            self._left_fan = abs(float(wrap_angle(pan - self._bearing))) > self.fan_half_width
 
     def _start_cycle(self, t: float, bearing: float, range_m: float, speed: float | None) -> None:
         pan, direction = self._position(t)
