@@ -209,6 +209,23 @@ def _column_means(X: FloatArray) -> FloatArray:
 
 
 @nb.njit(cache=True)
+def _column_variances(X: FloatArray, k: int) -> FloatArray:
+    """Population variance of the first ``k`` columns: (1/N) Σᵢ (xᵢ − x̄)²."""
+    mean = np.zeros(k)
+    for i in range(X.shape[0]):
+        for c in range(k):
+            mean[c] += X[i, c]
+    mean /= X.shape[0]
+    out = np.zeros(k)
+    for i in range(X.shape[0]):
+        for c in range(k):
+            d = X[i, c] - mean[c]
+            out[c] += d * d
+    out /= X.shape[0]
+    return out
+
+
+@nb.njit(cache=True)
 def _gather(X: FloatArray, idx: NDArray[np.int64]) -> FloatArray:
     """The particles X[idx] (resampling's copy)."""
     out = np.empty((idx.shape[0], X.shape[1]))
@@ -295,3 +312,8 @@ class ParticleFilter:
         """Mean position and mean velocity of the particles."""
         mean = _column_means(self.X)
         return mean[0:3].copy(), mean[3:6].copy()
+
+    def variance(self) -> FloatArray:
+        """Population variance of the particle positions and velocities (6,)."""
+        out: FloatArray = _column_variances(self.X, 6)
+        return out

@@ -98,6 +98,5 @@ class ParticleTracker:
             self.filter.tracked,
             self.filter.sigma_particles,
             self.filter.X[:, 0:3],
-            # population variance of the particle positions and velocities
-            np.var(self.filter.X[:, 0:6], axis=0),
+            self.filter.variance(),
         )
