@@ -43,6 +43,13 @@ SensorOption = Annotated[str | None, typer.Option("--sensor", help="Sensor model
 RunDirOption = Annotated[
     Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
 ]
+FoxgloveOption = Annotated[
+    Path | None,
+    typer.Option("--foxglove", help="Also write an MCAP file for Foxglove (extra: foxglove)."),
+]
+RerunOption = Annotated[
+    Path | None, typer.Option("--rerun", help="Also write a Rerun .rrd file (extra: rerun).")
+]
 
 
 class TurretMode(StrEnum):
@@ -256,6 +263,8 @@ def simulate(
     drone: DroneOption = None,
     sensor: SensorOption = None,
     out: RunDirOption = None,
+    foxglove: FoxgloveOption = None,
+    rerun: RerunOption = None,
 ) -> None:
     """Run the closed loop: scan the background, then detect, track and follow the drone.
 
@@ -266,9 +275,10 @@ def simulate(
 
     from dronetrack.errors import ConfigError
     from dronetrack.io.runs import default_run_dir
+    from dronetrack.io.viewers import close_viewers, open_viewers
     from dronetrack.sim.scenario import apply_overrides, load_scenario_file
     from dronetrack.sim.scenarios import SCENARIOS, get_scenario
-    from dronetrack.simulate import run_simulation, write_run
+    from dronetrack.simulate import run_simulation, simulation_viewer_hook, write_run
 
     if config is not None and scenario is not None:
         raise ConfigError("give a SCENARIO or --config, not both")
@@ -286,10 +296,18 @@ def simulate(
         turret_mode=turret.value if turret else None,
     )
     out_dir = out if out is not None else default_run_dir()
-    columns = _progress_columns()
-    with Progress(*columns, console=err_console, transient=True) as bar:
-        task = bar.add_task(f"simulating {cfg.name}", total=None)
-        run = run_simulation(cfg, progress=lambda i, n: bar.update(task, completed=i, total=n))
+    viewers = open_viewers(foxglove, rerun)
+    try:
+        columns = _progress_columns()
+        with Progress(*columns, console=err_console, transient=True) as bar:
+            task = bar.add_task(f"simulating {cfg.name}", total=None)
+            run = run_simulation(
+                cfg,
+                progress=lambda i, n: bar.update(task, completed=i, total=n),
+                on_frame=simulation_viewer_hook(viewers, cfg) if viewers else None,
+            )
+    finally:
+        close_viewers(viewers)
     metrics = write_run(run, out_dir)
     _print_metrics(metrics, out_dir)
 
@@ -432,3 +450,7 @@ def main() -> None:
 
     tune_allocator()
     sys.exit(run(sys.argv[1:]))
+
+
+# The recording commands (track, info, record) register themselves on ``app``.
+from dronetrack import cli_recordings  # noqa: E402, F401

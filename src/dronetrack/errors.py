@@ -8,8 +8,11 @@ from __future__ import annotations
 
 __all__ = [
     "ConfigError",
+    "DecodeError",
     "DronetrackError",
     "InputError",
+    "MissingExtraError",
+    "RecordingError",
     "ScenarioError",
     "SensorError",
     "TrajectoryError",
@@ -38,3 +41,15 @@ class TrajectoryError(ConfigError):
 
 class InputError(DronetrackError):
     """Input data (arrays, files) do not have the expected shape or content."""
+
+
+class RecordingError(InputError):
+    """A recording (bag, MCAP, point-cloud folder) cannot be opened or read as asked."""
+
+
+class DecodeError(InputError):
+    """One message's bytes do not decode (bad layout, counts that disagree with the length)."""
+
+
+class MissingExtraError(DronetrackError):
+    """An optional dependency is not installed; the message says which extra to install."""

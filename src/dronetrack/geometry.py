@@ -19,10 +19,13 @@ FloatArray = NDArray[np.float64]
 
 __all__ = [
     "FloatArray",
+    "align_hemispheres",
+    "aligned_quaternions",
     "apply_interpolated_poses",
     "azimuth_elevation",
     "direction_from_azimuth_elevation",
     "interpolate_poses",
+    "interpolate_quaternions",
     "make_pose",
     "matrix_to_quaternion",
     "pose_segments",
@@ -179,9 +182,15 @@ def quaternion_to_matrix(q: ArrayLike) -> FloatArray:
     return R
 
 
-def _aligned_quaternions(poses: FloatArray) -> FloatArray:
+def aligned_quaternions(poses: FloatArray) -> FloatArray:
     """Quaternions of the pose rotations, each in the hemisphere of its predecessor."""
-    q = matrix_to_quaternion(poses[:, :3, :3])
+    return align_hemispheres(matrix_to_quaternion(poses[:, :3, :3]))
+
+
+def align_hemispheres(q: FloatArray) -> FloatArray:
+    """Unit quaternions (K, 4), each sign-flipped into the hemisphere of its predecessor
+    (q and −q are the same rotation; interpolation needs neighbours with q_i · q_{i+1} ≥ 0)."""
+    q = unit(q)
     flips = np.sum(q[1:] * q[:-1], axis=1) < 0
     sign = np.concatenate([[1.0], np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)])
     out: FloatArray = q * sign[:, None]
@@ -204,13 +213,21 @@ def interpolate_poses(
     if len(ts) == 1:
         n = len(tq)
         return np.broadcast_to(T[0, :3, :3], (n, 3, 3)).copy(), np.tile(T[0, :3, 3], (n, 1))
-    i = np.clip(np.searchsorted(ts, tq, side="right") - 1, 0, len(ts) - 2)
+    return interpolate_quaternions(ts, aligned_quaternions(T), T[:, :3, 3], tq)
+
+
+def interpolate_quaternions(
+    ts: FloatArray, q: FloatArray, p: FloatArray, t: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """``interpolate_poses`` on a prepared table: K ≥ 2 increasing times ``ts``, quaternions
+    ``q`` (K, 4) each in its predecessor's hemisphere, translations ``p`` (K, 3)."""
+    i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
     span = ts[i + 1] - ts[i]
-    u = np.clip((tq - ts[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
-    p = T[i, :3, 3] + u[:, None] * (T[i + 1, :3, 3] - T[i, :3, 3])
-    q = _aligned_quaternions(T)
+    u = np.clip((t - ts[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+    # p(t) = p_i + u (p_{i+1} − p_i),  q(t) = normalise(q_i + u (q_{i+1} − q_i))
+    pt = p[i] + u[:, None] * (p[i + 1] - p[i])
     qi = q[i] + u[:, None] * (q[i + 1] - q[i])
-    return quaternion_to_matrix(qi), p
+    return quaternion_to_matrix(qi), pt
 
 
 RIGID_TOL = 1e-4  # float32 rounding of a recorded pose passes

@@ -16,7 +16,10 @@ from numpy.typing import ArrayLike
 
 from dronetrack.geometry import FloatArray, make_pose, rot_y, rot_z
 
-__all__ = ["MountGeometry", "sensor_poses"]
+__all__ = ["TURRET_FRAMES", "MountGeometry", "pointing_angles", "sensor_poses", "turret_links"]
+
+# The /tf frames of a turret, from the world down to the sensor.
+TURRET_FRAMES = ("world", "turret_base", "pan_link", "tilt_link", "lidar")
 
 
 def _vec3(values: tuple[float, float, float]) -> FloatArray:
@@ -61,3 +64,38 @@ def sensor_poses(pan: ArrayLike, tilt: ArrayLike, mount: MountGeometry) -> Float
     local = mount.pan_to_tilt_vec + Ry @ mount.tilt_to_sensor_vec
     p = mount.base_vec + np.einsum("...ij,...j->...i", Rz, local)
     return make_pose(R, p)
+
+
+def turret_links(
+    pan: ArrayLike, tilt: ArrayLike, mount: MountGeometry
+) -> list[tuple[str, str, FloatArray]]:
+    """The turret's /tf edges (parent, child, parent_T_child (..., 4, 4)) along
+    ``TURRET_FRAMES``; their product is ``sensor_poses(pan, tilt, mount)``:
+
+        world_T_lidar = T(base) · Rz(pan) · T(pan→tilt) Ry(tilt) · T(tilt→sensor)
+    """
+    pan_a = np.asarray(pan, dtype=np.float64)
+    tilt_a = np.asarray(tilt, dtype=np.float64)
+    eye = np.eye(3)
+    zero = np.zeros(3)
+    world, base, pan_f, tilt_f, lidar = TURRET_FRAMES
+    return [
+        (world, base, make_pose(eye, mount.base_vec)),
+        (base, pan_f, make_pose(rot_z(pan_a), np.broadcast_to(zero, (*pan_a.shape, 3)))),
+        (
+            pan_f,
+            tilt_f,
+            make_pose(rot_y(tilt_a), np.broadcast_to(mount.pan_to_tilt_vec, (*tilt_a.shape, 3))),
+        ),
+        (tilt_f, lidar, make_pose(eye, mount.tilt_to_sensor_vec)),
+    ]
+
+
+def pointing_angles(poses: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Pan and tilt [rad] of sensor poses (..., 4, 4), the inverse of ``sensor_poses``'s
+    rotation for |tilt| < 90°: the optical axis R e_x = (cos pan cos tilt,
+    sin pan cos tilt, −sin tilt), so pan = atan2(R₁₀, R₀₀) and tilt = asin(−R₂₀)."""
+    R = np.asarray(poses, dtype=np.float64)[..., :3, :3]
+    pan: FloatArray = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    tilt: FloatArray = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
+    return pan, tilt

@@ -25,14 +25,24 @@ from dronetrack.eval.log import TrackLog
 from dronetrack.factory import build_pipeline, noise_parameters, resolve_tracker, scan_duration
 from dronetrack.geometry import FloatArray
 from dronetrack.io.background import read_background_settings
+from dronetrack.io.view import NamedTransform, ViewerSink, view_frame
+from dronetrack.kinematics import turret_links
 from dronetrack.pipeline import Pipeline, StepResult
-from dronetrack.sim.build import build_world, resolve_scenario
+from dronetrack.sim.build import build_world, resolve_scenario, turret_spec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, dump_scenario
 from dronetrack.sim.world import FrameTruth
 from dronetrack.types import Frame, TurretCommand
 
-__all__ = ["SimulationRun", "resolve_run", "run_lockstep", "run_simulation", "write_run"]
+__all__ = [
+    "SimulationRun",
+    "log_result",
+    "resolve_run",
+    "run_lockstep",
+    "run_simulation",
+    "simulation_viewer_hook",
+    "write_run",
+]
 
 Progress = Callable[[int, int], None]
 
@@ -92,13 +102,15 @@ def run_simulation(
     *,
     init_on_clean_view: bool = False,
     hook: FrameHook | None = None,
+    on_frame: FrameHook | None = None,
 ) -> SimulationRun:
     """Run the scenario closed-loop; ``cfg`` is resolved first (see ``resolve_run``).
 
     ``init_on_clean_view``: a tracker that can be initialised on a position (the
     Kalman filters) is, once, on the centroid of the first frame whose foreground
     holds only the drone's points, as seed 000 did for its EKF baselines.
-    ``hook`` sees every frame with its ground truth and the pipeline's result.
+    ``hook`` sees every tracking frame with its ground truth and the pipeline's
+    result; ``on_frame`` every frame, the background scan's too.
     """
     return run_lockstep(
         cfg,
@@ -106,6 +118,7 @@ def run_simulation(
         progress,
         init_on_clean_view=init_on_clean_view,
         hooks=[hook] if hook is not None else None,
+        on_frame=on_frame,
     )[0]
 
 
@@ -116,6 +129,7 @@ def run_lockstep(
     *,
     init_on_clean_view: bool = False,
     hooks: Sequence[FrameHook] | None = None,
+    on_frame: FrameHook | None = None,
 ) -> list[SimulationRun]:
     """One simulated world feeding one pipeline per tracker configuration, frame by frame.
 
@@ -124,6 +138,7 @@ def run_lockstep(
     the same as ``run_simulation`` of the scenario with that tracker alone: the
     world and every filter draw from the seeds ``cfg.seed`` gives.  Each run's
     ``wall_s`` is the time of the whole lockstep (all pipelines and the simulator).
+    ``on_frame`` sees every frame (scan phase included) with the first pipeline's result.
     """
     mode = cfg.pipeline.controller.mode
     if len(trackers) > 1 and mode not in ("truth", "fixed"):
@@ -189,6 +204,8 @@ def run_lockstep(
             command = TurretCommand(t_cmd, *aim_angles(world.target_position(t_cmd), world.mount))
         if command is not None:
             world.command(command)
+        if on_frame is not None:
+            on_frame(frame, truth, results[0])
         for k, result in enumerate(results):
             if result.phase != "track":
                 continue
@@ -217,21 +234,36 @@ def _clean_view(points: FloatArray, truth: FrameTruth, s_diag: float, period: fl
 
 
 def _record(log: TrackLog, frame: Frame, truth: FrameTruth, result: StepResult) -> None:
+    pan, tilt = truth.turret.pan, truth.turret.tilt
+    log_result(log, frame, result, truth.target_position, truth.n_target_points, pan, tilt)
+
+
+def log_result(
+    log: TrackLog,
+    frame: Frame,
+    result: StepResult,
+    gt: FloatArray | None,
+    n_target_points: int,
+    pan: float,
+    tilt: float,
+) -> None:
+    """Append a tracking frame's result to ``log``; ``gt`` None (or NaN) when unknown."""
     est = result.estimate
     assert est is not None
     sensor = frame.poses[-1, :3, 3]
+    gt = np.full(3, np.nan) if gt is None else gt
     var = est.variance
     log.append(
         t=frame.end,
-        gt=truth.target_position,
+        gt=gt,
         est=est.position,
         tracked=est.tracked,
         sigma=est.spread,
         n_points=result.n_points,
-        n_target_points=truth.n_target_points,
-        range_m=float(np.linalg.norm(truth.target_position - sensor)),
-        pan=truth.turret.pan,
-        tilt=truth.turret.tilt,
+        n_target_points=n_target_points,
+        range_m=float(np.linalg.norm(gt - sensor)),
+        pan=pan,
+        tilt=tilt,
         step_ms=result.step_ms,
         flags=result.flags,
         pos_var=float(var[0]) if var is not None else math.nan,
@@ -240,9 +272,30 @@ def _record(log: TrackLog, frame: Frame, truth: FrameTruth, result: StepResult) 
     )
 
 
-def write_run(run: SimulationRun, out_dir: Path) -> dict[str, Any]:
+def simulation_viewer_hook(viewers: Sequence[ViewerSink], cfg: ScenarioConfig) -> FrameHook:
+    """An ``on_frame`` hook that shows every frame in ``viewers``, with the turret's links
+    (on a moving observer: the sensor's pose alone)."""
+    mount = turret_spec(cfg.turret).mount
+
+    def show(frame: Frame, truth: FrameTruth, result: StepResult) -> None:
+        if cfg.observer is None:
+            pan, tilt = truth.turret.pan, truth.turret.tilt
+            links = [NamedTransform(*link) for link in turret_links(pan, tilt, mount)]
+        else:
+            links = [NamedTransform("world", "lidar", frame.poses[-1])]
+        view = view_frame(frame, result, truth.target_position, links)
+        for sink in viewers:
+            sink.log(view)
+
+    return show
+
+
+def write_run(
+    run: SimulationRun, out_dir: Path, extra: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Write config.toml, frames.csv, metrics.json, the plots and the scanned background
-    (``background.npz``, to load with ``[pipeline.background] file``); return the metrics."""
+    (``background.npz``, to load with ``[pipeline.background] file``); return the metrics
+    (``extra`` replaces the run's own)."""
     from dronetrack.io.background import save_background
     from dronetrack.io.runs import write_frames_csv, write_metrics, write_plots
 
@@ -252,7 +305,7 @@ def write_run(run: SimulationRun, out_dir: Path) -> dict[str, Any]:
         save_background(background, out_dir / "background.npz")
     (out_dir / "config.toml").write_text(dump_scenario(run.config))
     write_frames_csv(run.log, out_dir / "frames.csv")
-    metrics = run.metrics()
+    metrics = run.metrics() if extra is None else extra
     write_metrics(metrics, out_dir / "metrics.json")
     noise = noise_parameters(run.config.pipeline.tracker, run.config.sensor.integration_time_s)
     threshold = noise.threshold

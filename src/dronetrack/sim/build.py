@@ -31,7 +31,7 @@ from dronetrack.sim.trajectories import Trajectory, load_csv_trajectory
 from dronetrack.sim.turret import AxisSpec, TurretSpec, make_turret
 from dronetrack.sim.world import Observer, SimWorld
 
-__all__ = ["build_world", "resolve_scenario"]
+__all__ = ["build_world", "resolve_scenario", "turret_spec"]
 
 Pair = tuple[float, float]
 
@@ -75,7 +75,8 @@ def _axis(preset: AxisSpec, cfg: TurretConfig, limits: Pair | None) -> AxisSpec:
     )
 
 
-def _turret(cfg: TurretConfig) -> TurretSpec:
+def turret_spec(cfg: TurretConfig) -> TurretSpec:
+    """The turret a scenario's [turret] section describes: its preset with the section's values."""
     preset = make_turret(cfg.model)
     m = preset.mount
     base = m.base if cfg.base_height_m is None else (m.base[0], m.base[1], cfg.base_height_m)
@@ -112,7 +113,7 @@ def _observer(cfg: ObserverConfig, duration: float, rng: np.random.Generator) ->
 def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
     """The scenario with every preset value written out, so a re-run needs nothing else."""
     sensor = _sensor(cfg.sensor)
-    turret = _turret(cfg.turret)
+    turret = turret_spec(cfg.turret)
     deg = math.degrees
     sensor_cfg = cfg.sensor.model_copy(
         update={
@@ -161,7 +162,7 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
     """
     rng = np.random.default_rng(cfg.seed) if rng is None else rng
     sensor = _sensor(cfg.sensor)
-    turret = _turret(cfg.turret)
+    turret = turret_spec(cfg.turret)
     scene = make_scene(cfg.scene.name, cfg.scene.layout_seed)
     drone = make_drone(cfg.drone.model, cfg.drone.reflectivity_scale)
     trajectory = _flight(cfg.trajectory, cfg.duration_s, rng)

@@ -1,0 +1,281 @@
+"""Commands for recordings: ``track`` (replay), ``info`` and ``record``.
+
+Registered on the ``dronetrack`` app by ``cli``; they follow its conventions
+(one ``error:`` line and exit code 2 for anything the user can fix).
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from dronetrack.cli import (
+    FoxgloveOption,
+    RerunOption,
+    RunDirOption,
+    SeedOption,
+    TrackerName,
+    _print_metrics,
+    _progress_columns,
+    app,
+    err_console,
+)
+from dronetrack.errors import ConfigError
+
+__all__ = ["info", "record", "track"]
+
+
+def _floats(text: str | None, n: int, option: str) -> tuple[float, ...] | None:
+    """``n`` comma-separated numbers, or None."""
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != n or not all(np.isfinite(values)):
+        raise ConfigError(f"{option} takes {n} comma-separated numbers, got {text!r}")
+    return values
+
+
+def _sensor_pose(text: str | None) -> np.ndarray | None:
+    """world_T_sensor from "x,y,z,roll,pitch,yaw" (metres, degrees; R = Rz Ry Rx)."""
+    from dronetrack.geometry import make_pose, rot_x, rot_y, rot_z
+
+    values = _floats(text, 6, "--sensor-pose")
+    if values is None:
+        return None
+    x, y, z, roll, pitch, yaw = values
+    R = rot_z(np.radians(yaw)) @ rot_y(np.radians(pitch)) @ rot_x(np.radians(roll))
+    pose: np.ndarray = make_pose(R, (x, y, z))
+    return pose
+
+
+@app.command()
+def track(
+    recording: Annotated[
+        Path,
+        typer.Argument(
+            help="A ROS 1 .bag, a ROS 2 bag folder, a .mcap or .db3 file, a folder of .pcd "
+            "files, a .las/.laz file or a folder of seed 003's CSV logs."
+        ),
+    ],
+    lidar_topic: Annotated[
+        str | None,
+        typer.Option("--lidar-topic", help="The point-cloud topic (default: the only one)."),
+    ] = None,
+    gt_topic: Annotated[
+        str | None,
+        typer.Option(
+            "--gt-topic", help="NavSatFix or PoseStamped ground truth (default: the only one)."
+        ),
+    ] = None,
+    pose_frame: Annotated[
+        str | None,
+        typer.Option("--pose-frame", help="The /tf frame to track in (default: the tree's root)."),
+    ] = None,
+    background: Annotated[
+        Path | None, typer.Option("--background", help="Load this background model (.npz).")
+    ] = None,
+    background_from: Annotated[
+        float | None,
+        typer.Option(
+            "--background-from", min=0.0, help="Build the background from the first S seconds."
+        ),
+    ] = None,
+    tracker: Annotated[
+        TrackerName | None, typer.Option("--tracker", help="The tracking method.")
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            "--config", help="A scenario/config .toml (default: the recording's own, if any)."
+        ),
+    ] = None,
+    out: RunDirOption = None,
+    sensor_pose: Annotated[
+        str | None,
+        typer.Option(
+            "--sensor-pose", help="Fixed sensor pose x,y,z,roll,pitch,yaw (m, deg) without /tf."
+        ),
+    ] = None,
+    gt_origin: Annotated[
+        str | None,
+        typer.Option("--gt-origin", help="NavSatFix ENU origin lat,lon,alt (deg, deg, m)."),
+    ] = None,
+    gt_heading: Annotated[
+        float, typer.Option("--gt-heading", help="Yaw of the world x axis from east (deg).")
+    ] = 0.0,
+    period: Annotated[
+        float | None,
+        typer.Option("--period", min=1e-4, help="Frame period in s (default: from the stamps)."),
+    ] = None,
+    timestamps: Annotated[
+        Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
+    ] = None,
+    foxglove: FoxgloveOption = None,
+    rerun: RerunOption = None,
+) -> None:
+    """Replay a recording through the pipeline; turret commands are logged, not executed.
+
+    Writes config.toml, frames.csv, commands.csv, metrics.json and plots, as simulate
+    does; the metrics that need ground truth appear only when there is some.
+    """
+    from rich.progress import Progress
+
+    from dronetrack.io.recordings import open_recording
+    from dronetrack.io.runs import default_run_dir
+    from dronetrack.io.source import ReplayOptions
+    from dronetrack.io.viewers import close_viewers, open_viewers
+    from dronetrack.replay import recording_config, run_replay, write_commands_csv
+    from dronetrack.sim.scenario import load_scenario_file
+    from dronetrack.sim.scenarios import SCENARIOS
+    from dronetrack.simulate import write_run
+
+    origin = _floats(gt_origin, 3, "--gt-origin")
+    options = ReplayOptions(
+        lidar_topic=lidar_topic,
+        gt_topic=gt_topic,
+        pose_frame=pose_frame,
+        sensor_pose=_sensor_pose(sensor_pose),
+        gt_origin=(origin[0], origin[1], origin[2]) if origin else None,
+        gt_heading_deg=gt_heading,
+        period_s=period,
+        timestamps=timestamps,
+    )
+    source = open_recording(recording, options)
+    base = load_scenario_file(config, SCENARIOS) if config is not None else None
+    cfg = recording_config(
+        source,
+        base,
+        tracker=tracker.value if tracker else None,
+        background_file=background,
+        background_from=background_from,
+    )
+    out_dir = out if out is not None else default_run_dir()
+    viewers = open_viewers(foxglove, rerun, start=source.origin)
+    try:
+        with Progress(*_progress_columns(), console=err_console, transient=True) as bar:
+            task = bar.add_task(f"replaying {recording.name}", total=None)
+            result = run_replay(
+                source,
+                cfg,
+                progress=lambda i, n: bar.update(task, completed=i, total=n),
+                viewers=viewers,
+            )
+    finally:
+        close_viewers(viewers)
+    metrics = write_run(result.run, out_dir, extra=result.metrics())
+    write_commands_csv(result.commands, out_dir / "commands.csv")
+    _print_metrics(metrics, out_dir)
+    if result.skipped:
+        err_console.print(
+            "skipped messages: " + ", ".join(f"{k} {v}" for k, v in result.skipped.items())
+        )
+
+
+@app.command()
+def info(
+    recording: Annotated[Path, typer.Argument(help="A recording (see `dronetrack track --help`).")],
+) -> None:
+    """List a recording's topics, message types, counts and duration."""
+    from dronetrack.io.recordings import recording_info
+
+    summary = recording_info(recording)
+    start = datetime.fromtimestamp(summary.start, tz=UTC).isoformat(timespec="milliseconds")
+    table = Table(title=f"{summary.path} ({summary.kind}, {summary.duration_s:.3f} s from {start})")
+    table.add_column("topic")
+    table.add_column("type")
+    table.add_column("messages", justify="right")
+    for topic in summary.topics:
+        table.add_row(topic.topic, topic.msgtype, str(topic.count))
+    Console().print(table)
+
+
+class RecordFormatName(StrEnum):
+    ros1 = "ros1"
+    ros2_sqlite3 = "ros2-sqlite3"
+    ros2_mcap = "ros2-mcap"
+
+
+@app.command()
+def record(
+    scenario: Annotated[
+        str | None, typer.Argument(help="A scenario name or .toml file (default: 'default').")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="The recording to write (.bag; .mcap/.db3 or a folder for ROS 2)."
+        ),
+    ] = None,
+    fmt: Annotated[
+        RecordFormatName, typer.Option("--format", help="The container.")
+    ] = RecordFormatName.ros1,
+    livox_custom: Annotated[
+        bool,
+        typer.Option(
+            "--livox-custom/--pointcloud2",
+            help="Points as livox_ros_driver(2)/CustomMsg or sensor_msgs/PointCloud2.",
+        ),
+    ] = True,
+    seed: SeedOption = None,
+    duration: Annotated[
+        float | None,
+        typer.Option("--duration", "-d", min=0.01, help="Seconds of flight after the scan."),
+    ] = None,
+    tracker: Annotated[
+        TrackerName | None, typer.Option("--tracker", help="The method that steers the turret.")
+    ] = None,
+) -> None:
+    """Write a simulated closed-loop flight as the recording a real rig would make.
+
+    It holds the LiDAR, /tf with the turret links, ground truth and the scenario,
+    so `dronetrack track FILE` replays it with the same settings.
+    """
+    from rich.progress import Progress
+
+    from dronetrack.io.bag_writer import RecordingWriter
+    from dronetrack.sim.build import turret_spec
+    from dronetrack.sim.scenario import apply_overrides, dump_scenario
+    from dronetrack.sim.scenarios import get_scenario
+    from dronetrack.simulate import resolve_run, run_simulation
+
+    if out is None:
+        raise ConfigError("give the file to write with --out")
+    cfg = apply_overrides(
+        get_scenario(scenario or "default"),
+        seed=seed,
+        duration=duration,
+        tracker=tracker.value if tracker else None,
+    )
+    if cfg.observer is not None:
+        raise ConfigError("record does not write scenarios with an [observer] yet")
+    resolved = resolve_run(cfg)
+    writer = RecordingWriter(
+        out,
+        fmt.value,
+        turret_spec(resolved.turret).mount,
+        livox_custom=livox_custom,
+        config_text=dump_scenario(resolved),
+    )
+    try:
+        with Progress(*_progress_columns(), console=err_console, transient=True) as bar:
+            task = bar.add_task(f"recording {cfg.name}", total=None)
+            run = run_simulation(
+                resolved,
+                progress=lambda i, n: bar.update(task, completed=i, total=n),
+                on_frame=lambda frame, truth, _: writer.frame(
+                    frame, truth.target_position, truth.target_attitude
+                ),
+            )
+    finally:
+        writer.close()
+    _print_metrics(run.metrics(), out)

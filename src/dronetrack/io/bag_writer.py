@@ -1,0 +1,233 @@
+"""Write a simulated run as the recording a real rig would make (``dronetrack record``).
+
+Topics:
+- ``/livox/lidar``: ``livox_ros_driver(2)/CustomMsg`` (the Livox driver's own
+  format, ROS 1 / ROS 2 package names) or ``sensor_msgs/PointCloud2`` with the
+  livox_ros_driver2 point layout; frame ``lidar``; the header stamp is the
+  frame's start and every point keeps its own time;
+- ``/tf_static``: world → turret_base and tilt_link → lidar;
+- ``/tf``: turret_base → pan_link (pan) and pan_link → tilt_link (tilt), at
+  ``tf_rate_hz``, as a robot_state_publisher would from joint states;
+- ``/ground_truth/pose``: ``geometry_msgs/PoseStamped`` of the target in ``world``
+  at every frame end (motion capture);
+- ``/dronetrack/config``: the resolved scenario (TOML) in a ``std_msgs/String``.
+
+Containers: ``ros1`` (``.bag``), ``ros2-sqlite3`` and ``ros2-mcap``.  A ROS 2 path
+ending in ``.db3`` or ``.mcap`` is written as that one bare file; any other path
+becomes a rosbag2 folder with ``metadata.yaml``.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, Literal, get_args
+
+import numpy as np
+from rosbags.typesys import get_types_from_msg
+
+from dronetrack.errors import ConfigError
+from dronetrack.geometry import FloatArray, matrix_to_quaternion
+from dronetrack.io.bag import CONFIG_TOPIC, POINTCLOUD2, POSESTAMPED, STRING_TYPE, TF_TYPE
+from dronetrack.io.livox import (
+    LIVOX_POINT,
+    LivoxCloud,
+    encode_livox_cdr,
+    encode_livox_ros1,
+    livox_typestore,
+)
+from dronetrack.io.pointcloud2 import encode_cloud
+from dronetrack.kinematics import TURRET_FRAMES, MountGeometry, pointing_angles, turret_links
+from dronetrack.types import Frame
+
+__all__ = ["DEFAULT_START_NS", "LIDAR_TOPIC", "RecordFormat", "RecordingWriter"]
+
+RecordFormat = Literal["ros1", "ros2-sqlite3", "ros2-mcap"]
+RECORD_FORMATS: tuple[str, ...] = get_args(RecordFormat)
+LIDAR_TOPIC = "/livox/lidar"
+GT_TOPIC = "/ground_truth/pose"
+DEFAULT_START_NS = 1_767_225_600 * 1_000_000_000  # t = 0 is 2026-01-01 00:00:00 UTC
+_LIDAR_FRAME = TURRET_FRAMES[-1]
+TF_MSG = "geometry_msgs/TransformStamped[] transforms"
+
+
+class RecordingWriter:
+    """Streams frames, turret transforms and ground truth into a bag; ``close`` finishes it."""
+
+    def __init__(
+        self,
+        path: Path,
+        fmt: RecordFormat,
+        mount: MountGeometry,
+        *,
+        livox_custom: bool = True,
+        config_text: str | None = None,
+        start_ns: int = DEFAULT_START_NS,
+        tf_rate_hz: float = 100.0,
+    ) -> None:
+        if fmt not in RECORD_FORMATS:
+            raise ConfigError(f"unknown format {fmt!r}; choose one of {', '.join(RECORD_FORMATS)}")
+        if path.exists():
+            raise ConfigError(f"{path} exists; choose a new --out")
+        if tf_rate_hz <= 0:
+            raise ConfigError(f"tf_rate_hz must be > 0, got {tf_rate_hz}")
+        self.path = path
+        self.ros1 = fmt == "ros1"
+        self.mount = mount
+        self.livox = livox_custom
+        self.start_ns = start_ns
+        self.tf_period = 1.0 / tf_rate_hz
+        self.ts = livox_typestore(ros1=self.ros1)
+        if TF_TYPE not in self.ts.types:  # the Noetic store lacks tf2_msgs
+            self.ts.register(get_types_from_msg(TF_MSG, TF_TYPE))
+        self._seq = 0
+        self._bare: Path | None = None
+        self._writer = self._open(path, fmt)
+        lidar_type = (
+            ("livox_ros_driver" if self.ros1 else "livox_ros_driver2") + "/msg/CustomMsg"
+            if livox_custom
+            else POINTCLOUD2
+        )
+        self._lidar_type = lidar_type
+        add = self._writer.add_connection
+        self._lidar = add(LIDAR_TOPIC, lidar_type, typestore=self.ts)
+        self._tf = add("/tf", TF_TYPE, typestore=self.ts)
+        self._tf_static = add("/tf_static", TF_TYPE, typestore=self.ts)
+        self._gt = add(GT_TOPIC, POSESTAMPED, typestore=self.ts)
+        self._next_tf = 0.0
+        links = turret_links(0.0, 0.0, mount)
+        static = [links[0], links[-1]]
+        self._write(self._tf_static, 0.0, self._tf_message(0.0, static), TF_TYPE)
+        if config_text is not None:
+            conn = add(CONFIG_TOPIC, STRING_TYPE, typestore=self.ts)
+            msg = self.ts.types[STRING_TYPE](data=config_text)
+            self._write(conn, 0.0, msg, STRING_TYPE)
+
+    def _open(self, path: Path, fmt: str) -> Any:
+        if self.ros1:
+            from rosbags.rosbag1 import Writer as Writer1
+
+            w1 = Writer1(path)
+            w1.open()
+            return w1
+        from rosbags.rosbag2 import StoragePlugin
+        from rosbags.rosbag2 import Writer as Writer2
+
+        plugin = StoragePlugin.MCAP if fmt == "ros2-mcap" else StoragePlugin.SQLITE3
+        target = path
+        if path.suffix in (".mcap", ".db3"):
+            self._bare = Path(tempfile.mkdtemp(prefix="dronetrack-record-")) / "bag"
+            target = self._bare
+        w2 = Writer2(target, version=9, storage_plugin=plugin)
+        w2.open()
+        return w2
+
+    def _ns(self, t: float) -> int:
+        return self.start_ns + round(t * 1e9)
+
+    def _header(self, t: float, frame_id: str) -> Any:
+        sec, nsec = divmod(self._ns(t), 1_000_000_000)
+        stamp = self.ts.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
+        Header = self.ts.types["std_msgs/msg/Header"]
+        if self.ros1:
+            self._seq += 1
+            return Header(seq=self._seq, stamp=stamp, frame_id=frame_id)
+        return Header(stamp=stamp, frame_id=frame_id)
+
+    def _write(self, conn: Any, t: float, msg: Any, msgtype: str) -> None:
+        raw = (
+            self.ts.serialize_ros1(msg, msgtype)
+            if self.ros1
+            else self.ts.serialize_cdr(msg, msgtype)
+        )
+        self._writer.write(conn, self._ns(t), raw)
+
+    def _tf_message(self, t: float, links: list[tuple[str, str, FloatArray]]) -> Any:
+        types = self.ts.types
+        out = []
+        for parent, child, T in links:
+            w, x, y, z = matrix_to_quaternion(T[:3, :3])
+            p = T[:3, 3]
+            transform = types["geometry_msgs/msg/Transform"](
+                translation=types["geometry_msgs/msg/Vector3"](x=p[0], y=p[1], z=p[2]),
+                rotation=types["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
+            )
+            out.append(
+                types["geometry_msgs/msg/TransformStamped"](
+                    header=self._header(t, parent), child_frame_id=child, transform=transform
+                )
+            )
+        return types[TF_TYPE](transforms=out)
+
+    def frame(self, frame: Frame, target: FloatArray, attitude: FloatArray) -> None:
+        """Write one frame, the turret's transforms during it and the target's pose at its end."""
+        self._write_turret(frame)
+        self._write_points(frame)
+        self._write_truth(frame.end, target, attitude)
+
+    def _write_turret(self, frame: Frame) -> None:
+        times = np.arange(self._next_tf, frame.end - 1e-9, self.tf_period)
+        times = times[times >= frame.pose_t[0] - 1e-9]
+        if len(times) == 0:
+            return
+        self._next_tf = float(times[-1] + self.tf_period)
+        pan, tilt = pointing_angles(frame.poses)
+        pan = np.interp(times, frame.pose_t, np.unwrap(pan))
+        tilt = np.interp(times, frame.pose_t, tilt)
+        for t, a, b in zip(times, pan, tilt, strict=True):
+            moving = turret_links(a, b, self.mount)[1:3]
+            self._write(self._tf, float(t), self._tf_message(float(t), moving), TF_TYPE)
+
+    def _write_points(self, frame: Frame) -> None:
+        t_rel = frame.t - frame.stamp
+        if self.livox:
+            stamp_ns = self._ns(frame.stamp)
+            pts = np.zeros(len(frame), dtype=LIVOX_POINT)
+            pts["offset_time"] = np.clip(np.round(t_rel * 1e9), 0, 2**32 - 1)
+            for k, axis in enumerate("xyz"):
+                pts[axis] = frame.points[:, k]
+            pts["reflectivity"] = np.clip(np.round(frame.intensity), 0, 255)
+            pts["line"] = frame.line
+            cloud = LivoxCloud(stamp_ns, _LIDAR_FRAME, stamp_ns, pts)
+            raw = encode_livox_ros1(cloud, self._seq) if self.ros1 else encode_livox_cdr(cloud)
+            self._writer.write(self._lidar, stamp_ns, raw)
+            return
+        fields, data, step = encode_cloud(
+            frame.points, t_rel, frame.intensity, frame.line, self._ns(frame.stamp) * 1e-9
+        )
+        types = self.ts.types
+        PointField = types["sensor_msgs/msg/PointField"]
+        msg = types[POINTCLOUD2](
+            header=self._header(frame.stamp, _LIDAR_FRAME),
+            height=1,
+            width=len(frame),
+            fields=[
+                PointField(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count)
+                for f in fields
+            ],
+            is_bigendian=False,
+            point_step=step,
+            row_step=step * len(frame),
+            data=np.frombuffer(data, dtype=np.uint8),
+            is_dense=True,
+        )
+        self._write(self._lidar, frame.stamp, msg, POINTCLOUD2)
+
+    def _write_truth(self, t: float, target: FloatArray, attitude: FloatArray) -> None:
+        types = self.ts.types
+        w, x, y, z = matrix_to_quaternion(attitude)
+        pose = types["geometry_msgs/msg/Pose"](
+            position=types["geometry_msgs/msg/Point"](x=target[0], y=target[1], z=target[2]),
+            orientation=types["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
+        )
+        msg = types[POSESTAMPED](header=self._header(t, TURRET_FRAMES[0]), pose=pose)
+        self._write(self._gt, t, msg, POSESTAMPED)
+
+    def close(self) -> None:
+        """Finish the bag (and move a bare ROS 2 file into place)."""
+        self._writer.close()
+        if self._bare is not None:
+            files = sorted(self._bare.glob("*.mcap")) + sorted(self._bare.glob("*.db3"))
+            shutil.move(str(files[0]), self.path)
+            shutil.rmtree(self._bare.parent, ignore_errors=True)

@@ -1,0 +1,161 @@
+"""What every recording reader gives the replay: frames, ground truth and a summary.
+
+A reader turns a recording (a ROS bag, an MCAP file, a folder of ``.pcd`` files,
+a ``.las``/``.laz`` file, seed 003's CSV logs) into the pipeline's ``Frame``
+objects.  Times inside are seconds relative to the recording's ``origin`` (an
+absolute time, e.g. Unix seconds), so float64 keeps microseconds.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from dronetrack.errors import InputError
+from dronetrack.geometry import FloatArray
+from dronetrack.types import Frame
+
+__all__ = [
+    "GroundTruth",
+    "Recording",
+    "RecordingInfo",
+    "ReplayOptions",
+    "TopicInfo",
+    "fixed_pose_frame",
+]
+
+
+TIME_TOL_S = 1e-6
+
+
+@dataclass(frozen=True, slots=True)
+class GroundTruth:
+    """The target's true position sampled at times ``t`` (M,) [s]: ``position`` (M, 3) [m]."""
+
+    t: FloatArray
+    position: FloatArray
+    max_gap_s: float = 1.0  # no truth between samples further apart than this
+
+    def __post_init__(self) -> None:
+        m = len(self.t)
+        if self.position.shape != (m, 3) or m == 0:
+            raise InputError(f"ground truth must be (M, 3) with M >= 1, got {self.position.shape}")
+        if np.any(np.diff(self.t) < 0):
+            raise InputError("ground-truth times must not decrease")
+
+    def at(self, t: ArrayLike) -> FloatArray:
+        """Linearly interpolated positions (n, 3) at times ``t``; NaN outside the samples
+        or inside a gap longer than ``max_gap_s``."""
+        tq = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        out = np.full((len(tq), 3), np.nan)
+        if len(self.t) == 1:
+            near = np.abs(tq - self.t[0]) <= 0.5 * self.max_gap_s
+            out[near] = self.position[0]
+            return out
+        for k in range(3):
+            out[:, k] = np.interp(tq, self.t, self.position[:, k])
+        i = np.clip(np.searchsorted(self.t, tq, side="right"), 1, len(self.t) - 1)
+        gap = self.t[i] - self.t[i - 1]
+        # Times within TIME_TOL of the ends hold the end values (stamps' rounding).
+        outside = (tq < self.t[0] - TIME_TOL_S) | (tq > self.t[-1] + TIME_TOL_S)
+        bad = outside | (gap > self.max_gap_s)
+        out[bad] = np.nan
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class TopicInfo:
+    """One topic (or stream) of a recording."""
+
+    topic: str
+    msgtype: str
+    count: int
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingInfo:
+    """What ``dronetrack info`` prints."""
+
+    path: Path
+    kind: str  # "ros1", "ros2-sqlite3", "ros2-mcap", "mcap", "pcd", "las", "field-logs"
+    start: float  # absolute time of the first message [s] (Unix seconds for bags)
+    duration_s: float
+    topics: tuple[TopicInfo, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayOptions:
+    """How to read a recording; None means "choose automatically" or "not given"."""
+
+    lidar_topic: str | None = None
+    gt_topic: str | None = None
+    pose_frame: str | None = None  # the fixed frame of the /tf tree to track in
+    sensor_pose: FloatArray | None = None  # (4, 4) world_T_sensor when there is no /tf
+    gt_origin: tuple[float, float, float] | None = None  # NavSatFix ENU origin (lat°, lon°, alt m)
+    gt_heading_deg: float = 0.0  # ENU rotated about z by this, to align with the world frame
+    period_s: float | None = None  # frame period when the recording does not say
+    timestamps: Path | None = None  # a .pcd folder's timestamps file
+
+
+class Recording(Protocol):
+    """A recording opened for replay.
+
+    ``frames`` yields frames in time order with points in the sensor frame and
+    world_T_sensor poses; a message that cannot be decoded is skipped, logged
+    and counted in ``skipped`` (by reason), never silently dropped.
+    """
+
+    path: Path
+    origin: float  # absolute time [s] of t = 0
+    period: float  # frame period [s]
+    ground_truth: GroundTruth | None
+    config_text: str | None  # a dronetrack scenario (TOML) the recording carries, if any
+    skipped: Counter[str]
+
+    def frames(self) -> Iterator[Frame]:
+        """The LiDAR frames, in time order."""
+        ...
+
+    def info(self) -> RecordingInfo:
+        """Topics, types, counts and duration."""
+        ...
+
+
+def fixed_pose_frame(
+    stamp: float,
+    duration: float,
+    points: FloatArray,
+    t: FloatArray | None = None,
+    intensity: ArrayLike | None = None,
+    line: ArrayLike | None = None,
+    pose: FloatArray | None = None,
+    pose_t: FloatArray | None = None,
+) -> Frame:
+    """A frame from its arrays.  ``pose`` (4, 4) world_T_sensor of a sensor that does
+    not move, identity by default; or, with ``pose_t`` (K,), poses (K, 4, 4) sampled
+    then.  Every point is at ``stamp`` unless per-point times ``t`` are given."""
+    n = len(points)
+    if pose_t is None:
+        pose_t = np.array([stamp])
+        poses = (np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64))[None]
+    else:
+        assert pose is not None
+        poses = np.asarray(pose, dtype=np.float64)
+    return Frame(
+        stamp=stamp,
+        duration=duration,
+        points=np.asarray(points, dtype=np.float64).reshape(n, 3),
+        t=np.full(n, stamp) if t is None else np.asarray(t, dtype=np.float64),
+        line=np.zeros(n, np.uint8) if line is None else np.asarray(line, dtype=np.uint8),
+        intensity=(
+            np.zeros(n, np.float32) if intensity is None else np.asarray(intensity, np.float32)
+        ),
+        pose_t=pose_t,
+        poses=poses,
+    )
