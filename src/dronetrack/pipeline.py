@@ -67,6 +67,8 @@ class StepResult:
     flags: tuple[str, ...] = ()
     foreground: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
     periods: int = 0  # filter periods this frame advanced (0: repeated or older)
+    # (N, 3) every point of the frame in the world frame; empty if it could not be placed
+    world: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
 
 
 class Pipeline:
@@ -116,7 +118,7 @@ class Pipeline:
             if steps > 0 and frame.end >= self.scan_until - 0.5 * self.tracker.period:
                 self.background.build()
                 log.info("background model built: %d cells", len(self.background))
-            result = self._result(frame, "scan", None, fg.points, command, start, flags, steps)
+            result = self._result(frame, "scan", None, fg, fg.points, command, start, flags, steps)
         else:
             points = self._remove_outliers(fg.points)
             if "time_jump" in flags:
@@ -127,7 +129,9 @@ class Pipeline:
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
             command = self.controller.tracking(t_cmd, estimate, points) if steps > 0 else None
-            result = self._result(frame, "track", estimate, points, command, start, flags, steps)
+            result = self._result(
+                frame, "track", estimate, fg, points, command, start, flags, steps
+            )
         for flag in flags:
             self.counts[flag] += 1
         if flags:
@@ -200,6 +204,7 @@ class Pipeline:
         frame: Frame,
         phase: Phase,
         estimate: TrackEstimate | None,
+        fg: Foreground,
         points: FloatArray,
         command: TurretCommand | None,
         start: float,
@@ -217,6 +222,7 @@ class Pipeline:
             flags=tuple(flags),
             foreground=points,
             periods=periods,
+            world=fg.world,
         )
 
 

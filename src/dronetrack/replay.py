@@ -15,10 +15,11 @@ import math
 import time
 import tomllib
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numba as nb
 import numpy as np
 
 from dronetrack.errors import ConfigError, RecordingError
@@ -46,9 +47,6 @@ __all__ = [
 # A return within the drone's half-diagonal plus this margin of the true position
 # counts as the target's (the sensor's range noise and the truth's own error).
 TARGET_MARGIN_M = 0.15
-# cos α is lowered by this in the cone preselection, for the sensor's rotation within
-# a frame (0.05 allows 18° at the cone's edge for a distant target).
-CONE_MARGIN = 0.05
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,44 +105,35 @@ def recording_config(
     return cfg.model_copy(update={"pipeline": pipeline, "name": name})
 
 
-def target_point_count(frame: Frame, truth: GroundTruth, radius: float) -> int:
-    """Returns of the frame within ``radius`` of the true position at each return's time.
+def target_point_count(frame: Frame, world: FloatArray, truth: GroundTruth, radius: float) -> int:
+    """Returns of the frame within ``radius`` of the true position at each return's time;
+    ``world`` (N, 3) are the frame's points in the world frame.
 
     The truth is taken as moving linearly between its values at the frame's start
     and end (exact when its samples are the frame ends, as in our recordings).
-    Only returns whose range is within ``radius`` plus that motion and the
-    sensor's own of the target's range can be the target's, so only those are
-    moved to the world frame.
     """
     if len(frame) == 0:
         return 0
     g0, g1 = truth.at([frame.stamp, frame.end])
-    end_pose = frame.poses[-1]
-    origin = frame.poses[:, :3, 3]
-    # | |p| − |g − o| | ≤ |p_world − g|, with slack for g's and o's motion in the frame
-    slack = radius + float(np.linalg.norm(g1 - g0)) + float(np.ptp(origin, axis=0).max())
-    toward = end_pose[:3, :3].T @ (g1 - end_pose[:3, 3])  # the target in the sensor frame
-    reach = float(np.linalg.norm(toward))
-    r = np.sqrt(np.einsum("ij,ij->i", frame.points, frame.points))
-    near = np.abs(r - reach) <= slack
-    if reach > slack:
-        # ... and within the cone the sphere of radius ``slack`` subtends: cos θ ≥ cos α,
-        # sin α = slack / reach (the sensor turns by less than α's margin in a frame).
-        cos_alpha = np.sqrt(1.0 - (slack / reach) ** 2) - CONE_MARGIN
-        near &= frame.points @ (toward / reach) >= r * cos_alpha
-    if not near.any():
-        return 0
-    part = replace(
-        frame,
-        points=frame.points[near],
-        t=frame.t[near],
-        line=frame.line[near],
-        intensity=frame.intensity[near],
-    )
-    # g(t) = g0 + u (g1 − g0),  u = (t − t_start) / duration
-    u = np.clip((part.t - frame.stamp) / frame.duration, 0.0, 1.0)
-    d = part.world_points() - (g0 + u[:, None] * (g1 - g0))
-    return int(np.count_nonzero(np.einsum("ij,ij->i", d, d) <= radius * radius))
+    return int(_count_near(world, frame.t, frame.stamp, frame.duration, g0, g1, radius))
+
+
+@nb.njit(cache=True)
+def _count_near(
+    W: FloatArray, t: FloatArray, t0: float, T: float, g0: FloatArray, g1: FloatArray, r: float
+) -> int:
+    """Points of W (N, 3) within r of g(t_i) = g0 + u_i (g1 − g0), u_i = (t_i − t0) / T ∈ [0, 1]."""
+    n = 0
+    r2 = r * r
+    for i in range(W.shape[0]):
+        u = min(max((t[i] - t0) / T, 0.0), 1.0)
+        d2 = 0.0
+        for k in range(3):
+            d = W[i, k] - (g0[k] + u * (g1[k] - g0[k]))
+            d2 += d * d
+        if d2 <= r2:
+            n += 1
+    return n
 
 
 def run_replay(
@@ -211,8 +200,10 @@ def _record(
     truth: GroundTruth | None,
     radius: float,
 ) -> None:
-    known = truth is not None and gt is not None and bool(np.all(np.isfinite(gt)))
-    n_target = target_point_count(frame, truth, radius) if known and truth is not None else -1
+    n_target = -1  # unknown: no truth, or the frame could not be placed in the world
+    known = gt is not None and bool(np.all(np.isfinite(gt)))
+    if truth is not None and known and len(result.world) == len(frame):
+        n_target = target_point_count(frame, result.world, truth, radius)
     pan, tilt = pointing_angles(frame.poses[-1])
     log_result(log, frame, result, gt, n_target, float(pan), float(tilt))
 

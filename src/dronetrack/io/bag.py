@@ -1,9 +1,10 @@
 """ROS 1 bags, ROS 2 bags (sqlite3 and MCAP storage) and bare ``.mcap`` files.
 
 The containers are read with rosbags (pure Python, no ROS install).  Point
-messages are decoded by our numpy decoders (``io.pointcloud2``, ``io.livox``):
-rosbags' generic deserialiser makes one Python object per Livox point, about
-100× too slow for replay.
+messages are decoded from their bytes by our numpy decoders
+(``io.pointcloud2_raw``, ``io.livox``): rosbags' generic deserialiser makes one
+Python object per Livox point, about 100× too slow for replay, and copies a
+PointCloud2's data.
 
 Topics:
 - LiDAR: ``sensor_msgs/PointCloud2`` or ``livox_ros_driver(2)/CustomMsg``; chosen
@@ -44,7 +45,8 @@ from dronetrack.io.livox import (
     livox_points,
     livox_typestore,
 )
-from dronetrack.io.pointcloud2 import cloud_points, decode_cloud, fields_from_msg
+from dronetrack.io.pointcloud2 import cloud_points
+from dronetrack.io.pointcloud2_raw import decode_pointcloud2_cdr, decode_pointcloud2_ros1
 from dronetrack.io.source import (
     GroundTruth,
     RecordingInfo,
@@ -324,19 +326,9 @@ class BagRecording(BagFile):
                 cloud = decode_livox_cdr(raw) if reader.is2 else decode_livox_ros1(raw)
                 self._lidar_frame = cloud.frame_id
                 return cloud.stamp_ns, cloud.frame_id, cloud
-            msg = reader.deserialize(raw, msgtype)
-            arr = decode_cloud(
-                fields_from_msg(msg),
-                msg.data,
-                int(msg.width),
-                int(msg.height),
-                int(msg.point_step),
-                int(msg.row_step),
-                bool(msg.is_bigendian),
-            )
-            stamp = _stamp_ns(msg.header)
-            self._lidar_frame = str(msg.header.frame_id)
-            return stamp, self._lidar_frame, cloud_points(arr, stamp * 1e-9)
+            pc2 = decode_pointcloud2_cdr(raw) if reader.is2 else decode_pointcloud2_ros1(raw)
+            self._lidar_frame = pc2.frame_id
+            return pc2.stamp_ns, pc2.frame_id, cloud_points(pc2.array(), pc2.stamp_ns * 1e-9)
         except _BAD_DATA as exc:
             self._skip("bad_point_message", exc)
         return None

@@ -42,13 +42,14 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import DecodeError, InputError
 from dronetrack.geometry import FloatArray
+from dronetrack.io.wire import ByteCursor, as_byte_view, decode_string
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -150,62 +151,6 @@ def livox_typestore(ros1: bool) -> Typestore:
     return typestore
 
 
-class _Reader:
-    """A cursor over message bytes that raises DecodeError on truncation."""
-
-    __slots__ = ("buf", "order", "origin", "pos", "what")
-
-    def __init__(
-        self, buf: memoryview, pos: int, order: Literal["little", "big"], origin: int, what: str
-    ) -> None:
-        self.buf, self.pos, self.order, self.origin, self.what = buf, pos, order, origin, what
-
-    def align(self, size: int) -> None:
-        # CDR: a primitive of `size` bytes starts at a multiple of `size` after `origin`
-        self.pos += -(self.pos - self.origin) % size
-
-    def take(self, n: int, name: str) -> memoryview:
-        end = self.pos + n
-        if n < 0 or end > len(self.buf):
-            raise DecodeError(
-                f"{self.what} truncated in {name}: needs {end} bytes, has {len(self.buf)}"
-            )
-        out = self.buf[self.pos : end]
-        self.pos = end
-        return out
-
-    def uint(self, size: int, name: str, signed: bool = False) -> int:
-        return int.from_bytes(self.take(size, name), self.order, signed=signed)
-
-
-def _as_memoryview(raw: bytes | bytearray | memoryview | NDArray[np.uint8]) -> memoryview:
-    """``raw`` as a flat, contiguous memoryview of unsigned bytes."""
-    if isinstance(raw, np.ndarray):
-        if raw.dtype.itemsize != 1:
-            raise DecodeError(f"Livox message must be bytes, got an array of {raw.dtype}")
-        return memoryview(np.ascontiguousarray(raw).reshape(-1).view(np.uint8).data)
-    try:
-        view = memoryview(raw)
-    except TypeError as exc:
-        raise DecodeError(f"Livox message is not a byte buffer: {exc}") from exc
-    if not view.c_contiguous:
-        view = memoryview(bytes(view))
-    return view if view.format == "B" and view.ndim == 1 else view.cast("B")
-
-
-def _frame_id(data: memoryview, nul_terminated: bool, what: str) -> str:
-    """Decode a string's bytes; CDR strings end with one NUL, counted in their length."""
-    raw = bytes(data)
-    if nul_terminated and raw:
-        if raw[-1] != 0:
-            raise DecodeError(f"{what} frame_id is not NUL-terminated")
-        raw = raw[:-1]
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise DecodeError(f"{what} frame_id is not UTF-8: {exc}") from exc
-
-
 def _check_count(point_num: int, n: int, what: str) -> None:
     if point_num != n:
         raise DecodeError(f"{what} point_num {point_num} disagrees with its {n} points")
@@ -214,15 +159,15 @@ def _check_count(point_num: int, n: int, what: str) -> None:
 def decode_livox_cdr(raw: bytes | bytearray | memoryview | NDArray[np.uint8]) -> LivoxCloud:
     """Decode a ROS 2 (CDR) livox_ros_driver2/CustomMsg; points are a strided view."""
     what = "Livox CDR CustomMsg"
-    buf = _as_memoryview(raw)
+    buf = as_byte_view(raw)
     if len(buf) < 4 or buf[0] != 0 or buf[1] not in (0, 1):
         head = bytes(buf[:4]).hex(" ")
         raise DecodeError(f"{what} has an unsupported encapsulation header ({head})")
     little = buf[1] == 1
-    r = _Reader(buf, 4, "little" if little else "big", 4, what)
+    r = ByteCursor(buf, 4, "little" if little else "big", 4, what)
     sec = r.uint(4, "header.stamp.sec", signed=True)
     nanosec = r.uint(4, "header.stamp.nanosec")
-    frame_id = _frame_id(r.take(r.uint(4, "frame_id length"), "frame_id"), True, what)
+    frame_id = decode_string(r.take(r.uint(4, "frame_id length"), "frame_id"), True, what)
     r.align(8)
     timebase = r.uint(8, "timebase")
     point_num = r.uint(4, "point_num")
@@ -248,12 +193,12 @@ def decode_livox_cdr(raw: bytes | bytearray | memoryview | NDArray[np.uint8]) ->
 def decode_livox_ros1(raw: bytes | bytearray | memoryview | NDArray[np.uint8]) -> LivoxCloud:
     """Decode a ROS 1 livox_ros_driver/CustomMsg; points are a view of the 19-B records."""
     what = "Livox ROS 1 CustomMsg"
-    buf = _as_memoryview(raw)
-    r = _Reader(buf, 0, "little", 0, what)
+    buf = as_byte_view(raw)
+    r = ByteCursor(buf, 0, "little", 0, what)
     r.take(4, "header.seq")
     secs = r.uint(4, "header.stamp.secs")
     nsecs = r.uint(4, "header.stamp.nsecs")
-    frame_id = _frame_id(r.take(r.uint(4, "frame_id length"), "frame_id"), False, what)
+    frame_id = decode_string(r.take(r.uint(4, "frame_id length"), "frame_id"), False, what)
     timebase = r.uint(8, "timebase")
     point_num = r.uint(4, "point_num")
     lidar_id = r.uint(1, "lidar_id")

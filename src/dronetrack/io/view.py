@@ -65,7 +65,7 @@ def view_frame(
     est = result.estimate
     return ViewFrame(
         t=frame.end,
-        points=frame.world_points(),
+        points=result.world if len(result.world) == len(frame) else frame.world_points(),
         foreground=result.foreground,
         estimate=None if est is None else est.position,
         tracked=bool(est is not None and est.tracked),

@@ -7,7 +7,7 @@ classifies each point, so a 24,000-point frame costs well under a millisecond.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
@@ -30,6 +30,7 @@ class Foreground:
     n_nonfinite: int
     n_outside: int  # outside the crop box
     n_background: int
+    world: FloatArray = field(default_factory=lambda: np.empty((0, 3)))  # (N, 3) every point
 
 
 KEEP, NONFINITE, OUTSIDE, BACKGROUND = 0, 1, 2, 3
@@ -60,7 +61,12 @@ def extract_foreground(
     counts = np.bincount(verdict, minlength=4)
     index = np.flatnonzero(verdict == KEEP)
     return Foreground(
-        world[index], index, int(counts[NONFINITE]), int(counts[OUTSIDE]), int(counts[BACKGROUND])
+        world[index],
+        index,
+        int(counts[NONFINITE]),
+        int(counts[OUTSIDE]),
+        int(counts[BACKGROUND]),
+        world,
     )
 
 
