@@ -22,9 +22,10 @@ relative to the header stamp; the first field present in this order is used)
   (Livox driver PointCloud2 variant, Ouster).
 - ``time`` (float32/float64): seconds relative to the header stamp, may be
   negative (Velodyne).
-- ``timestamp`` (float64): absolute time, in nanoseconds when the cloud's
-  largest finite magnitude exceeds 1e14, otherwise in seconds (livox_ros_driver2,
-  Hesai).  Float64 nanoseconds since 1970 resolve about 256 ns.
+- ``timestamp`` (float64): absolute time, in nanoseconds when the largest finite
+  magnitude of an evenly strided sample of at most 64 of the cloud's values
+  exceeds 1e14, otherwise in seconds (livox_ros_driver2, Hesai).  Float64
+  nanoseconds since 1970 resolve about 256 ns.
 
 Intensity comes from ``intensity`` or ``reflectivity`` (zeros when absent); the
 laser line from ``line`` or ``ring``, clipped to 0..255 (zeros when absent).
@@ -265,7 +266,9 @@ def _relative_time(
         if not absolute:
             # t_rel = value · unit
             return values * unit
-        finite = values[np.isfinite(values)]
+        # The unit is the cloud's, so a strided sample of at most 64 values decides it.
+        sample = values[:: max(1, len(values) // 64)]
+        finite = sample[np.isfinite(sample)]
         if finite.size and float(np.max(np.abs(finite))) > _NS_THRESHOLD:
             # t_rel = (timestamp_ns − stamp·1e9) · 1e-9
             return (values - stamp * 1e9) * 1e-9
@@ -276,7 +279,13 @@ def _relative_time(
 
 def _line_column(arr: NDArray[np.void], name: str) -> NDArray[np.uint8]:
     """Laser line clipped to 0..255; NaN becomes 0."""
-    values = np.nan_to_num(_scalar_column(arr, name).astype(np.float64), nan=0.0)
+    column = _scalar_column(arr, name)
+    if column.dtype.kind == "u" and column.dtype.itemsize == 1:
+        return column.astype(np.uint8)  # already in range
+    if column.dtype.kind in "iu":
+        clipped: NDArray[np.uint8] = np.clip(column, 0, 255).astype(np.uint8)
+        return clipped
+    values = np.nan_to_num(column.astype(np.float64), nan=0.0)
     return np.clip(values, 0.0, 255.0).astype(np.uint8)
 
 
