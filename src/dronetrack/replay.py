@@ -147,8 +147,14 @@ def run_replay(
     The filter draws from the same seed as ``simulate`` of ``cfg``, so a recording
     of a simulated run replays as that run did.
     """
-    cfg = resolve_run(cfg)
     period = recording.period
+    if not 1e-3 <= period <= 1.0:
+        raise RecordingError(
+            f"{recording.path}: frame period {period:g} s is outside 1 ms to 1 s; give --period"
+        )
+    # The filter's period (and eq. (11)'s σ values) follow the recording's frame rate.
+    sensor = cfg.sensor.model_copy(update={"integration_time_s": period})
+    cfg = resolve_run(cfg.model_copy(update={"sensor": sensor}))
     spec = turret_spec(cfg.turret)
     _, filter_seed = np.random.SeedSequence(cfg.seed).spawn(2)
     pipeline = build_pipeline(

@@ -121,12 +121,13 @@ _BAD_DATA = (
 class BagFile:
     """A bag's container: open it, list it, iterate its raw messages."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, *, check: bool = True) -> None:
         self.path = path
         self.skipped: Counter[str] = Counter()
         self._warned: Counter[str] = Counter()
-        with self._reader():
-            pass  # fail now, with one line, if it cannot be opened
+        if check:
+            with self._reader():
+                pass  # fail now, with one line, if it cannot be opened
 
     def info(self) -> RecordingInfo:
         """Topics, types, message counts and duration."""
@@ -192,10 +193,9 @@ class BagRecording(BagFile):
     """A bag opened for replay (see the module docstring)."""
 
     def __init__(self, path: Path, options: ReplayOptions | None = None) -> None:
-        self.path = path
+        super().__init__(path, check=False)  # opened below
         self.options = options = options or ReplayOptions()
-        self.skipped = Counter()
-        self._warned = Counter()
+        self._lidar_frame: str | None = None  # the clouds' frame_id, once one is decoded
         with self._reader() as reader:
             conns = reader.connections
             lidar = _choose(conns, options.lidar_topic, LIDAR_TYPES, "LiDAR", "--lidar-topic")
@@ -285,6 +285,12 @@ class BagRecording(BagFile):
             values = self._enu(values)
         else:
             values = self._to_pose_frame(ts, values, frames)
+        finite = np.all(np.isfinite(values), axis=1) & np.isfinite(ts)
+        if not finite.all():
+            self.skipped["gt_nonfinite"] += int(np.count_nonzero(~finite))
+            ts, values = ts[finite], values[finite]
+        if len(ts) == 0:
+            return None
         order = np.argsort(ts, kind="stable")
         return GroundTruth(ts[order], values[order], max_gap_s=max(1.0, 10 * self.period))
 
@@ -315,7 +321,7 @@ class BagRecording(BagFile):
     def _root(self) -> str | None:
         if self.options.pose_frame is not None:
             return self.options.pose_frame
-        frame = getattr(self, "_lidar_frame", None)
+        frame = self._lidar_frame
         return self.tf.root(frame) if frame else None
 
     def _decode(self, reader: Any, raw: bytes) -> tuple[int, str, Any] | None:
