@@ -24,7 +24,6 @@ import numpy as np
 
 from dronetrack.errors import ConfigError, RecordingError
 from dronetrack.eval.log import TrackLog
-from dronetrack.factory import build_pipeline
 from dronetrack.geometry import FloatArray
 from dronetrack.io.source import GroundTruth, Recording
 from dronetrack.io.view import NamedTransform, ViewerSink, view_frame
@@ -33,7 +32,14 @@ from dronetrack.pipeline import StepResult
 from dronetrack.sim.build import turret_spec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, validate_scenario
-from dronetrack.simulate import Progress, SimulationRun, log_result, resolve_run
+from dronetrack.simulate import (
+    Progress,
+    SimulationRun,
+    log_result,
+    resolve_run,
+    run_seeds,
+    turret_pipeline,
+)
 from dronetrack.types import Frame, TurretCommand
 
 __all__ = [
@@ -155,15 +161,9 @@ def run_replay(
     # The filter's period (and eq. (11)'s σ values) follow the recording's frame rate.
     sensor = cfg.sensor.model_copy(update={"integration_time_s": period})
     cfg = resolve_run(cfg.model_copy(update={"sensor": sensor}))
-    spec = turret_spec(cfg.turret)
-    _, filter_seed = np.random.SeedSequence(cfg.seed).spawn(2)
-    pipeline = build_pipeline(
-        cfg.pipeline,
-        period,
-        spec.mount,
-        (spec.pan.lower, spec.pan.upper),
-        (spec.tilt.lower, spec.tilt.upper),
-        np.random.default_rng(filter_seed),
+    _, filter_seed = run_seeds(cfg.seed)
+    pipeline = turret_pipeline(
+        cfg, period, turret_spec(cfg.turret), np.random.default_rng(filter_seed)
     )
     truth = recording.ground_truth
     radius = 0.5 * make_drone(cfg.drone.model).s_diag + TARGET_MARGIN_M

@@ -31,6 +31,7 @@ from dronetrack.pipeline import Pipeline, StepResult
 from dronetrack.sim.build import build_world, resolve_scenario, turret_spec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, dump_scenario
+from dronetrack.sim.turret import TurretSpec
 from dronetrack.sim.world import FrameTruth
 from dronetrack.types import Frame, TurretCommand
 
@@ -39,8 +40,10 @@ __all__ = [
     "log_result",
     "resolve_run",
     "run_lockstep",
+    "run_seeds",
     "run_simulation",
     "simulation_viewer_hook",
+    "turret_pipeline",
     "write_run",
 ]
 
@@ -167,19 +170,11 @@ def run_lockstep(
             )
         }
     )
-    sim_seed, filter_seed = np.random.SeedSequence(cfg.seed).spawn(2)
+    sim_seed, filter_seed = run_seeds(cfg.seed)
     world = build_world(flight, np.random.default_rng(sim_seed))
-    turret = world.plant.spec
     period = cfg.sensor.integration_time_s
     pipelines = [
-        build_pipeline(
-            c.pipeline,
-            period,
-            world.mount,
-            (turret.pan.lower, turret.pan.upper),
-            (turret.tilt.lower, turret.tilt.upper),
-            np.random.default_rng(filter_seed),
-        )
+        turret_pipeline(c, period, world.plant.spec, np.random.default_rng(filter_seed))
         for c in configs
     ]
     lead = pipelines[0]
@@ -222,6 +217,27 @@ def run_lockstep(
         SimulationRun(c, log, p, wall, n_frames * period)
         for c, log, p in zip(configs, logs, pipelines, strict=True)
     ]
+
+
+def run_seeds(seed: int) -> tuple[np.random.SeedSequence, np.random.SeedSequence]:
+    """The simulator's and the filters' seeds of a run with ``seed``: a replay of a
+    recorded run draws its filter from the same one."""
+    sim, filters = np.random.SeedSequence(seed).spawn(2)
+    return sim, filters
+
+
+def turret_pipeline(
+    cfg: ScenarioConfig, period: float, turret: TurretSpec, rng: np.random.Generator
+) -> Pipeline:
+    """The pipeline ``cfg`` describes, for frames of ``period`` s from this turret."""
+    return build_pipeline(
+        cfg.pipeline,
+        period,
+        turret.mount,
+        (turret.pan.lower, turret.pan.upper),
+        (turret.tilt.lower, turret.tilt.upper),
+        rng,
+    )
 
 
 def _clean_view(points: FloatArray, truth: FrameTruth, s_diag: float, period: float) -> bool:

@@ -26,7 +26,6 @@ from __future__ import annotations
 import csv
 import logging
 import math
-from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -37,7 +36,7 @@ from dronetrack.errors import RecordingError
 from dronetrack.geometry import FloatArray
 from dronetrack.io.pcd import frame_period
 from dronetrack.io.source import (
-    GroundTruth,
+    PointFileRecording,
     RecordingInfo,
     ReplayOptions,
     TopicInfo,
@@ -107,15 +106,12 @@ def _csv_summary(path: Path) -> tuple[str, int]:
     return f"csv({','.join(header)})", rows
 
 
-class FieldLogRecording:
+class FieldLogRecording(PointFileRecording):
     """A folder of seed 003's CSV logs replayed as frames (see the module docstring)."""
 
     def __init__(self, path: Path, options: ReplayOptions | None = None) -> None:
+        super().__init__(path)
         options = options or ReplayOptions()
-        self.path = Path(path)
-        self.ground_truth: GroundTruth | None = None
-        self.config_text: str | None = None
-        self.skipped: Counter[str] = Counter()
         if not self.path.is_dir():
             raise RecordingError(f"{self.path} is not a folder")
         points_file = self.path / POINTS_FILE

@@ -23,7 +23,6 @@ memory (about 40 bytes a point).
 from __future__ import annotations
 
 import logging
-from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +35,7 @@ from dronetrack.errors import MissingExtraError, RecordingError
 from dronetrack.geometry import FloatArray
 from dronetrack.io.pcd import frame_period, sensor_pose
 from dronetrack.io.source import (
-    GroundTruth,
+    PointFileRecording,
     RecordingInfo,
     ReplayOptions,
     TopicInfo,
@@ -116,15 +115,12 @@ def _frame_bounds(t: FloatArray, period: float) -> tuple[NDArray[np.int64], NDAr
     return index[starts], starts
 
 
-class LasRecording:
+class LasRecording(PointFileRecording):
     """A ``.las``/``.laz`` file cut into frames by GPS time (see the module docstring)."""
 
     def __init__(self, path: Path, options: ReplayOptions | None = None) -> None:
+        super().__init__(path)
         options = options or ReplayOptions()
-        self.path = Path(path)
-        self.ground_truth: GroundTruth | None = None
-        self.config_text: str | None = None
-        self.skipped: Counter[str] = Counter()
         if not self.path.is_file():
             raise RecordingError(f"{self.path} does not exist or is not a file")
         if self.path.suffix.lower() not in LAS_SUFFIXES:

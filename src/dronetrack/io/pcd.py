@@ -60,7 +60,7 @@ from numpy.typing import NDArray
 from dronetrack.errors import DecodeError, InputError, RecordingError
 from dronetrack.geometry import FloatArray
 from dronetrack.io.source import (
-    GroundTruth,
+    PointFileRecording,
     RecordingInfo,
     ReplayOptions,
     TopicInfo,
@@ -833,7 +833,7 @@ def frame_period(options: ReplayOptions, t: FloatArray | None) -> float:
     return DEFAULT_PERIOD_S
 
 
-class PcdRecording:
+class PcdRecording(PointFileRecording):
     """A folder of ``.pcd`` files (or one file), one frame each, read lazily.
 
     Every file's header is read when the recording is opened: files whose header
@@ -844,11 +844,8 @@ class PcdRecording:
     """
 
     def __init__(self, path: Path, options: ReplayOptions | None = None) -> None:
+        super().__init__(path)
         options = options or ReplayOptions()
-        self.path = Path(path)
-        self.ground_truth: GroundTruth | None = None
-        self.config_text: str | None = None
-        self.skipped: Counter[str] = Counter()
         self._pose = sensor_pose(options)
         files = _pcd_files(self.path)
         fallback = options.period_s if options.period_s is not None else DEFAULT_PERIOD_S

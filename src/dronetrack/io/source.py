@@ -23,6 +23,7 @@ from dronetrack.types import Frame
 
 __all__ = [
     "GroundTruth",
+    "PointFileRecording",
     "Recording",
     "RecordingInfo",
     "ReplayOptions",
@@ -125,6 +126,17 @@ class Recording(Protocol):
     def info(self) -> RecordingInfo:
         """Topics, types, counts and duration."""
         ...
+
+
+class PointFileRecording:
+    """What the readers of point files (PCD, LAS, CSV logs) share: they carry no ground
+    truth and no configuration, and count what they skip."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.ground_truth: GroundTruth | None = None
+        self.config_text: str | None = None
+        self.skipped: Counter[str] = Counter()
 
 
 def fixed_pose_frame(
