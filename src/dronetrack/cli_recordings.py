@@ -256,8 +256,6 @@ def record(
         duration=duration,
         tracker=tracker.value if tracker else None,
     )
-    if cfg.observer is not None:
-        raise ConfigError("record does not write scenarios with an [observer] yet")
     resolved = resolve_run(cfg)
     writer = RecordingWriter(
         out,
@@ -265,6 +263,7 @@ def record(
         turret_spec(resolved.turret).mount,
         livox_custom=livox_custom,
         config_text=dump_scenario(resolved),
+        observer=resolved.observer is not None,
     )
     try:
         with Progress(*_progress_columns(), console=err_console, transient=True) as bar:
@@ -273,7 +272,10 @@ def record(
                 resolved,
                 progress=lambda i, n: bar.update(task, completed=i, total=n),
                 on_frame=lambda frame, truth, _: writer.frame(
-                    frame, truth.target_position, truth.target_attitude
+                    frame,
+                    truth.target_position,
+                    truth.target_attitude,
+                    (truth.turret.pan, truth.turret.tilt),
                 ),
             )
     finally:

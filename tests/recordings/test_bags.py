@@ -108,7 +108,7 @@ def test_frames_come_back_as_recorded(
     )
     assert topics["/livox/lidar"] == (lidar_type, 25)
     assert topics["/ground_truth/pose"] == ("geometry_msgs/msg/PoseStamped", 25)
-    assert topics["/tf"][1] == 250  # 100 Hz over 2.5 s
+    assert topics["/tf"][1] == 251  # 100 Hz over 2.5 s, and the last frame's end
     assert info.duration_s == pytest.approx(2.5, abs=0.011)
     assert info.kind == {"ros1": "ros1", "ros2-sqlite3": "ros2-sqlite3"}.get(
         fmt, "mcap" if name.endswith(".mcap") else "ros2-mcap"
@@ -327,3 +327,47 @@ def test_navsatfix_ground_truth_in_a_local_enu_frame(
     assert first is not None
     np.testing.assert_allclose(first.position[0], 0.0, atol=1e-9)
     assert "--gt-origin" in caplog.text
+
+
+def test_a_moving_observer_is_recorded_as_odometry_in_tf(tmp_path: Path) -> None:
+    """seed 002's relative tracking: /tf carries world → base_link (the observer's
+    odometry) above the fixed turret, and the replayed frames land where the simulated
+    ones did."""
+    cfg = apply_overrides(get_scenario("seed002-relative"), duration=1.0)
+    cfg = resolve_run(cfg)
+    assert cfg.observer is not None
+    path = tmp_path / "observer.mcap"
+    writer = RecordingWriter(
+        path,
+        "ros2-mcap",
+        turret_spec(cfg.turret).mount,
+        config_text=dump_scenario(cfg),
+        observer=True,
+    )
+    frames: list[Frame] = []
+
+    def keep(frame: Frame, truth: Any, _: Any) -> None:
+        frames.append(frame)
+        turret = (truth.turret.pan, truth.turret.tilt)
+        writer.frame(frame, truth.target_position, truth.target_attitude, turret)
+
+    run_simulation(cfg, on_frame=keep)
+    writer.close()
+    rec = open_recording(path)
+    assert isinstance(rec, BagRecording)
+    assert rec.tf.chain("lidar") == [
+        "world",
+        "base_link",
+        "turret_base",
+        "pan_link",
+        "tilt_link",
+        "lidar",
+    ]
+    replayed = list(rec.frames())
+    assert len(replayed) == len(frames)
+    for a, b in zip(frames, replayed, strict=True):
+        # The body moves smoothly, so 100 Hz samples interpolate it to well under a
+        # milliradian; the rest is float32 coordinates.
+        bound = np.linalg.norm(a.points, axis=1) * 1e-3 + 1e-3
+        miss = np.linalg.norm(b.world_points() - a.world_points(), axis=1)
+        assert np.all(miss <= bound), float((miss / bound).max())

@@ -7,7 +7,9 @@ Topics:
   frame's start and every point keeps its own time;
 - ``/tf_static``: world → turret_base and tilt_link → lidar;
 - ``/tf``: turret_base → pan_link (pan) and pan_link → tilt_link (tilt), at
-  ``tf_rate_hz``, as a robot_state_publisher would from joint states;
+  ``tf_rate_hz``, as a robot_state_publisher would from joint states; on a moving
+  observer also world → base_link (its odometry), and turret_base hangs from
+  base_link instead of world;
 - ``/ground_truth/pose``: ``geometry_msgs/PoseStamped`` of the target in ``world``
   at every frame end (motion capture);
 - ``/dronetrack/config``: the resolved scenario (TOML) in a ``std_msgs/String``.
@@ -28,7 +30,7 @@ import numpy as np
 from rosbags.typesys import get_types_from_msg
 
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray, matrix_to_quaternion
+from dronetrack.geometry import FloatArray, interpolate_poses, make_pose, matrix_to_quaternion
 from dronetrack.io.bag import CONFIG_TOPIC, POINTCLOUD2, POSESTAMPED, STRING_TYPE, TF_TYPE
 from dronetrack.io.livox import (
     LIVOX_POINT,
@@ -38,7 +40,13 @@ from dronetrack.io.livox import (
     livox_typestore,
 )
 from dronetrack.io.pointcloud2 import encode_cloud
-from dronetrack.kinematics import TURRET_FRAMES, MountGeometry, pointing_angles, turret_links
+from dronetrack.kinematics import (
+    TURRET_FRAMES,
+    MountGeometry,
+    pointing_angles,
+    sensor_poses,
+    turret_links,
+)
 from dronetrack.types import Frame
 
 __all__ = ["DEFAULT_START_NS", "LIDAR_TOPIC", "RecordFormat", "RecordingWriter"]
@@ -49,6 +57,7 @@ LIDAR_TOPIC = "/livox/lidar"
 GT_TOPIC = "/ground_truth/pose"
 DEFAULT_START_NS = 1_767_225_600 * 1_000_000_000  # t = 0 is 2026-01-01 00:00:00 UTC
 _LIDAR_FRAME = TURRET_FRAMES[-1]
+BODY_FRAME = "base_link"  # a moving observer's body
 TF_MSG = "geometry_msgs/TransformStamped[] transforms"
 
 
@@ -65,6 +74,7 @@ class RecordingWriter:
         config_text: str | None = None,
         start_ns: int = DEFAULT_START_NS,
         tf_rate_hz: float = 100.0,
+        observer: bool = False,
     ) -> None:
         if fmt not in RECORD_FORMATS:
             raise ConfigError(f"unknown format {fmt!r}; choose one of {', '.join(RECORD_FORMATS)}")
@@ -96,8 +106,13 @@ class RecordingWriter:
         self._tf_static = add("/tf_static", TF_TYPE, typestore=self.ts)
         self._gt = add(GT_TOPIC, POSESTAMPED, typestore=self.ts)
         self._next_tf = 0.0
+        self._last: tuple[Frame, tuple[float, float]] | None = None
+        # On a moving observer the turret (held still) rides on its body:
+        # world → base_link (odometry) → turret_base.
+        self.observer = observer
         links = turret_links(0.0, 0.0, mount)
-        static = [links[0], links[-1]]
+        base = (BODY_FRAME, *links[0][1:]) if observer else links[0]
+        static = [base, links[-1]]
         self._write(self._tf_static, 0.0, self._tf_message(0.0, static), TF_TYPE)
         if config_text is not None:
             conn = add(CONFIG_TOPIC, STRING_TYPE, typestore=self.ts)
@@ -160,24 +175,49 @@ class RecordingWriter:
             )
         return types[TF_TYPE](transforms=out)
 
-    def frame(self, frame: Frame, target: FloatArray, attitude: FloatArray) -> None:
-        """Write one frame, the turret's transforms during it and the target's pose at its end."""
-        self._write_turret(frame)
+    def frame(
+        self,
+        frame: Frame,
+        target: FloatArray,
+        attitude: FloatArray,
+        turret: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        """Write one frame, the turret's transforms during it and the target's pose at its
+        end.  ``turret``: the (fixed) pan and tilt [rad] on a moving observer."""
+        self._write_turret(frame, turret)
         self._write_points(frame)
         self._write_truth(frame.end, target, attitude)
 
-    def _write_turret(self, frame: Frame) -> None:
+    def _write_turret(self, frame: Frame, turret: tuple[float, float]) -> None:
+        """The /tf samples in [frame start, frame end); the next frame writes its end."""
+        self._last = (frame, turret)
         times = np.arange(self._next_tf, frame.end - 1e-9, self.tf_period)
         times = times[times >= frame.pose_t[0] - 1e-9]
         if len(times) == 0:
             return
         self._next_tf = float(times[-1] + self.tf_period)
+        self._write_tf_at(frame, times, turret)
+
+    def _write_tf_at(self, frame: Frame, times: FloatArray, turret: tuple[float, float]) -> None:
+        if self.observer:
+            self._write_observer(frame, times, *turret)
+            return
         pan, tilt = pointing_angles(frame.poses)
         pan = np.interp(times, frame.pose_t, np.unwrap(pan))
         tilt = np.interp(times, frame.pose_t, tilt)
         for t, a, b in zip(times, pan, tilt, strict=True):
             moving = turret_links(a, b, self.mount)[1:3]
             self._write(self._tf, float(t), self._tf_message(float(t), moving), TF_TYPE)
+
+    def _write_observer(self, frame: Frame, times: FloatArray, pan: float, tilt: float) -> None:
+        """world → base_link from the frame's poses, the fixed turret links after it."""
+        # world_T_body = world_T_sensor · (body_T_sensor)⁻¹, body_T_sensor the fixed turret
+        body = frame.poses @ np.linalg.inv(sensor_poses(pan, tilt, self.mount))
+        R, p = interpolate_poses(frame.pose_t, body, times)
+        links = turret_links(pan, tilt, self.mount)[1:3]
+        for t, T in zip(times, make_pose(R, p), strict=True):
+            edges = [(TURRET_FRAMES[0], BODY_FRAME, T), *links]
+            self._write(self._tf, float(t), self._tf_message(float(t), edges), TF_TYPE)
 
     def _write_points(self, frame: Frame) -> None:
         t_rel = frame.t - frame.stamp
@@ -226,6 +266,10 @@ class RecordingWriter:
 
     def close(self) -> None:
         """Finish the bag (and move a bare ROS 2 file into place)."""
+        if self._last is not None:  # the last frame's end, which no next frame writes
+            frame, turret = self._last
+            self._write_tf_at(frame, np.array([frame.end]), turret)
+            self._last = None
         self._writer.close()
         if self._bare is not None:
             files = sorted(self._bare.glob("*.mcap")) + sorted(self._bare.glob("*.db3"))

@@ -274,8 +274,10 @@ def livox_points(
     """``xyz`` (N, 3) [m], ``t_rel`` (N,) [s] after the header stamp, reflectivity, line."""
     pts = cloud.points
     xyz = np.empty((pts.shape[0], 3), dtype=np.float64)
-    for k, axis in enumerate(("x", "y", "z")):
-        xyz[:, k] = pts[axis]
+    # Corrupt bytes may hold signalling NaNs: they stay NaN, and the pipeline counts them.
+    with np.errstate(invalid="ignore"):
+        for k, axis in enumerate(("x", "y", "z")):
+            xyz[:, k] = pts[axis]
     # t_rel = (timebase + offset_time − stamp) · 1e-9; the integer part is exact in Python
     t_rel = pts["offset_time"].astype(np.float64) * 1e-9 + (
         (cloud.timebase_ns - cloud.stamp_ns) * 1e-9

@@ -299,8 +299,10 @@ def cloud_points(arr: NDArray[np.void], stamp: float) -> CloudPoints:
         raise DecodeError(f"PointCloud2 has no x, y, z fields (it has: {', '.join(names)})")
     n = arr.shape[0]
     points = np.empty((n, 3), dtype=np.float64)
-    for k, axis in enumerate(("x", "y", "z")):
-        points[:, k] = _scalar_column(arr, axis)  # converts byte order and type
+    # Corrupt bytes may hold signalling NaNs: they stay NaN, and the pipeline counts them.
+    with np.errstate(invalid="ignore"):
+        for k, axis in enumerate(("x", "y", "z")):
+            points[:, k] = _scalar_column(arr, axis)  # converts byte order and type
     intensity_name = _first_present(names, _INTENSITY_FIELDS)
     intensity = (
         np.zeros(n, dtype=np.float32)
