@@ -14,9 +14,9 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.console import Console
-from rich.progress import ProgressColumn
 
 from dronetrack import __version__
+from dronetrack.cli_output import err_console, print_metrics, progress_columns
 from dronetrack.errors import DronetrackError
 
 __all__ = ["app", "main", "run"]
@@ -28,7 +28,6 @@ app = typer.Typer(
     rich_markup_mode="rich",
     help="Detect and track small drones with LiDAR on a pan-tilt turret.",
 )
-err_console = Console(stderr=True)
 
 # Options shared by several commands.
 SeedOption = Annotated[int | None, typer.Option("--seed", min=0, help="Random seed.")]
@@ -298,7 +297,7 @@ def simulate(
     out_dir = out if out is not None else default_run_dir()
     viewers = open_viewers(foxglove, rerun)
     try:
-        columns = _progress_columns()
+        columns = progress_columns()
         with Progress(*columns, console=err_console, transient=True) as bar:
             task = bar.add_task(f"simulating {cfg.name}", total=None)
             run = run_simulation(
@@ -309,7 +308,7 @@ def simulate(
     finally:
         close_viewers(viewers)
     metrics = write_run(run, out_dir)
-    _print_metrics(metrics, out_dir)
+    print_metrics(metrics, out_dir)
 
 
 @app.command()
@@ -347,7 +346,7 @@ def compare(
     chosen = get_suite(suite)
     subset = [m.strip() for m in methods.split(",") if m.strip()] if methods else None
     out_dir = out if out is not None else default_run_dir()
-    columns = _progress_columns()
+    columns = progress_columns()
     with Progress(*columns, console=err_console, transient=True) as bar:
         task = bar.add_task(chosen.name, total=None)
 
@@ -367,57 +366,6 @@ def compare(
     Console().print((out_dir / "table.md").read_text(), markup=False, highlight=False)
     for p in paths:
         typer.echo(str(p))
-
-
-def _progress_columns() -> tuple[ProgressColumn, ...]:
-    """A progress bar with percentage and time left."""
-    from rich.progress import BarColumn, TextColumn, TimeRemainingColumn
-
-    return (
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-    )
-
-
-def _print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
-    from rich.table import Table
-
-    def fmt(value: object, unit: str = "", digits: int = 3) -> str:
-        if value is None:
-            return "n/a"
-        if isinstance(value, float):
-            return f"{value:.{digits}f}{unit}"
-        if isinstance(value, list):
-            return "[" + ", ".join(fmt(v, "", digits) for v in value) + "]" + unit
-        return f"{value}{unit}"
-
-    table = Table(title=f"metrics ({out_dir})", show_header=False)
-    rows = [
-        ("frames", fmt(metrics.get("frames"))),
-        ("coverage", fmt(metrics.get("coverage_pct"), " %", 1)),
-        ("max tracking distance", fmt(metrics.get("max_tracking_distance_m"), " m", 1)),
-        ("RMSE (from the first lock)", fmt(metrics.get("rmse_m"), " m")),
-        ("RMSE 95 % interval", fmt(metrics.get("rmse_ci95_m"), " m")),
-        ("RMSE x, y, z", fmt(metrics.get("rmse_xyz_m"), " m")),
-        ("RMSE while tracked", fmt(metrics.get("rmse_tracked_m"), " m")),
-        ("first lock", fmt(metrics.get("first_lock_s"), " s", 1)),
-        (
-            "step time mean / std / max",
-            " / ".join(
-                fmt(metrics.get(k), "", 2) for k in ("step_ms_mean", "step_ms_std", "step_ms_max")
-            )
-            + " ms",
-        ),
-        ("speed", fmt(metrics.get("realtime_factor"), "× real time", 1)),
-    ]
-    for name, value in rows:
-        table.add_row(name, value)
-    Console().print(table)
-    bad = metrics.get("bad_frames")
-    if isinstance(bad, dict) and bad:
-        err_console.print("frames with problems: " + ", ".join(f"{k} {v}" for k, v in bad.items()))
 
 
 def run(argv: list[str] | None = None) -> int:

@@ -22,11 +22,9 @@ from dronetrack.cli import (
     RunDirOption,
     SeedOption,
     TrackerName,
-    _print_metrics,
-    _progress_columns,
     app,
-    err_console,
 )
+from dronetrack.cli_output import err_console, print_metrics, progress_columns
 from dronetrack.errors import ConfigError
 
 __all__ = ["info", "record", "track"]
@@ -162,7 +160,7 @@ def track(
     out_dir = out if out is not None else default_run_dir()
     viewers = open_viewers(foxglove, rerun, start=source.origin)
     try:
-        with Progress(*_progress_columns(), console=err_console, transient=True) as bar:
+        with Progress(*progress_columns(), console=err_console, transient=True) as bar:
             task = bar.add_task(f"replaying {recording.name}", total=None)
             result = run_replay(
                 source,
@@ -174,7 +172,7 @@ def track(
         close_viewers(viewers)
     metrics = write_run(result.run, out_dir, extra=result.metrics())
     write_commands_csv(result.commands, out_dir / "commands.csv")
-    _print_metrics(metrics, out_dir)
+    print_metrics(metrics, out_dir)
     if result.skipped:
         err_console.print(
             "skipped messages: " + ", ".join(f"{k} {v}" for k, v in result.skipped.items())
@@ -266,7 +264,7 @@ def record(
         observer=resolved.observer is not None,
     )
     try:
-        with Progress(*_progress_columns(), console=err_console, transient=True) as bar:
+        with Progress(*progress_columns(), console=err_console, transient=True) as bar:
             task = bar.add_task(f"recording {cfg.name}", total=None)
             run = run_simulation(
                 resolved,
@@ -280,4 +278,4 @@ def record(
             )
     finally:
         writer.close()
-    _print_metrics(run.metrics(), out)
+    print_metrics(run.metrics(), out)

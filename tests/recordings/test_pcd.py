@@ -12,18 +12,9 @@ from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import DecodeError, InputError, RecordingError
 from dronetrack.geometry import make_pose
-from dronetrack.io.pcd import (
-    PcdRecording,
-    cloud_frame,
-    decode_pcd,
-    encode_pcd,
-    folder_times,
-    lzf_compress_literal,
-    lzf_decompress,
-    parse_pcd_header,
-    read_pcd,
-    write_pcd,
-)
+from dronetrack.io.lzf import lzf_compress_literal, lzf_decompress
+from dronetrack.io.pcd import decode_pcd, encode_pcd, parse_pcd_header, read_pcd, write_pcd
+from dronetrack.io.pcd_folder import PcdRecording, cloud_frame, folder_times
 from dronetrack.io.source import ReplayOptions
 
 XYZI = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4")])

@@ -34,13 +34,13 @@ from numpy.typing import NDArray
 
 from dronetrack.errors import RecordingError
 from dronetrack.geometry import FloatArray
-from dronetrack.io.pcd import frame_period
 from dronetrack.io.source import (
     PointFileRecording,
     RecordingInfo,
     ReplayOptions,
     TopicInfo,
     fixed_pose_frame,
+    frame_period,
 )
 from dronetrack.types import Frame
 

@@ -33,13 +33,14 @@ from numpy.typing import NDArray
 
 from dronetrack.errors import MissingExtraError, RecordingError
 from dronetrack.geometry import FloatArray
-from dronetrack.io.pcd import frame_period, sensor_pose
 from dronetrack.io.source import (
     PointFileRecording,
     RecordingInfo,
     ReplayOptions,
     TopicInfo,
     fixed_pose_frame,
+    frame_period,
+    sensor_pose,
 )
 from dronetrack.types import Frame
 

@@ -2,7 +2,7 @@
 
 - ``.bag`` (ROS 1), a folder of split ``.bag`` files, a rosbag2 folder
   (``metadata.yaml``), a bare ``.mcap`` or ``.db3`` file: ``io.bag``;
-- a ``.pcd`` file or a folder of them: ``io.pcd``;
+- a ``.pcd`` file or a folder of them: ``io.pcd_folder``;
 - a ``.las``/``.laz`` file: ``io.las``;
 - a folder with seed 003's ``filtered_points.csv``: ``io.field_logs``.
 
@@ -65,7 +65,7 @@ def open_recording(path: Path, options: ReplayOptions | None = None) -> Recordin
 
         return BagRecording(path, options)
     if kind == "pcd":
-        from dronetrack.io.pcd import PcdRecording
+        from dronetrack.io.pcd_folder import PcdRecording
 
         return PcdRecording(path, options)
     if kind == "las":

@@ -29,10 +29,13 @@ __all__ = [
     "ReplayOptions",
     "TopicInfo",
     "fixed_pose_frame",
+    "frame_period",
+    "sensor_pose",
 ]
 
 
 TIME_TOL_S = 1e-6
+DEFAULT_PERIOD_S = 0.1  # a frame period when nothing else gives one [s]
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,3 +174,26 @@ def fixed_pose_frame(
         pose_t=pose_t,
         poses=poses,
     )
+
+
+def sensor_pose(options: ReplayOptions) -> FloatArray | None:
+    """options.sensor_pose checked to be (4, 4) world_T_sensor, or None (identity)."""
+    if options.sensor_pose is None:
+        return None
+    pose = np.asarray(options.sensor_pose, dtype=np.float64)
+    if pose.shape != (4, 4):
+        raise InputError(f"sensor_pose must be (4, 4), got {pose.shape}")
+    return pose
+
+
+def frame_period(options: ReplayOptions, t: FloatArray | None) -> float:
+    """options.period_s, else the median step of ``t``, else ``DEFAULT_PERIOD_S``."""
+    if options.period_s is not None:
+        if not options.period_s > 0:
+            raise InputError(f"period_s must be > 0, got {options.period_s}")
+        return float(options.period_s)
+    if t is not None and len(t) > 1:
+        step = float(np.median(np.diff(t)))
+        if step > 0:
+            return step
+    return DEFAULT_PERIOD_S
