@@ -13,7 +13,7 @@ import numpy as np
 
 from dronetrack.eval.log import EXTRA_COLUMNS, FRAME_COLUMNS, TrackLog
 
-__all__ = ["default_run_dir", "write_frames_csv", "write_metrics", "write_plots"]
+__all__ = ["default_run_dir", "json_safe", "write_frames_csv", "write_metrics", "write_plots"]
 
 
 def default_run_dir(root: Path = Path("runs")) -> Path:
@@ -57,11 +57,12 @@ def _number(v: float) -> str:
     )
 
 
-def _json_safe(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
+    """``value`` with numpy scalars as Python numbers and non-finite floats as None."""
     if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
+        return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, float | np.floating):
         f = float(value)
         return f if math.isfinite(f) else None
@@ -72,7 +73,7 @@ def _json_safe(value: Any) -> Any:
 
 def write_metrics(metrics: dict[str, Any], path: Path) -> None:
     """metrics.json (non-finite numbers become null)."""
-    path.write_text(json.dumps(_json_safe(metrics), indent=2) + "\n")
+    path.write_text(json.dumps(json_safe(metrics), indent=2) + "\n")
 
 
 def write_plots(
