@@ -66,10 +66,15 @@ def sweep(
         with Progress(*progress_columns(), console=err_console) as bar:
             task = bar.add_task(f"sweep {grid.name}", total=len(runs))
 
+            step = max(1, len(runs) // 20)
+
             def report(done: int, total: int, row: dict[str, Any]) -> None:
                 bar.update(task, completed=done, total=total)
                 if "error" in row:
                     bar.console.print(f"run {row['key']} failed: {row['error']}")
+                elif row and not err_console.is_terminal and (done % step == 0 or done == total):
+                    # No live bar without a terminal (CI, nohup): a line now and then.
+                    err_console.print(f"{done}/{total} runs done")
 
             counts = run_sweep(runs, store, make, report)
     finally:
