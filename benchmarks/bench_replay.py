@@ -12,6 +12,8 @@ its ground truth.  It is written in two containers and point formats (ROS 1 with
 Livox CustomMsg, ROS 2 MCAP with PointCloud2) and replayed end to end: reading,
 decoding, /tf lookup, the pipeline with 5,000 particles, and the ground-truth
 bookkeeping.  Each round replays the whole file; the verdict uses the best round.
+The recording and the timing are ``dronetrack.bench``'s (``write_recording``,
+``time_replay``), which ``dronetrack bench`` runs with the rest of the suite.
 """
 
 from __future__ import annotations
@@ -23,80 +25,16 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 
 import argparse
 import json
-import math
 import platform
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 from dronetrack.allocator import tune_allocator
-from dronetrack.config import BackgroundConfig, CropConfig, PipelineConfig, TrackerConfig
-from dronetrack.io.bag_writer import RecordingWriter
-from dronetrack.io.recordings import open_recording
-from dronetrack.replay import run_replay
-from dronetrack.sim.drones import make_drone
-from dronetrack.sim.scenario import ScenarioConfig
-from dronetrack.sim.scene import make_scene
-from dronetrack.sim.sensors import make_sensor
-from dronetrack.sim.trajectories import Waypoint, fly_waypoints
-from dronetrack.sim.turret import make_turret
-from dronetrack.sim.world import SimWorld
+from dronetrack.bench import REPLAY_FORMATS, single_thread, time_replay, write_recording
 
 TARGET_X_REALTIME = 20.0
-TARGET = (2.5, 0.0, 0.5)
-
-
-def write_recording(path: Path, fmt: str, livox: bool, seconds: float) -> int:
-    """Record ``seconds`` of the worst-case stream; return the frame count."""
-    turret = make_turret("widowx")
-    world = SimWorld(
-        make_sensor("avia"),
-        make_scene("empty"),
-        make_drone("phantom4"),
-        # Out of view (high above) during the 1 s background scan, then down to hover.
-        fly_waypoints((2.5, 0.0, 20.0), [Waypoint(TARGET, 10.0, 10.0)], hold=1.0),
-        turret,
-        turret.mount,
-        0.0,
-        np.random.default_rng(0),
-        pan=0.0,
-        tilt=math.radians(40.0),
-    )
-    writer = RecordingWriter(path, fmt, turret.mount, livox_custom=livox)  # type: ignore[arg-type]
-    n = round(seconds / 0.1)
-    for _ in range(n):
-        frame, truth = world.step()
-        writer.frame(frame, truth.target_position, truth.target_attitude)
-    writer.close()
-    return n
-
-
-def replay_config() -> ScenarioConfig:
-    pipeline = PipelineConfig(
-        crop=CropConfig(min_m=(-200.0, -200.0, -5.0), max_m=(300.0, 200.0, 100.0)),
-        background=BackgroundConfig(resolution_m=0.2, lookup_depth=0, scan_s=1.0),
-        tracker=TrackerConfig(
-            particles=5000,
-            cylinder_center_m=TARGET,
-            cylinder_radius_m=2.0,
-            cylinder_height_m=2.0,
-        ),
-    )
-    return ScenarioConfig(name="bench-replay", pipeline=pipeline)
-
-
-def time_replay(path: Path) -> tuple[float, float, int]:
-    """Wall time [s] of a whole replay, the seconds replayed, and the frames."""
-    rec = open_recording(path)
-    start = time.perf_counter()
-    result = run_replay(rec, replay_config())
-    wall = time.perf_counter() - start
-    assert result.has_truth
-    log = result.run.log.arrays()
-    assert log["tracked"][-10:].all(), "the hovering target must be tracked"
-    return wall, result.run.simulated_s, len(log["t"]) + 10
 
 
 def main() -> None:
@@ -106,22 +44,29 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     tune_allocator()
+    with single_thread():
+        _run(args)
+
+
+def _run(args: argparse.Namespace) -> None:
     print(f"Python {platform.python_version()}, numpy {np.__version__}, one thread")
     results: dict[str, object] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for fmt, livox, name in (("ros1", True, "avia.bag"), ("ros2-mcap", False, "avia.mcap")):
+        for fmt, livox, name, _ in REPLAY_FORMATS:
             path = Path(tmp) / name
             write_recording(path, fmt, livox, args.seconds)
             size_mb = path.stat().st_size / 1e6
             time_replay(path)  # load the numba kernels once
             rounds = []
             for _ in range(args.rounds):
-                wall, seconds, frames = time_replay(path)
-                rounds.append(seconds / wall)
+                timing = time_replay(path)
+                assert timing.tracked, "the hovering target must be tracked"
+                wall, frames = timing.wall_s, timing.frames
+                rounds.append(timing.x_realtime)
                 print(
                     f"{fmt:>9} {'CustomMsg' if livox else 'PointCloud2':>11}: {frames} frames "
                     f"({size_mb:.0f} MB) in {wall:.2f} s = {1e3 * wall / frames:.2f} ms/frame, "
-                    f"{seconds / wall:.1f}× real time"
+                    f"{timing.x_realtime:.1f}× real time"
                 )
             best = max(rounds)
             verdict = "meets" if best >= TARGET_X_REALTIME else "MISSES"

@@ -400,5 +400,5 @@ def main() -> None:
     sys.exit(run(sys.argv[1:]))
 
 
-# The recording (track, info, record) and sweep commands register themselves on ``app``.
-from dronetrack import cli_recordings, cli_sweep  # noqa: E402, F401
+# The recording (track, info, record), sweep and bench commands register on ``app``.
+from dronetrack import cli_bench, cli_recordings, cli_sweep  # noqa: E402, F401

@@ -195,3 +195,49 @@ def test_missing_dask_gives_the_install_hint(
     assert run([*argv, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert err == "error: --scheduler needs dask.distributed: pip install 'dronetrack[dask]'"
+
+
+def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path: Path) -> None:
+    """The sweep itself is killed after its first result; running it again finishes the
+    grid without repeating or losing anything."""
+    grid, out = _grid(tmp_path, duration=2.0, runs=2), tmp_path / "out"
+    results = out / "results.jsonl"
+    argv = [sys.executable, "-m", "dronetrack", "sweep", str(grid), "--workers", "2"]
+    proc = subprocess.Popen(
+        [*argv, "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not (results.exists() and results.read_text().count("\n") >= 1):
+            assert proc.poll() is None
+            assert time.monotonic() < deadline, "no result within 2 minutes"
+            time.sleep(0.05)
+        for pid in _descendants(proc.pid):
+            os.kill(pid, signal.SIGKILL)
+        proc.kill()
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    first = results.read_text()
+    n_first = len(list(read_results(results)))
+    assert 1 <= n_first < 8
+    done = subprocess.run([*argv, "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert f"{8 - n_first} done now, {n_first} done before" in done.stdout
+    assert results.read_text().startswith(first)
+    _check_results(out, 8)
+
+
+def test_a_sweep_over_a_recording_replays_it(tmp_path: Path) -> None:
+    bag = tmp_path / "flight.bag"
+    assert run(["record", "--out", str(bag), "--duration", "2", "--seed", "3"]) == 0
+    grid = tmp_path / "grid.toml"
+    grid.write_text('recording = "flight.bag"\n[grid]\ntracker = ["pf-delta", "ekf-dogru"]\n')
+    out = tmp_path / "out"
+    assert run(["sweep", str(grid), "--workers", "1", "--out", str(out)]) == 0
+    rows = _check_results(out, 2)
+    assert {r["tracker"] for r in rows} == {"pf-delta", "ekf-dogru"}
+    assert all(r["source"] == {"recording": str(bag)} for r in rows)
+    # The replay covers the recording's 12 s: a 10 s scan, then 2 s of tracking.
+    assert all(r["metrics"]["frames"] == 20 for r in rows)
