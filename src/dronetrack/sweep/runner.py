@@ -4,7 +4,7 @@ Executors are anything with the standard ``concurrent.futures`` interface:
 - by default a local ``ProcessPoolExecutor`` (forkserver processes, no server).
   When a worker process dies the pool breaks; the results already stored stay,
   and the unfinished runs go to a new pool.  A run that was executing when a pool
-  broke three times is recorded as failed, so one run that always kills its
+  broke, three times, is recorded as failed, so one run that always kills its
   worker cannot stall the sweep;
 - with ``--scheduler tcp://HOST:PORT``, an existing Dask distributed cluster
   (extra ``dask``), whose nannies restart dead workers and reschedule their runs.
@@ -160,23 +160,33 @@ def _one_pool(
     progress: Progress | None,
     total: int,
 ) -> bool:
-    """Submit ``pending`` to one executor; True if its pool broke."""
+    """Submit ``pending`` to one executor; True if its pool broke.
+
+    The runs a worker has taken are noted at every completion and every second, so
+    when the pool breaks, those are the suspects (the one that killed its worker is
+    among them; the others only lose an attempt of the three).
+    """
     ex = make()
     futures: dict[cf.Future[dict[str, Any]], RunSpec] = {}
     try:
         futures = {ex.submit(run_one, run): run for run in pending}
-        for fut in cf.as_completed(futures):
-            run = futures[fut]
-            try:
-                row = fut.result()
-            except BrokenProcessPool:
-                for f, r in futures.items():
-                    if f.running() or f is fut:
-                        suspects[r.key] += 1
-                return True
-            except Exception as exc:  # a run the cluster gave up on (e.g. KilledWorker)
-                row = {"key": run.key, "params": run.params, "seed": run.seed, "error": repr(exc)}
-            _store(store, row, counts, progress, total)
+        waiting: set[cf.Future[dict[str, Any]]] = set(futures)
+        started: set[cf.Future[dict[str, Any]]] = set()
+        while waiting:
+            done, waiting = cf.wait(waiting, timeout=1.0, return_when=cf.FIRST_COMPLETED)
+            for fut in done:
+                run = futures[fut]
+                try:
+                    row = fut.result()
+                except BrokenProcessPool:
+                    for f in started | {fut}:
+                        suspects[futures[f].key] += 1
+                    return True
+                except Exception as exc:  # a run the cluster gave up on (e.g. KilledWorker)
+                    row = {"key": run.key, "params": run.params, "seed": run.seed}
+                    row["error"] = repr(exc)
+                _store(store, row, counts, progress, total)
+            started = {f for f in waiting if f.running()}
         return False
     finally:
         for f in futures:  # the runs not yet started (a broken pool's, or on an interrupt)
