@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,12 +34,17 @@ from dronetrack.factory import build_pipeline, build_tracker
 from dronetrack.geometry import FloatArray
 from dronetrack.types import Frame
 
+if TYPE_CHECKING:
+    from dronetrack.sim.trajectories import Trajectory
+    from dronetrack.sim.world import SimWorld
+
 __all__ = [
     "HOVER_M",
     "PERIOD_S",
     "PF_PARTICLES",
     "SCAN_S",
     "AviaFrames",
+    "ground_facing_avia",
     "pipeline_config",
     "pipeline_step_ms",
     "tracker_foreground",
@@ -66,21 +72,21 @@ class AviaFrames:
     probe: Frame
 
 
-def _avia_frames(target: tuple[float, float, float], n: int, t0: float = 0.0) -> list[Frame]:
-    """Frames of an Avia tilted 40° down at open ground: every pulse returns."""
+def ground_facing_avia(trajectory: Trajectory, t0: float = 0.0) -> SimWorld:
+    """An Avia on a WidowX tilted 40° down at open ground, so every pulse returns
+    (24,000 points a frame), with a Phantom 4 flying ``trajectory``."""
     from dronetrack.sim.drones import make_drone
     from dronetrack.sim.scene import make_scene
     from dronetrack.sim.sensors import make_sensor
-    from dronetrack.sim.trajectories import fly_waypoints
     from dronetrack.sim.turret import make_turret
     from dronetrack.sim.world import SimWorld
 
     turret = make_turret("widowx")
-    world = SimWorld(
+    return SimWorld(
         make_sensor("avia"),
         make_scene("empty"),
         make_drone("phantom4"),
-        fly_waypoints(target, []),
+        trajectory,
         turret,
         turret.mount,
         0.0,
@@ -89,6 +95,13 @@ def _avia_frames(target: tuple[float, float, float], n: int, t0: float = 0.0) ->
         tilt=math.radians(40.0),
         t0=t0,
     )
+
+
+def _avia_frames(target: tuple[float, float, float], n: int, t0: float = 0.0) -> list[Frame]:
+    """Frames of the ground-facing Avia with the drone hovering at ``target``."""
+    from dronetrack.sim.trajectories import fly_waypoints
+
+    world = ground_facing_avia(fly_waypoints(target, []), t0)
     return [world.step()[0] for _ in range(n)]
 
 

@@ -12,15 +12,18 @@ the slower format's figure.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
 
-import numpy as np
-
-from dronetrack.bench.pipeline import HOVER_M, PERIOD_S, SCAN_S, pipeline_config
+from dronetrack.bench.pipeline import (
+    HOVER_M,
+    PERIOD_S,
+    SCAN_S,
+    ground_facing_avia,
+    pipeline_config,
+)
 from dronetrack.sim.scenario import ScenarioConfig
 
 __all__ = [
@@ -46,26 +49,12 @@ def write_recording(path: Path, fmt: str, livox: bool, seconds: float) -> int:
     frame count.  The drone is high above, out of view, during the background scan,
     then descends to hover 2.5 m ahead."""
     from dronetrack.io.bag_writer import RecordFormat, RecordingWriter
-    from dronetrack.sim.drones import make_drone
-    from dronetrack.sim.scene import make_scene
-    from dronetrack.sim.sensors import make_sensor
     from dronetrack.sim.trajectories import Waypoint, fly_waypoints
-    from dronetrack.sim.turret import make_turret
-    from dronetrack.sim.world import SimWorld
 
-    turret = make_turret("widowx")
-    world = SimWorld(
-        make_sensor("avia"),
-        make_scene("empty"),
-        make_drone("phantom4"),
-        fly_waypoints((2.5, 0.0, 20.0), [Waypoint(HOVER_M, 10.0, 10.0)], hold=SCAN_S),
-        turret,
-        turret.mount,
-        0.0,
-        np.random.default_rng(0),
-        pan=0.0,
-        tilt=math.radians(40.0),
+    world = ground_facing_avia(
+        fly_waypoints((2.5, 0.0, 20.0), [Waypoint(HOVER_M, 10.0, 10.0)], hold=SCAN_S)
     )
+    turret = world.plant.spec
     writer = RecordingWriter(path, cast(RecordFormat, fmt), turret.mount, livox_custom=livox)
     n = round(seconds / PERIOD_S)
     try:
