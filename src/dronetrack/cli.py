@@ -42,6 +42,10 @@ SensorOption = Annotated[str | None, typer.Option("--sensor", help="Sensor model
 RunDirOption = Annotated[
     Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
 ]
+FlightDurationOption = Annotated[
+    float | None,
+    typer.Option("--duration", "-d", min=0.01, help="Seconds of flight after the scan."),
+]
 FoxgloveOption = Annotated[
     Path | None,
     typer.Option("--foxglove", help="Also write an MCAP file for Foxglove (extra: foxglove)."),
@@ -249,10 +253,7 @@ def simulate(
         int | None, typer.Option("--particles", min=10, help="Particle count.")
     ] = None,
     seed: SeedOption = None,
-    duration: Annotated[
-        float | None,
-        typer.Option("--duration", "-d", min=0.01, help="Seconds of flight after the scan."),
-    ] = None,
+    duration: FlightDurationOption = None,
     config: Annotated[
         Path | None,
         typer.Option("--config", help="A full configuration (a run's config.toml) to run again."),

@@ -17,6 +17,7 @@ from rich.console import Console
 from rich.table import Table
 
 from dronetrack.cli import (
+    FlightDurationOption,
     FoxgloveOption,
     RerunOption,
     RunDirOption,
@@ -225,10 +226,7 @@ def record(
         ),
     ] = True,
     seed: SeedOption = None,
-    duration: Annotated[
-        float | None,
-        typer.Option("--duration", "-d", min=0.01, help="Seconds of flight after the scan."),
-    ] = None,
+    duration: FlightDurationOption = None,
     tracker: Annotated[
         TrackerName | None, typer.Option("--tracker", help="The method that steers the turret.")
     ] = None,
