@@ -40,19 +40,25 @@ from dronetrack.geodesy import enu_from_geodetic
 from dronetrack.geometry import FloatArray
 from dronetrack.io.livox import (
     LIVOX_TYPES,
+    LivoxCloud,
     decode_livox_cdr,
     decode_livox_ros1,
     livox_points,
     livox_typestore,
 )
-from dronetrack.io.pointcloud2 import cloud_points
-from dronetrack.io.pointcloud2_raw import decode_pointcloud2_cdr, decode_pointcloud2_ros1
+from dronetrack.io.pointcloud2 import CloudPoints, cloud_points
+from dronetrack.io.pointcloud2_raw import (
+    RawCloud,
+    decode_pointcloud2_cdr,
+    decode_pointcloud2_ros1,
+)
 from dronetrack.io.source import (
     GroundTruth,
     RecordingInfo,
     ReplayOptions,
     TopicInfo,
     fixed_pose_frame,
+    frame_period,
 )
 from dronetrack.io.tf import TransformBuffer
 from dronetrack.types import Frame
@@ -69,7 +75,6 @@ GT_TYPES = frozenset({NAVSATFIX, POSESTAMPED})
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 STRING_TYPE = "std_msgs/msg/String"
 CONFIG_TOPIC = "/dronetrack/config"
-DEFAULT_PERIOD_S = 0.1
 _PERIOD_SAMPLES = 21  # LiDAR stamps read to estimate the frame period
 _MAX_WARNINGS = 5  # per reason; later skips are only counted
 
@@ -210,24 +215,22 @@ class BagRecording(BagFile):
                 raise RecordingError(f"{path}: LiDAR topic {self.lidar.topic} has no messages")
             self.origin_ns = stamps[0]
             self.origin = self.origin_ns * 1e-9
-            diffs = np.diff(np.asarray(stamps, dtype=np.int64)) * 1e-9
-            diffs = diffs[diffs > 0]
-            self.period = options.period_s or (
-                float(np.median(diffs)) if len(diffs) else DEFAULT_PERIOD_S
-            )
+            self.period = frame_period(options, (np.asarray(stamps) - stamps[0]) * 1e-9)
             self.tf = self._read_tf(reader, conns)
             self.config_text = self._read_config(reader, conns)
             self.ground_truth = self._read_ground_truth(reader, gt) if gt is not None else None
 
     def _first_stamps(self, reader: Any) -> list[int]:
+        """The header stamps [ns] of the first LiDAR messages (their points are not read)."""
         stamps: list[int] = []
         for _, _, raw in self._messages(reader, [self.lidar]):
-            decoded = self._decode(reader, raw)
-            if decoded is not None:
-                stamps.append(decoded[0])
+            header = self._parse(reader, raw)
+            if header is not None:
+                self._lidar_frame = header.frame_id
+                stamps.append(header.stamp_ns)
             if len(stamps) >= _PERIOD_SAMPLES:
                 break
-        self.skipped.clear()
+        self.skipped.clear()  # frames() reads these messages again and counts them then
         self._warned.clear()
         return stamps
 
@@ -324,17 +327,22 @@ class BagRecording(BagFile):
         frame = self._lidar_frame
         return self.tf.root(frame) if frame else None
 
-    def _decode(self, reader: Any, raw: bytes) -> tuple[int, str, Any] | None:
-        """(header stamp [ns], frame_id, decoded points) or None for a bad message."""
-        msgtype = self.lidar.msgtype
+    def _parse(self, reader: Any, raw: bytes) -> LivoxCloud | RawCloud | None:
+        """The message's header and a view of its points, or None for a bad message."""
         try:
-            if msgtype in LIVOX_TYPES:
-                cloud = decode_livox_cdr(raw) if reader.is2 else decode_livox_ros1(raw)
-                self._lidar_frame = cloud.frame_id
-                return cloud.stamp_ns, cloud.frame_id, cloud
-            pc2 = decode_pointcloud2_cdr(raw) if reader.is2 else decode_pointcloud2_ros1(raw)
-            self._lidar_frame = pc2.frame_id
-            return pc2.stamp_ns, pc2.frame_id, cloud_points(pc2.array(), pc2.stamp_ns * 1e-9)
+            if self.lidar.msgtype in LIVOX_TYPES:
+                return decode_livox_cdr(raw) if reader.is2 else decode_livox_ros1(raw)
+            return decode_pointcloud2_cdr(raw) if reader.is2 else decode_pointcloud2_ros1(raw)
+        except _BAD_DATA as exc:
+            self._skip("bad_point_message", exc)
+        return None
+
+    def _points(self, msg: LivoxCloud | RawCloud) -> CloudPoints | None:
+        """Positions, times relative to the stamp, intensity and line, or None."""
+        try:
+            if isinstance(msg, LivoxCloud):
+                return CloudPoints(*livox_points(msg))
+            return cloud_points(msg.array(), msg.stamp_ns * 1e-9)
         except _BAD_DATA as exc:
             self._skip("bad_point_message", exc)
         return None
@@ -343,19 +351,15 @@ class BagRecording(BagFile):
         """The LiDAR frames in the pose frame's time line (see the module docstring)."""
         with self._reader() as reader:
             for _, _, raw in self._messages(reader, [self.lidar]):
-                decoded = self._decode(reader, raw)
-                if decoded is None:
+                msg = self._parse(reader, raw)
+                cloud = self._points(msg) if msg is not None else None
+                if msg is None or cloud is None:
                     continue
-                stamp_ns, frame_id, data = decoded
-                stamp = (stamp_ns - self.origin_ns) * 1e-9
-                if self.lidar.msgtype in LIVOX_TYPES:
-                    xyz, t_rel, intensity, line = livox_points(data)
-                else:
-                    xyz, t_rel, intensity, line = data.points, data.t, data.intensity, data.line
-                t = stamp + t_rel if t_rel is not None else None
+                stamp = (msg.stamp_ns - self.origin_ns) * 1e-9
+                t = stamp + cloud.t if cloud.t is not None else None
                 if t is not None and len(t):
                     stamp = min(stamp, float(t.min()))
-                yield self._frame(stamp, frame_id, xyz, t, intensity, line)
+                yield self._frame(stamp, msg.frame_id, cloud.points, t, cloud.intensity, cloud.line)
 
     def _frame(
         self,

@@ -187,13 +187,15 @@ def sensor_pose(options: ReplayOptions) -> FloatArray | None:
 
 
 def frame_period(options: ReplayOptions, t: FloatArray | None) -> float:
-    """options.period_s, else the median step of ``t``, else ``DEFAULT_PERIOD_S``."""
+    """options.period_s, else the median of the positive steps of the frame times ``t``
+    (repeated or out-of-order stamps say nothing of the rate), else ``DEFAULT_PERIOD_S``."""
     if options.period_s is not None:
         if not options.period_s > 0:
             raise InputError(f"period_s must be > 0, got {options.period_s}")
         return float(options.period_s)
     if t is not None and len(t) > 1:
-        step = float(np.median(np.diff(t)))
-        if step > 0:
-            return step
+        steps = np.diff(np.asarray(t, dtype=np.float64))
+        steps = steps[steps > 0]
+        if len(steps):
+            return float(np.median(steps))
     return DEFAULT_PERIOD_S
