@@ -16,14 +16,21 @@ import typer
 from rich.console import Console
 
 from dronetrack import __version__
-from dronetrack.cli_output import err_console, print_metrics, progress_columns
+from dronetrack.cli_output import (
+    compile_reporter,
+    err_console,
+    print_kernel_note,
+    print_metrics,
+    progress_bar,
+)
 from dronetrack.errors import DronetrackError
 
-__all__ = ["app", "main", "run"]
+__all__ = ["app", "main", "run", "stop_if_interrupted"]
 
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
+    context_settings={"help_option_names": ["-h", "--help"]},
     pretty_exceptions_enable=False,
     rich_markup_mode="rich",
     help="Detect and track small drones with LiDAR on a pan-tilt turret.",
@@ -127,7 +134,9 @@ def pattern(
     out: Annotated[Path, typer.Option("--out", "-o", help="CSV file to write.")],
     duration: Annotated[
         float,
-        typer.Option("--duration", "-d", min=0.0, max=3600.0, help="Seconds of pattern."),
+        typer.Option(
+            "--duration", "-d", min=0.0, max=3600.0, help="Seconds of pattern, more than 0."
+        ),
     ] = 0.1,
     start: Annotated[
         float, typer.Option("--start", min=0.0, max=1e6, help="Start time, seconds.")
@@ -145,9 +154,12 @@ def pattern(
 
     Columns: t_s, azimuth_deg, elevation_deg, line.
     """
+    from dronetrack.errors import ConfigError
     from dronetrack.geometry import azimuth_elevation
     from dronetrack.sim.sensors import make_sensor
 
+    if not duration > 0:
+        raise ConfigError(f"--duration must be more than 0 s, got {duration:g}")
     model = make_sensor(sensor, rpm=rpm, rate_hz=rate, lines=lines)
     pulses = model.pattern.pulses(start, start + duration)
     az, el = azimuth_elevation(pulses.dirs)
@@ -200,7 +212,6 @@ def render(
     hit_target, frame, world points, sensor poses, target pose), frames.csv
     (one row per frame), scenario.toml (the resolved scenario) and preview.png.
     """
-    from rich.progress import Progress
 
     from dronetrack.render import render_scenario, write_rendering
     from dronetrack.sim.scenario import apply_overrides
@@ -216,7 +227,7 @@ def render(
         sensor=sensor,
         noise=noise,
     )
-    with Progress(console=err_console, transient=True) as bar:
+    with progress_bar(columns=False) as bar:
         task = bar.add_task(f"rendering {cfg.name}", total=None)
         rendering = render_scenario(
             cfg, turret.value, progress=lambda i, n: bar.update(task, completed=i, total=n)
@@ -271,14 +282,13 @@ def simulate(
     Writes config.toml (the resolved configuration: re-run it with --config),
     frames.csv, metrics.json and plots to the output folder, and prints the metrics.
     """
-    from rich.progress import Progress
 
     from dronetrack.errors import ConfigError
     from dronetrack.io.runs import default_run_dir
     from dronetrack.io.viewers import close_viewers, open_viewers
     from dronetrack.sim.scenario import apply_overrides, load_scenario_file
     from dronetrack.sim.scenarios import SCENARIOS, get_scenario
-    from dronetrack.simulate import run_simulation, simulation_viewer_hook, write_run
+    from dronetrack.simulate import RunFolder, run_simulation, simulation_viewer_hook
 
     if config is not None and scenario is not None:
         raise ConfigError("give a SCENARIO or --config, not both")
@@ -295,21 +305,28 @@ def simulate(
         particles=particles,
         turret_mode=turret.value if turret else None,
     )
-    out_dir = out if out is not None else default_run_dir()
-    viewers = open_viewers(foxglove, rerun)
+    folder = RunFolder(out if out is not None else default_run_dir())
     try:
-        columns = progress_columns()
-        with Progress(*columns, console=err_console, transient=True) as bar:
-            task = bar.add_task(f"simulating {cfg.name}", total=None)
-            run = run_simulation(
-                cfg,
-                progress=lambda i, n: bar.update(task, completed=i, total=n),
-                on_frame=simulation_viewer_hook(viewers, cfg) if viewers else None,
-            )
-    finally:
-        close_viewers(viewers)
-    metrics = write_run(run, out_dir)
-    print_metrics(metrics, out_dir)
+        viewers = open_viewers(foxglove, rerun)
+        try:
+            with progress_bar() as bar:
+                task = bar.add_task(f"simulating {cfg.name}", total=None)
+                run = run_simulation(
+                    cfg,
+                    progress=lambda i, n: bar.update(task, completed=i, total=n),
+                    on_frame=simulation_viewer_hook(viewers, cfg) if viewers else None,
+                    compiling=compile_reporter(bar, task),
+                    log_sink=folder.log_sink,
+                )
+        finally:
+            close_viewers(viewers)
+    except BaseException:
+        folder.close()  # the frames done so far stay in frames.csv
+        raise
+    metrics = folder.finish(run)
+    print_kernel_note(run.kernels)
+    stop_if_interrupted(run.interrupted, f"; kept {len(run.log)} frames in {folder.out_dir}")
+    print_metrics(metrics, folder.out_dir)
 
 
 @app.command()
@@ -337,7 +354,6 @@ def compare(
     Writes table.csv (scenario,method,metric,mean,std,paper), table.md and, for
     seed003, the seed's CSV logs of every run.
     """
-    from rich.progress import Progress
 
     from dronetrack.compare.runner import run_suite
     from dronetrack.compare.suites import get_suite
@@ -347,8 +363,7 @@ def compare(
     chosen = get_suite(suite)
     subset = [m.strip() for m in methods.split(",") if m.strip()] if methods else None
     out_dir = out if out is not None else default_run_dir()
-    columns = progress_columns()
-    with Progress(*columns, console=err_console, transient=True) as bar:
+    with progress_bar() as bar:
         task = bar.add_task(chosen.name, total=None)
 
         def report(what: str, i: int, n: int) -> None:
@@ -370,27 +385,67 @@ def compare(
 
 
 def run(argv: list[str] | None = None) -> int:
-    """Run the command line with ``argv``; return the exit code."""
+    """Run the command line with ``argv``; return the exit code.
+
+    Ctrl-C ends a running loop after its current frame (``dronetrack.interrupt``); the
+    command keeps what it had done and exits with 130 after one ``interrupted`` line.
+    """
+    from click.exceptions import NoArgsIsHelpError
+
+    from dronetrack.interrupt import handling_sigint
+
     command = typer.main.get_command(app)
     try:
-        result = command.main(args=argv, prog_name="dronetrack", standalone_mode=False)
+        with handling_sigint():
+            result = command.main(args=argv, prog_name="dronetrack", standalone_mode=False)
     except typer.Exit as stop:
         return int(stop.exit_code)
-    except typer.Abort:
-        err_console.print("aborted")
-        return 130
+    except NoArgsIsHelpError:  # the help was printed: no error to add
+        return 0
+    except (typer.Abort, KeyboardInterrupt):
+        return _interrupted()
     except typer.TyperException as err:  # usage errors: unknown option, missing argument, ...
         describe = getattr(err, "format_message", None)
         message = describe() if callable(describe) else str(err)
-        err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
-        return 2
-    except DronetrackError as err:
-        err_console.print(f"error: {err}", markup=False, highlight=False, soft_wrap=True)
-        return 2
-    except OSError as err:
-        err_console.print(f"error: {err}", markup=False, highlight=False, soft_wrap=True)
-        return 2
+        return _error(message)
+    except (DronetrackError, OSError) as err:
+        return _error(str(err))
+    except SystemError as err:  # Ctrl-C inside numba's compiler surfaces as SystemError
+        if _caused_by_interrupt(err):
+            return _interrupted()
+        raise
     return int(result) if isinstance(result, int) else 0
+
+
+INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command killed by Ctrl-C
+
+
+def _error(message: str) -> int:
+    err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
+    return 2
+
+
+def _interrupted(note: str = "") -> int:
+    err_console.print(f"interrupted{note}", markup=False, highlight=False, soft_wrap=True)
+    return INTERRUPTED
+
+
+def _caused_by_interrupt(err: BaseException) -> bool:
+    seen: set[int] = set()
+    cause: BaseException | None = err
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return False
+
+
+def stop_if_interrupted(interrupted: bool, note: str = "") -> None:
+    """End a command whose loop Ctrl-C stopped (after it wrote what it had): one
+    ``interrupted`` line, exit code 130."""
+    if interrupted:
+        raise typer.Exit(_interrupted(note))
 
 
 def main() -> None:

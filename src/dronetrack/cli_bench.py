@@ -5,19 +5,18 @@ Registered on the ``dronetrack`` app by ``cli``; it follows its conventions (one
 ``dronetrack.bench``'s; this module pins the thread pools, shows progress on
 standard error, prints the table on standard output and writes the file.
 
-One core: the OMP/OPENBLAS/MKL/NUMBA_NUM_THREADS environment variables are set
-to 1 before ``dronetrack.bench`` (and with it numba) is imported, which covers
-numba in a fresh process; numpy, and with it OpenBLAS, is already loaded by the
-command line, so ``dronetrack.bench.single_thread`` also sets numba's and every
-loaded OpenBLAS's thread count to 1 at run time.  Both are undone afterwards.
+One core: ``dronetrack.bench.single_thread`` sets numba's thread count with
+``numba.set_num_threads(1)`` and every loaded BLAS/OpenMP pool's with threadpoolctl,
+and restores them afterwards.  The environment variables (NUMBA_NUM_THREADS, ...)
+are deliberately left alone: numpy and numba are loaded by then, and numba re-reads
+its environment at every compilation, so changing NUMBA_NUM_THREADS after its
+threads have started makes the next compilation fail (on a fresh install, with an
+empty kernel cache, that is the first measurement).
 """
 
 from __future__ import annotations
 
 import json
-import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -27,31 +26,9 @@ from rich.console import Console
 from rich.table import Table
 
 from dronetrack.cli import RunDirOption, app
-from dronetrack.cli_output import err_console, progress_columns
+from dronetrack.cli_output import progress_bar
 
 __all__ = ["bench", "bench_table"]
-
-THREAD_VARIABLES = (
-    "OMP_NUM_THREADS",
-    "OPENBLAS_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "NUMBA_NUM_THREADS",
-)
-
-
-@contextmanager
-def _thread_environment() -> Iterator[None]:
-    """Every variable of ``THREAD_VARIABLES`` set to 1 inside the block, restored after."""
-    saved = {name: os.environ.get(name) for name in THREAD_VARIABLES}
-    os.environ.update(dict.fromkeys(THREAD_VARIABLES, "1"))
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
 
 
 def _target_cells(targets: dict[str, Any], key: str) -> tuple[str, str]:
@@ -138,31 +115,29 @@ def bench(
     Writes bench.json (pf_step_ms, tracker_step_ms, sim_frame_ms, replay_x_realtime,
     machine, targets) and prints a table that marks each speed target met or missed.
     """
-    from rich.progress import Progress
 
     from dronetrack.io.runs import default_run_dir
 
     out_dir = out if out is not None else default_run_dir()
-    with _thread_environment():
-        from dronetrack.bench import bench as run_bench
-        from dronetrack.bench import single_thread
+    from dronetrack.bench import bench as run_bench
+    from dronetrack.bench import single_thread
 
-        with (
-            single_thread(),
-            Progress(*progress_columns(), console=err_console, transient=True) as bar,
-        ):
-            task = bar.add_task("benchmarks", total=None)
+    with (
+        single_thread(),
+        progress_bar() as bar,
+    ):
+        task = bar.add_task("benchmarks", total=None)
 
-            def report(what: str, done: int, total: int) -> None:
-                bar.update(task, description=what, completed=done, total=total)
+        def report(what: str, done: int, total: int) -> None:
+            bar.update(task, description=what, completed=done, total=total)
 
-            results = run_bench(
-                repeats=repeats,
-                rounds=rounds,
-                quick=quick,
-                replay_s=replay_seconds,
-                progress=report,
-            )
+        results = run_bench(
+            repeats=repeats,
+            rounds=rounds,
+            quick=quick,
+            replay_s=replay_seconds,
+            progress=report,
+        )
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "bench.json"
     path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")

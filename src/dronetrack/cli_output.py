@@ -6,11 +6,27 @@ Results go to standard output; progress and warnings to standard error.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.progress import ProgressColumn
 
-__all__ = ["err_console", "print_metrics", "progress_columns"]
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
+
+    from dronetrack.kernels import CompileProgress, KernelWarmUp
+
+__all__ = [
+    "COMPILING",
+    "compile_reporter",
+    "err_console",
+    "print_kernel_note",
+    "print_metrics",
+    "progress_bar",
+    "progress_columns",
+]
+
+COMPILING = "compiling kernels, first run only"
 
 err_console = Console(stderr=True)
 
@@ -25,6 +41,45 @@ def progress_columns() -> tuple[ProgressColumn, ...]:
         TextColumn("{task.percentage:>3.0f}%"),
         TimeRemainingColumn(),
     )
+
+
+def progress_bar(*, transient: bool = True, columns: bool = True) -> Progress:
+    """A rich progress bar on standard error, shown only on a terminal: elsewhere (CI,
+    a pipe, a log file) it prints nothing, not even a blank line."""
+    from rich.progress import Progress
+
+    return Progress(
+        *(progress_columns() if columns else ()),
+        console=err_console,
+        transient=transient,
+        disable=not err_console.is_terminal,
+    )
+
+
+def compile_reporter(bar: Progress, task: TaskID) -> CompileProgress:
+    """A ``compiling`` callback for the run functions: once a kernel is found missing
+    from numba's cache, one line (``COMPILING``) above the bar, and the bar counts the
+    warm-up steps; a warm cache shows nothing but the bar."""
+    said = False
+
+    def report(done: int, total: int, compiled: bool) -> None:
+        nonlocal said
+        if compiled and not said:
+            bar.console.print(COMPILING)
+            said = True
+        bar.update(task, completed=done, total=total)
+
+    return report
+
+
+def print_kernel_note(kernels: KernelWarmUp) -> None:
+    """After a run whose warm-up compiled kernels: how long that took, and that it is once."""
+    if kernels.compiled:
+        err_console.print(
+            f"compiled {kernels.compiled} kernel signatures in {kernels.seconds:.1f} s "
+            "before the run (not counted in its step times); later runs load them from "
+            "numba's cache"
+        )
 
 
 def print_metrics(metrics: dict[str, object], out_dir: Path) -> None:

@@ -24,8 +24,15 @@ from dronetrack.cli import (
     SeedOption,
     TrackerName,
     app,
+    stop_if_interrupted,
 )
-from dronetrack.cli_output import err_console, print_metrics, progress_columns
+from dronetrack.cli_output import (
+    compile_reporter,
+    err_console,
+    print_kernel_note,
+    print_metrics,
+    progress_bar,
+)
 from dronetrack.errors import ConfigError
 
 __all__ = ["info", "record", "track"]
@@ -127,7 +134,6 @@ def track(
     Writes config.toml, frames.csv, commands.csv, metrics.json and plots, as simulate
     does; the metrics that need ground truth appear only when there is some.
     """
-    from rich.progress import Progress
 
     from dronetrack.io.recordings import open_recording
     from dronetrack.io.runs import default_run_dir
@@ -136,7 +142,7 @@ def track(
     from dronetrack.replay import recording_config, run_replay, write_commands_csv
     from dronetrack.sim.scenario import load_scenario_file
     from dronetrack.sim.scenarios import SCENARIOS
-    from dronetrack.simulate import write_run
+    from dronetrack.simulate import RunFolder
 
     origin = _floats(gt_origin, 3, "--gt-origin")
     options = ReplayOptions(
@@ -158,22 +164,32 @@ def track(
         background_file=background,
         background_from=background_from,
     )
-    out_dir = out if out is not None else default_run_dir()
-    viewers = open_viewers(foxglove, rerun, start=source.origin)
+    folder = RunFolder(out if out is not None else default_run_dir())
     try:
-        with Progress(*progress_columns(), console=err_console, transient=True) as bar:
-            task = bar.add_task(f"replaying {recording.name}", total=None)
-            result = run_replay(
-                source,
-                cfg,
-                progress=lambda i, n: bar.update(task, completed=i, total=n),
-                viewers=viewers,
-            )
-    finally:
-        close_viewers(viewers)
-    metrics = write_run(result.run, out_dir, extra=result.metrics())
-    write_commands_csv(result.commands, out_dir / "commands.csv")
-    print_metrics(metrics, out_dir)
+        viewers = open_viewers(foxglove, rerun, start=source.origin)
+        try:
+            with progress_bar() as bar:
+                task = bar.add_task(f"replaying {recording.name}", total=None)
+                result = run_replay(
+                    source,
+                    cfg,
+                    progress=lambda i, n: bar.update(task, completed=i, total=n),
+                    viewers=viewers,
+                    compiling=compile_reporter(bar, task),
+                    log_sink=folder.log_sink,
+                )
+        finally:
+            close_viewers(viewers)
+    except BaseException:
+        folder.close()  # the frames done so far stay in frames.csv
+        raise
+    metrics = folder.finish(result.run, extra=result.metrics())
+    write_commands_csv(result.commands, folder.out_dir / "commands.csv")
+    print_kernel_note(result.run.kernels)
+    stop_if_interrupted(
+        result.run.interrupted, f"; kept {len(result.run.log)} frames in {folder.out_dir}"
+    )
+    print_metrics(metrics, folder.out_dir)
     if result.skipped:
         err_console.print(
             "skipped messages: " + ", ".join(f"{k} {v}" for k, v in result.skipped.items())
@@ -236,7 +252,6 @@ def record(
     It holds the LiDAR, /tf with the turret links, ground truth and the scenario,
     so `dronetrack track FILE` replays it with the same settings.
     """
-    from rich.progress import Progress
 
     from dronetrack.io.bag_writer import RecordingWriter
     from dronetrack.sim.build import turret_spec
@@ -262,7 +277,7 @@ def record(
         observer=resolved.observer is not None,
     )
     try:
-        with Progress(*progress_columns(), console=err_console, transient=True) as bar:
+        with progress_bar() as bar:
             task = bar.add_task(f"recording {cfg.name}", total=None)
             run = run_simulation(
                 resolved,

@@ -13,8 +13,8 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from dronetrack.cli import RunDirOption, app
-from dronetrack.cli_output import err_console, progress_columns
+from dronetrack.cli import RunDirOption, app, stop_if_interrupted
+from dronetrack.cli_output import err_console, progress_bar
 from dronetrack.errors import ConfigError
 
 __all__ = ["sweep", "sweep_report"]
@@ -40,7 +40,6 @@ def sweep(
     Results stream to DIR/results.jsonl, one line per run.  Run the same command
     again to resume: finished runs are skipped, so a finished sweep adds nothing.
     """
-    from rich.progress import Progress
 
     from dronetrack.io.runs import default_run_dir
     from dronetrack.sweep.grid import check_keys, expand, load_grid
@@ -63,7 +62,7 @@ def sweep(
     else:
         make = local_executor(workers or os.cpu_count() or 1)
     try:
-        with Progress(*progress_columns(), console=err_console) as bar:
+        with progress_bar(transient=False) as bar:
             task = bar.add_task(f"sweep {grid.name}", total=len(runs))
 
             step = max(1, len(runs) // 20)
@@ -80,10 +79,17 @@ def sweep(
     finally:
         if close is not None:
             close()
-    typer.echo(
+    summary = (
         f"{len(runs)} runs: {counts['done']} done now, {counts['skipped']} done before, "
-        f"{counts['failed']} failed; results in {out_dir / 'results.jsonl'}"
+        f"{counts['failed']} failed"
     )
+    results = out_dir / "results.jsonl"
+    stop_if_interrupted(
+        "unfinished" in counts,
+        f"; {summary}, {counts['unfinished']} not run; results in {results} (run the same "
+        "command again to resume)",
+    )
+    typer.echo(f"{summary}; results in {results}")
 
 
 def _base_config(spec: Any) -> Any:

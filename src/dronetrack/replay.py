@@ -24,15 +24,19 @@ import numpy as np
 
 from dronetrack.errors import ConfigError, RecordingError
 from dronetrack.eval.log import TrackLog
+from dronetrack.factory import scan_duration
 from dronetrack.geometry import FloatArray
+from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.io.source import GroundTruth, Recording
 from dronetrack.io.view import NamedTransform, ViewerSink, view_frame
+from dronetrack.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
 from dronetrack.kinematics import pointing_angles
 from dronetrack.pipeline import StepResult
 from dronetrack.sim.build import turret_spec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, validate_scenario
 from dronetrack.simulate import (
+    LogSink,
     Progress,
     SimulationRun,
     log_result,
@@ -147,11 +151,16 @@ def run_replay(
     cfg: ScenarioConfig,
     progress: Progress | None = None,
     viewers: Sequence[ViewerSink] = (),
+    compiling: CompileProgress | None = None,
+    log_sink: LogSink | None = None,
 ) -> ReplayRun:
     """Replay every frame of ``recording`` through the pipeline ``cfg`` describes.
 
     The filter draws from the same seed as ``simulate`` of ``cfg``, so a recording
-    of a simulated run replays as that run did.
+    of a simulated run replays as that run did.  The numba kernels are compiled (or
+    loaded from the cache) before the clock starts; ``compiling`` follows that.
+    ``log_sink`` gets the log after each tracking frame.  A Ctrl-C handled by
+    ``dronetrack.interrupt`` ends the replay after the frame in hand.
     """
     period = recording.period
     if not 1e-3 <= period <= 1.0:
@@ -170,31 +179,45 @@ def run_replay(
     log = TrackLog()
     commands: list[TurretCommand] = []
     total = int(getattr(recording, "n_frames", 0))
+    kernels = warm_up(REPLAY_WARM_UPS, compiling)
     start = time.perf_counter()
     n = 0
     first = last = math.nan
-    for frame in recording.frames():
-        result = pipeline.step(frame)
-        n += 1
-        first = frame.stamp if n == 1 else first
-        last = frame.end
-        if result.command is not None:
-            commands.append(result.command)
-        gt = truth.at(frame.end)[0] if truth is not None else None
-        if result.phase == "track":
-            _record(log, frame, result, gt, truth, radius)
-        if viewers:
-            view = view_frame(
-                frame, result, gt, [NamedTransform("world", "lidar", frame.poses[-1])]
-            )
-            for sink in viewers:
-                sink.log(view)
-        if progress is not None:
-            progress(n, max(total, n))
+    with stoppable():
+        for frame in recording.frames():
+            result = pipeline.step(frame)
+            n += 1
+            first = frame.stamp if n == 1 else first
+            last = frame.end
+            if result.command is not None:
+                commands.append(result.command)
+            gt = truth.at(frame.end)[0] if truth is not None else None
+            if result.phase == "track":
+                _record(log, frame, result, gt, truth, radius)
+                if log_sink is not None:
+                    log_sink(log)
+            if viewers:
+                view = view_frame(
+                    frame, result, gt, [NamedTransform("world", "lidar", frame.poses[-1])]
+                )
+                for sink in viewers:
+                    sink.log(view)
+            if progress is not None:
+                progress(n, max(total, n))
+            if stop_requested():
+                break
+    interrupted = stop_requested()
     if n == 0:
         raise RecordingError(f"{recording.path}: no LiDAR frame could be read")
+    if len(log) == 0 and not interrupted:
+        scan_s = scan_duration(cfg.pipeline)
+        raise RecordingError(
+            f"{recording.path}: the recording lasts {last - first:.3g} s ({n} frames), no "
+            f"longer than the background scan of {scan_s:g} s, so no frame was left to track; "
+            "give a shorter --background-from, or --background FILE"
+        )
     wall = time.perf_counter() - start
-    run = SimulationRun(cfg, log, pipeline, wall, last - first)
+    run = SimulationRun(cfg, log, pipeline, wall, last - first, kernels, interrupted)
     return ReplayRun(run, commands, dict(recording.skipped), truth is not None)
 
 

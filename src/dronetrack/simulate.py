@@ -24,18 +24,23 @@ from dronetrack.errors import ConfigError
 from dronetrack.eval.log import TrackLog
 from dronetrack.factory import build_pipeline, noise_parameters, resolve_tracker, scan_duration
 from dronetrack.geometry import FloatArray
+from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.io.background import read_background_settings
+from dronetrack.io.runs import FramesCsvWriter, check_run_dir, prepare_run_dir
 from dronetrack.io.view import NamedTransform, ViewerSink, view_frame
+from dronetrack.kernels import PIPELINE_WARM_UPS, CompileProgress, KernelWarmUp, warm_up
 from dronetrack.kinematics import turret_links
 from dronetrack.pipeline import Pipeline, StepResult
 from dronetrack.sim.build import build_world, resolve_scenario, turret_spec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.scenario import ScenarioConfig, dump_scenario
 from dronetrack.sim.turret import TurretSpec
-from dronetrack.sim.world import FrameTruth
+from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame, TurretCommand
 
 __all__ = [
+    "LogSink",
+    "RunFolder",
     "SimulationRun",
     "log_result",
     "resolve_run",
@@ -75,6 +80,9 @@ def resolve_run(cfg: ScenarioConfig) -> ScenarioConfig:
     return cfg.model_copy(update={"pipeline": pipeline})
 
 
+NO_WARM_UP = KernelWarmUp(0.0, 0)
+
+
 @dataclass(frozen=True, slots=True)
 class SimulationRun:
     """A finished closed-loop run."""
@@ -84,6 +92,8 @@ class SimulationRun:
     pipeline: Pipeline
     wall_s: float
     simulated_s: float
+    kernels: KernelWarmUp = NO_WARM_UP  # the warm-up before the timed loop
+    interrupted: bool = False  # Ctrl-C ended it early: the log holds the frames done
 
     @property
     def realtime_factor(self) -> float:
@@ -93,10 +103,13 @@ class SimulationRun:
         out = self.log.summary(self.config.pipeline.evaluation.correct_radius_m)
         out["realtime_factor"] = self.realtime_factor
         out["wall_s"] = self.wall_s
+        if self.interrupted:
+            out["interrupted"] = True
         return out
 
 
 FrameHook = Callable[[Frame, FrameTruth, StepResult], None]
+LogSink = Callable[[TrackLog], None]
 
 
 def run_simulation(
@@ -106,6 +119,8 @@ def run_simulation(
     init_on_clean_view: bool = False,
     hook: FrameHook | None = None,
     on_frame: FrameHook | None = None,
+    compiling: CompileProgress | None = None,
+    log_sink: LogSink | None = None,
 ) -> SimulationRun:
     """Run the scenario closed-loop; ``cfg`` is resolved first (see ``resolve_run``).
 
@@ -113,7 +128,9 @@ def run_simulation(
     Kalman filters) is, once, on the centroid of the first frame whose foreground
     holds only the drone's points, as seed 000 did for its EKF baselines.
     ``hook`` sees every tracking frame with its ground truth and the pipeline's
-    result; ``on_frame`` every frame, the background scan's too.
+    result; ``on_frame`` every frame, the background scan's too.  ``compiling``
+    follows the kernels' warm-up before the first frame (see ``run_lockstep``);
+    ``log_sink`` gets the log after each tracking frame is added to it.
     """
     return run_lockstep(
         cfg,
@@ -122,6 +139,8 @@ def run_simulation(
         init_on_clean_view=init_on_clean_view,
         hooks=[hook] if hook is not None else None,
         on_frame=on_frame,
+        compiling=compiling,
+        log_sink=log_sink,
     )[0]
 
 
@@ -133,6 +152,8 @@ def run_lockstep(
     init_on_clean_view: bool = False,
     hooks: Sequence[FrameHook] | None = None,
     on_frame: FrameHook | None = None,
+    compiling: CompileProgress | None = None,
+    log_sink: LogSink | None = None,
 ) -> list[SimulationRun]:
     """One simulated world feeding one pipeline per tracker configuration, frame by frame.
 
@@ -142,6 +163,11 @@ def run_lockstep(
     world and every filter draw from the seeds ``cfg.seed`` gives.  Each run's
     ``wall_s`` is the time of the whole lockstep (all pipelines and the simulator).
     ``on_frame`` sees every frame (scan phase included) with the first pipeline's result.
+    The numba kernels are compiled (or loaded from numba's cache) before the clock
+    starts, so ``wall_s`` and the step times hold no compilation; ``compiling`` is
+    told after each warm-up step.  ``log_sink`` gets the first tracker's log after
+    each of its tracking frames.  A Ctrl-C handled by ``dronetrack.interrupt`` ends
+    the loop after the frame in hand; the runs then hold the frames done.
     """
     mode = cfg.pipeline.controller.mode
     if len(trackers) > 1 and mode not in ("truth", "fixed"):
@@ -189,34 +215,56 @@ def run_lockstep(
     n_frames = max(1, math.ceil((scan_s + cfg.duration_s) / period - 1e-9))
     logs = [TrackLog() for _ in pipelines]
     waiting = [init_on_clean_view and hasattr(p.tracker, "initialize") for p in pipelines]
+    kernels = warm_up((*PIPELINE_WARM_UPS, world.warm_up), compiling)
     begin = time.perf_counter()
-    for i in range(n_frames):
-        frame, truth = world.step()
-        results = [p.step(frame) for p in pipelines]
-        command = results[0].command
-        if mode == "truth" and results[0].phase == "track":
-            t_cmd = frame.end + lead.latency_s
-            command = TurretCommand(t_cmd, *aim_angles(world.target_position(t_cmd), world.mount))
-        if command is not None:
-            world.command(command)
-        if on_frame is not None:
-            on_frame(frame, truth, results[0])
-        for k, result in enumerate(results):
-            if result.phase != "track":
-                continue
-            _record(logs[k], frame, truth, result)
-            if waiting[k] and _clean_view(result.foreground, truth, s_diag, period):
-                pipelines[k].tracker.initialize(result.foreground.mean(axis=0))  # type: ignore[attr-defined]
-                waiting[k] = False
-            if hooks is not None:
-                hooks[k](frame, truth, result)
-        if progress is not None:
-            progress(i + 1, n_frames)
+    done = 0
+    with stoppable():
+        while done < n_frames and not stop_requested():
+            _lockstep_frame(world, pipelines, logs, waiting, mode, s_diag, on_frame, hooks)
+            done += 1
+            if log_sink is not None and len(logs[0]) > 0:
+                log_sink(logs[0])
+            if progress is not None:
+                progress(done, n_frames)
     wall = time.perf_counter() - begin
     return [
-        SimulationRun(c, log, p, wall, n_frames * period)
+        SimulationRun(c, log, p, wall, done * period, kernels, done < n_frames)
         for c, log, p in zip(configs, logs, pipelines, strict=True)
     ]
+
+
+def _lockstep_frame(
+    world: SimWorld,
+    pipelines: Sequence[Pipeline],
+    logs: Sequence[TrackLog],
+    waiting: list[bool],
+    mode: str,
+    s_diag: float,
+    on_frame: FrameHook | None,
+    hooks: Sequence[FrameHook] | None,
+) -> None:
+    """One frame of ``run_lockstep``: simulate, step every pipeline, steer, log."""
+    lead = pipelines[0]
+    period = world.integration_time
+    frame, truth = world.step()
+    results = [p.step(frame) for p in pipelines]
+    command = results[0].command
+    if mode == "truth" and results[0].phase == "track":
+        t_cmd = frame.end + lead.latency_s
+        command = TurretCommand(t_cmd, *aim_angles(world.target_position(t_cmd), world.mount))
+    if command is not None:
+        world.command(command)
+    if on_frame is not None:
+        on_frame(frame, truth, results[0])
+    for k, result in enumerate(results):
+        if result.phase != "track":
+            continue
+        _record(logs[k], frame, truth, result)
+        if waiting[k] and _clean_view(result.foreground, truth, s_diag, period):
+            pipelines[k].tracker.initialize(result.foreground.mean(axis=0))  # type: ignore[attr-defined]
+            waiting[k] = False
+        if hooks is not None:
+            hooks[k](frame, truth, result)
 
 
 def run_seeds(seed: int) -> tuple[np.random.SeedSequence, np.random.SeedSequence]:
@@ -306,25 +354,54 @@ def simulation_viewer_hook(viewers: Sequence[ViewerSink], cfg: ScenarioConfig) -
     return show
 
 
+class RunFolder:
+    """A run's output folder, written as the run goes: ``frames.csv`` row by row from
+    the first tracking frame (flushed, so an interrupted or crashed run keeps its
+    frames), then at the end config.toml, metrics.json, the plots and the scanned
+    background.  The folder is checked at once and created at the first row, so a
+    run refused before it tracks anything leaves nothing behind.
+
+    ``log_sink`` is the ``log_sink`` of ``run_simulation`` and ``run_replay``.
+    """
+
+    def __init__(self, out_dir: Path) -> None:
+        self.out_dir = check_run_dir(out_dir)
+        self._frames: FramesCsvWriter | None = None
+
+    def log_sink(self, log: TrackLog) -> None:
+        if self._frames is None:
+            self._frames = FramesCsvWriter(prepare_run_dir(self.out_dir) / "frames.csv")
+        self._frames.write(log)
+
+    def close(self) -> None:
+        if self._frames is not None:
+            self._frames.close()
+
+    def finish(self, run: SimulationRun, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Write the rest of the run (see ``write_run``); return its metrics."""
+        from dronetrack.io.background import save_background
+        from dronetrack.io.runs import write_metrics, write_plots
+
+        self.log_sink(run.log)
+        self.close()
+        out_dir = self.out_dir
+        background = run.pipeline.background
+        config = run.config
+        if background is not None and background.ready and config.pipeline.background.file is None:
+            save_background(background, out_dir / "background.npz")
+        (out_dir / "config.toml").write_text(dump_scenario(config))
+        metrics = run.metrics() if extra is None else extra
+        write_metrics(metrics, out_dir / "metrics.json")
+        noise = noise_parameters(config.pipeline.tracker, config.sensor.integration_time_s)
+        radius = config.pipeline.evaluation.correct_radius_m
+        write_plots(run.log, out_dir, noise.threshold, config.name, radius)
+        return metrics
+
+
 def write_run(
     run: SimulationRun, out_dir: Path, extra: dict[str, Any] | None = None
 ) -> dict[str, Any]:
     """Write config.toml, frames.csv, metrics.json, the plots and the scanned background
     (``background.npz``, to load with ``[pipeline.background] file``); return the metrics
     (``extra`` replaces the run's own)."""
-    from dronetrack.io.background import save_background
-    from dronetrack.io.runs import write_frames_csv, write_metrics, write_plots
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    background = run.pipeline.background
-    if background is not None and background.ready and run.config.pipeline.background.file is None:
-        save_background(background, out_dir / "background.npz")
-    (out_dir / "config.toml").write_text(dump_scenario(run.config))
-    write_frames_csv(run.log, out_dir / "frames.csv")
-    metrics = run.metrics() if extra is None else extra
-    write_metrics(metrics, out_dir / "metrics.json")
-    noise = noise_parameters(run.config.pipeline.tracker, run.config.sensor.integration_time_s)
-    threshold = noise.threshold
-    radius = run.config.pipeline.evaluation.correct_radius_m
-    write_plots(run.log, out_dir, threshold, run.config.name, radius)
-    return metrics
+    return RunFolder(out_dir).finish(run, extra)

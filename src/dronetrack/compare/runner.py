@@ -118,6 +118,12 @@ def run_suite(
                     )
                     if logger is not None:
                         logger.close(done[-1].pipeline.controller)
+                    if done[-1].interrupted:
+                        break
+            if any(sim.interrupted for sim in done):
+                # Ctrl-C ended a run early: the tables need whole runs, so stop here
+                # (the logs of the runs already done stay written).
+                raise KeyboardInterrupt
             for m, sim, fg in zip(chosen, done, foregrounds, strict=True):
                 values = run_metrics(suite, sim)
                 if memory:

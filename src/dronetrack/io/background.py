@@ -47,15 +47,31 @@ class BackgroundSettings:
     min_hits: int
 
 
+_MEMBERS = ("format", "cells", "resolution", "inflate", "lookup_depth", "min_hits")
+_HINT = "give the background.npz that a dronetrack run wrote"
+
+
 def _read(path: Path, cells: bool) -> tuple[BackgroundSettings, IntArray | None]:
     """The settings of a model written by ``save_background``, and its cells if asked
     (the npz members load lazily, so settings alone skip the cells)."""
     if not path.is_file():
         raise InputError(f"background file not found: {path}")
+    with path.open("rb") as fh:
+        if fh.read(4) != b"PK\x03\x04":  # an .npz is a zip archive
+            raise InputError(f"{path} is not a background model (not an .npz archive); {_HINT}")
     try:
         with np.load(path, allow_pickle=False) as data:
+            missing = [name for name in _MEMBERS if name not in data.files]
+            if missing:
+                raise InputError(
+                    f"{path} is not a dronetrack background model (it has no "
+                    f"{', '.join(missing)}); {_HINT}"
+                )
             if str(data["format"]) != FORMAT:
-                raise InputError(f"{path} is not a dronetrack background model")
+                raise InputError(
+                    f"{path} is a background model of another format "
+                    f"({str(data['format'])!r}, not {FORMAT!r}); {_HINT}"
+                )
             settings = BackgroundSettings(
                 float(data["resolution"]),
                 int(data["inflate"]),
@@ -63,8 +79,14 @@ def _read(path: Path, cells: bool) -> tuple[BackgroundSettings, IntArray | None]
                 int(data["min_hits"]),
             )
             return settings, (data["cells"] if cells else None)
-    except (KeyError, ValueError, OSError, zipfile.BadZipFile) as err:
+    except ValueError as err:
+        if "pickle" in str(err):  # object arrays, which are never loaded
+            raise InputError(
+                f"{path} holds Python objects, not a background model; {_HINT}"
+            ) from None
         raise InputError(f"cannot read background model {path}: {err}") from None
+    except (OSError, zipfile.BadZipFile, EOFError) as err:
+        raise InputError(f"cannot read background model {path} (damaged?): {err}") from None
 
 
 def read_background_settings(path: Path) -> BackgroundSettings:

@@ -11,9 +11,22 @@ from typing import Any
 
 import numpy as np
 
+from dronetrack.errors import ConfigError
 from dronetrack.eval.log import EXTRA_COLUMNS, FRAME_COLUMNS, TrackLog
 
-__all__ = ["default_run_dir", "json_safe", "write_frames_csv", "write_metrics", "write_plots"]
+__all__ = [
+    "FRAMES_CSV_COLUMNS",
+    "FramesCsvWriter",
+    "check_run_dir",
+    "default_run_dir",
+    "frame_row",
+    "json_safe",
+    "prepare_output_file",
+    "prepare_run_dir",
+    "write_frames_csv",
+    "write_metrics",
+    "write_plots",
+]
 
 
 def default_run_dir(root: Path = Path("runs")) -> Path:
@@ -27,24 +40,112 @@ def default_run_dir(root: Path = Path("runs")) -> Path:
     return out
 
 
+FRAMES_CSV_COLUMNS = (*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS)
+
+
+def frame_row(log: TrackLog, i: int) -> list[str]:
+    """Row ``i`` of ``log`` as frames.csv writes it, in FRAMES_CSV_COLUMNS order."""
+    gt, est = log.gt[i], log.est[i]
+    numbers = (
+        log.t[i],
+        gt[0],
+        gt[1],
+        gt[2],
+        est[0],
+        est[1],
+        est[2],
+    )
+    return [
+        *(_number(float(v)) for v in numbers),
+        str(int(log.tracked[i])),
+        _number(log.sigma[i]),
+        str(log.n_points[i]),
+        str(log.n_target_points[i]),
+        _number(log.range_m[i]),
+        _number(log.pan[i]),
+        _number(log.tilt[i]),
+        _number(log.step_ms[i]),
+        log.flags[i],
+        _number(log.pos_var[i]),
+        _number(log.vel_var[i]),
+        str(int(log.measured[i])),
+    ]
+
+
+class FramesCsvWriter:
+    """frames.csv written as the run goes: the header at once, then each new row of
+    the log, flushed, so an interrupted run keeps every frame it finished."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._fh = path.open("w", newline="")
+        self._csv = csv.writer(self._fh)
+        self._csv.writerow(FRAMES_CSV_COLUMNS)
+        self._fh.flush()
+        self.rows = 0
+
+    def write(self, log: TrackLog) -> None:
+        """Append the rows of ``log`` not written yet."""
+        for i in range(self.rows, len(log)):
+            self._csv.writerow(frame_row(log, i))
+        self.rows = len(log)
+        self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+def check_run_dir(path: Path, option: str = "--out") -> Path:
+    """``path`` if the output folder can be created there (or exists); a one-line
+    ``ConfigError`` when it, or one of its parents, is a file."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{option} {path} is a file; give a folder (it is created if missing)")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ConfigError(
+                    f"{option} {path}: {parent} is a file, so the folder cannot be created"
+                )
+            break
+    return path
+
+
+def prepare_run_dir(path: Path, option: str = "--out") -> Path:
+    """Create the output folder ``path`` (and its parents); a one-line ``ConfigError``
+    when it is a file or cannot be created."""
+    check_run_dir(path, option)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ConfigError(f"{option} {path}: cannot create the folder ({err.strerror})") from None
+    return path
+
+
+def prepare_output_file(path: Path, option: str) -> Path:
+    """Check that the file ``path`` can be written: create its missing parent folders and
+    open it for writing once; a one-line ``ConfigError`` naming the path if not."""
+    if path.is_dir():
+        raise ConfigError(f"{option} {path} is a folder; give a file name")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("ab"):
+            pass
+    except FileExistsError:
+        raise ConfigError(
+            f"{option} {path}: a parent of it is a file, so the file cannot be written"
+        ) from None
+    except OSError as err:
+        raise ConfigError(f"{option} {path}: cannot write it ({err.strerror})") from None
+    return path
+
+
 def write_frames_csv(log: TrackLog, path: Path) -> None:
     """One row per frame: the FRAME_COLUMNS contract, then ``flags``, then EXTRA_COLUMNS."""
-    a = log.arrays()
-    with path.open("w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow([*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS])
-        integer = ("tracked", "n_points", "n_target_points", "measured")
-        for i in range(len(log)):
-            row: list[Any] = []
-            for col in (*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS):
-                v = a[col][i]
-                if col == "flags":
-                    row.append(v)
-                elif col in integer:
-                    row.append(int(v))
-                else:
-                    row.append(_number(float(v)))
-            writer.writerow(row)
+    writer = FramesCsvWriter(path)
+    try:
+        writer.write(log)
+    finally:
+        writer.close()
 
 
 def _number(v: float) -> str:

@@ -16,12 +16,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from dronetrack.errors import InputError
+from dronetrack.errors import ConfigError, InputError
 from dronetrack.geometry import FloatArray
 from dronetrack.io.view import NamedTransform, ViewerSink, ViewFrame
 
@@ -51,27 +51,45 @@ def open_viewers(
     ``start`` [s since the Unix epoch] is added to every frame's time for the
     files' timestamps: 0 for a simulation, the recording's clock for a replay.
 
-    Both SDKs are checked before any file is opened, so a missing extra leaves no
-    half-written file behind.  An existing file is overwritten.
+    Both SDKs, and that both files can be written, are checked before any file is
+    opened, so a missing extra or a bad path leaves no half-written file behind.  An
+    existing file is overwritten.  A path that cannot be written raises a one-line
+    ``ConfigError`` that names it.
     """
     # Imported here: the writer modules import the helpers of this module.
     from dronetrack.io.foxglove_out import FoxgloveWriter, require_foxglove
     from dronetrack.io.rerun_out import RerunWriter, require_rerun
+    from dronetrack.io.runs import prepare_output_file
 
     if foxglove is not None:
         require_foxglove()
     if rerun is not None:
         require_rerun()
+    if foxglove is not None:
+        prepare_output_file(foxglove, "--foxglove")
+    if rerun is not None:
+        prepare_output_file(rerun, "--rerun")
     sinks: list[ViewerSink] = []
     try:
         if foxglove is not None:
-            sinks.append(FoxgloveWriter(foxglove, start))
+            sinks.append(_opened(FoxgloveWriter, foxglove, start, "--foxglove"))
         if rerun is not None:
-            sinks.append(RerunWriter(rerun, start))
+            sinks.append(_opened(RerunWriter, rerun, start, "--rerun"))
     except BaseException:
         close_viewers(sinks)
         raise
     return sinks
+
+
+def _opened(
+    writer: Callable[[Path, float], ViewerSink], path: Path, start: float, option: str
+) -> ViewerSink:
+    """``writer(path, start)``, with the SDK's own failure to create the file (an
+    ``OSError`` or a ``RuntimeError`` from its native core) as a ``ConfigError``."""
+    try:
+        return writer(path, start)
+    except (OSError, RuntimeError) as err:
+        raise ConfigError(f"{option} {path}: cannot write it ({err})") from None
 
 
 def close_viewers(sinks: Iterable[ViewerSink]) -> None:

@@ -13,7 +13,6 @@ override any key.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar, Literal, Self
@@ -23,6 +22,7 @@ from pydantic import Field, ValidationError, model_validator
 
 from dronetrack.config import PipelineConfig, StrictModel
 from dronetrack.errors import ScenarioError
+from dronetrack.tomlfile import read_toml
 
 __all__ = [
     "DroneConfig",
@@ -195,13 +195,7 @@ def validate_scenario(data: dict[str, Any], source: str) -> ScenarioConfig:
 
 def load_scenario_file(path: Path, named: dict[str, ScenarioConfig]) -> ScenarioConfig:
     """Read a scenario TOML file; ``base = "name"`` starts from a named scenario."""
-    try:
-        with path.open("rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise ScenarioError(f"scenario file not found: {path}") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(f"{path}: invalid TOML: {err}") from None
+    data = read_toml(path, "scenario file", ScenarioError)
     base_name = data.pop("base", None)
     if base_name is not None:
         if not isinstance(base_name, str) or base_name not in named:

@@ -247,6 +247,32 @@ class SimWorld:
         body[:, :3, 3] += self.odometry.sample(times)
         return true, body @ poses, position, body[-1, :3, 3].copy()
 
+    def warm_up(self) -> None:
+        """Run every numba kernel of a frame once, so none compiles inside a timed loop.
+
+        A throwaway turret and LiDAR, on this world's scene, sensor, drone and flight,
+        turn towards the target's starting point for a few milliseconds and scan; the
+        random stream is a fresh one.  The world itself (its turret, time and ``rng``)
+        is untouched, so a run is the same with or without a warm-up.
+        """
+        t0 = self.time
+        plant = TurretPlant(self.plant.spec, self.mount, pan=0.0, tilt=0.0, t0=t0)
+        aim = self.trajectory.position(t0)[0] - np.asarray(self.mount.base, dtype=np.float64)
+        plant.command(TurretCommand(t0, math.atan2(aim[1], aim[0]), 0.0))
+        period = min(self.integration_time, 0.005)
+        times, pan, tilt = plant.advance(t0 + period)
+        poses = sensor_poses(pan, tilt, self.mount)
+        if self.observer is not None:  # without odometry drift, which has a stream of its own
+            poses = self.observer.body_poses(times) @ poses
+        lidar = LidarSimulator(
+            self.lidar.sensor,
+            self.lidar.scene,
+            self.lidar.drone,
+            self.trajectory,
+            self.lidar.extinction,
+        )
+        lidar.scan(t0, t0 + period, times, poses, np.random.default_rng(0))
+
     def step(self) -> tuple[Frame, FrameTruth]:
         """Integrate one frame: move the turret, fire the pattern, return frame and truth."""
         t0 = self._t0 + self._frames * self.integration_time

@@ -23,7 +23,6 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +36,7 @@ from dronetrack.sim.scenario import (
     format_validation_error,
     validate_scenario,
 )
+from dronetrack.tomlfile import read_toml
 
 __all__ = [
     "SIMULATE_OPTIONS",
@@ -121,13 +121,7 @@ class RunSpec:
 
 def load_grid(path: Path) -> GridSpec:
     """Read and validate a grid file; recording paths become absolute (relative to it)."""
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError(f"grid file not found: {path}") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"{path}: invalid TOML: {err}") from None
+    data = read_toml(path, "grid file")
     try:
         spec = GridSpec.model_validate(data)
     except ValidationError as err:

@@ -16,7 +16,9 @@ import concurrent.futures as cf
 import logging
 import multiprocessing as mp
 import os
+import signal
 import socket
+import sys
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -25,6 +27,7 @@ from pathlib import Path
 from typing import Any, cast
 
 from dronetrack.errors import ConfigError, DronetrackError, MissingExtraError
+from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.sweep.grid import RunSpec, run_config
 from dronetrack.sweep.store import ResultStore
 
@@ -95,12 +98,23 @@ def _eq11(cfg: Any) -> dict[str, float]:
     }
 
 
+def _ignore_sigint() -> None:
+    """Worker start-up: Ctrl-C is the parent's to handle (it stops the pool)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def local_executor(workers: int) -> ExecutorFactory:
-    """Local worker processes (forkserver: safe with numba's and rich's threads)."""
+    """Local worker processes (forkserver: safe with numba's and rich's threads).
+
+    The workers ignore Ctrl-C, which a terminal sends to every process of the group:
+    the sweep decides what an interrupt means (``run_sweep``), not each run.
+    """
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     context = mp.get_context("forkserver")
-    return lambda: cf.ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    return lambda: cf.ProcessPoolExecutor(
+        max_workers=workers, mp_context=context, initializer=_ignore_sigint
+    )
 
 
 def dask_executor(address: str) -> tuple[ExecutorFactory, Callable[[], None]]:
@@ -124,10 +138,13 @@ def run_sweep(
     executor: ExecutorFactory,
     progress: Progress | None = None,
 ) -> Counter[str]:
-    """Run every run not yet in ``store``; return counts of "done", "failed", "skipped".
+    """Run every run not yet in ``store``; return counts of "done", "failed", "skipped",
+    and "unfinished" when Ctrl-C stopped the sweep.
 
     Results are stored as they arrive, so an interruption or a dead worker loses none
-    of the finished ones; rerunning the sweep only runs what is missing.
+    of the finished ones; rerunning the sweep only runs what is missing.  A Ctrl-C
+    handled by ``dronetrack.interrupt`` stops the workers at once: the runs they
+    had in hand are not stored (not even as failed), so a rerun does them.
     """
     counts: Counter[str] = Counter(skipped=sum(1 for r in runs if r.key in store.done))
     suspects: Counter[str] = Counter()  # pool breaks while a run was executing
@@ -136,8 +153,12 @@ def run_sweep(
     if progress is not None:
         progress(counts["skipped"], total, {})
     while pending:
-        broken = _one_pool(pending, store, executor, counts, suspects, progress, total)
+        with stoppable():
+            broken = _one_pool(pending, store, executor, counts, suspects, progress, total)
         pending = [r for r in pending if r.key not in store.done]
+        if stop_requested():
+            counts["unfinished"] = len(pending)
+            break
         if not broken:
             break
         for run in pending:
@@ -172,7 +193,7 @@ def _one_pool(
         futures = {ex.submit(run_one, run): run for run in pending}
         waiting: set[cf.Future[dict[str, Any]]] = set(futures)
         started: set[cf.Future[dict[str, Any]]] = set()
-        while waiting:
+        while waiting and not stop_requested():
             done, waiting = cf.wait(waiting, timeout=1.0, return_when=cf.FIRST_COMPLETED)
             for fut in done:
                 run = futures[fut]
@@ -191,7 +212,20 @@ def _one_pool(
     finally:
         for f in futures:  # the runs not yet started (a broken pool's, or on an interrupt)
             f.cancel()
+        if stop_requested() or sys.exc_info()[0] is not None:
+            _terminate_workers(ex)  # runs in hand are dropped, to be run again on resume
         ex.shutdown(wait=False)
+
+
+def _terminate_workers(ex: cf.Executor) -> None:
+    """Stop a local pool's worker processes now (their runs are lost, none is stored)."""
+    terminate = getattr(ex, "terminate_workers", None)  # Python 3.14 and later
+    if callable(terminate):
+        terminate()
+        return
+    processes = getattr(ex, "_processes", None) or {}
+    for process in list(processes.values()):
+        process.terminate()
 
 
 def _store(

@@ -1,0 +1,73 @@
+"""Ctrl-C: end a long loop between two of its steps, and keep what it has done.
+
+The command line installs the handler (``handling_sigint``) for the length of a
+command.  Inside a ``stoppable()`` block a first Ctrl-C (SIGINT) only sets a flag
+that the loop reads between steps (``stop_requested``): the loop ends early, and
+its caller writes what was done and reports the run as interrupted.  Nothing is
+cut off in the middle of a step, so no numba kernel or half-written row sees the
+interrupt.  A second Ctrl-C, or one outside a ``stoppable()`` block (loading,
+compiling, writing plots), raises ``KeyboardInterrupt`` at once.
+
+Library code never installs the handler: without it Ctrl-C raises
+``KeyboardInterrupt`` as usual and ``stop_requested`` is always False.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from types import FrameType
+
+__all__ = ["handling_sigint", "stop_requested", "stoppable"]
+
+
+@dataclass
+class _State:
+    installed: bool = False
+    loops: int = 0  # stoppable() blocks open
+    requested: bool = False
+
+
+# Process-wide by nature: there is one SIGINT per process.
+_state = _State()
+
+
+def _on_sigint(signum: int, frame: FrameType | None) -> None:
+    if _state.loops > 0 and not _state.requested:
+        _state.requested = True
+        return
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def handling_sigint() -> Iterator[None]:
+    """Handle Ctrl-C as this module says inside the block (main thread only; elsewhere
+    the block runs with Python's default handling)."""
+    if threading.current_thread() is not threading.main_thread() or _state.installed:
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, _on_sigint)
+    _state.installed, _state.requested = True, False
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        _state.installed, _state.requested, _state.loops = False, False, 0
+
+
+@contextmanager
+def stoppable() -> Iterator[None]:
+    """A loop that reads ``stop_requested()`` between its steps."""
+    _state.loops += 1
+    try:
+        yield
+    finally:
+        _state.loops -= 1
+
+
+def stop_requested() -> bool:
+    """Whether Ctrl-C asked the running loop to stop."""
+    return _state.requested
