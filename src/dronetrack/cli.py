@@ -213,6 +213,7 @@ def render(
     (one row per frame), scenario.toml (the resolved scenario) and preview.png.
     """
 
+    from dronetrack.io.runs import check_run_dir
     from dronetrack.render import render_scenario, write_rendering
     from dronetrack.sim.scenario import apply_overrides
     from dronetrack.sim.scenarios import get_scenario
@@ -227,6 +228,7 @@ def render(
         sensor=sensor,
         noise=noise,
     )
+    check_run_dir(out)
     with progress_bar(columns=False) as bar:
         task = bar.add_task(f"rendering {cfg.name}", total=None)
         rendering = render_scenario(
@@ -358,11 +360,11 @@ def compare(
     from dronetrack.compare.runner import run_suite
     from dronetrack.compare.suites import get_suite
     from dronetrack.compare.tables import aggregate, write_tables
-    from dronetrack.io.runs import default_run_dir
+    from dronetrack.io.runs import check_run_dir, default_run_dir
 
     chosen = get_suite(suite)
     subset = [m.strip() for m in methods.split(",") if m.strip()] if methods else None
-    out_dir = out if out is not None else default_run_dir()
+    out_dir = check_run_dir(out if out is not None else default_run_dir())
     with progress_bar() as bar:
         task = bar.add_task(chosen.name, total=None)
 
@@ -402,6 +404,8 @@ def run(argv: list[str] | None = None) -> int:
         return int(stop.exit_code)
     except NoArgsIsHelpError:  # the help was printed: no error to add
         return 0
+    except RunInterruptedError as stop:
+        return _interrupted(str(stop))
     except (typer.Abort, KeyboardInterrupt):
         return _interrupted()
     except typer.TyperException as err:  # usage errors: unknown option, missing argument, ...
@@ -414,7 +418,14 @@ def run(argv: list[str] | None = None) -> int:
         if _caused_by_interrupt(err):
             return _interrupted()
         raise
+    if result == INTERRUPTED:  # typer turns a KeyboardInterrupt into this exit code
+        return _interrupted()
     return int(result) if isinstance(result, int) else 0
+
+
+class RunInterruptedError(DronetrackError):
+    """A command whose loop Ctrl-C stopped, after it wrote what it had; the message
+    ends the ``interrupted`` line."""
 
 
 INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command killed by Ctrl-C
@@ -443,9 +454,9 @@ def _caused_by_interrupt(err: BaseException) -> bool:
 
 def stop_if_interrupted(interrupted: bool, note: str = "") -> None:
     """End a command whose loop Ctrl-C stopped (after it wrote what it had): one
-    ``interrupted`` line, exit code 130."""
+    ``interrupted`` line, ending with ``note``, and exit code 130."""
     if interrupted:
-        raise typer.Exit(_interrupted(note))
+        raise RunInterruptedError(note)
 
 
 def main() -> None:

@@ -116,9 +116,9 @@ def bench(
     machine, targets) and prints a table that marks each speed target met or missed.
     """
 
-    from dronetrack.io.runs import default_run_dir
+    from dronetrack.io.runs import check_run_dir, default_run_dir, prepare_run_dir
 
-    out_dir = out if out is not None else default_run_dir()
+    out_dir = check_run_dir(out if out is not None else default_run_dir())
     from dronetrack.bench import bench as run_bench
     from dronetrack.bench import single_thread
 
@@ -138,7 +138,7 @@ def bench(
             replay_s=replay_seconds,
             progress=report,
         )
-    out_dir.mkdir(parents=True, exist_ok=True)
+    prepare_run_dir(out_dir)
     path = out_dir / "bench.json"
     path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
     Console().print(bench_table(results, path))

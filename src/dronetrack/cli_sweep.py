@@ -41,7 +41,7 @@ def sweep(
     again to resume: finished runs are skipped, so a finished sweep adds nothing.
     """
 
-    from dronetrack.io.runs import default_run_dir
+    from dronetrack.io.runs import default_run_dir, prepare_run_dir
     from dronetrack.sweep.grid import check_keys, expand, load_grid
     from dronetrack.sweep.runner import dask_executor, local_executor, run_sweep
     from dronetrack.sweep.store import ResultStore
@@ -51,8 +51,7 @@ def sweep(
     spec = load_grid(grid)
     check_keys(spec, _base_config(spec))
     runs = expand(spec)
-    out_dir = out if out is not None else default_run_dir()
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = prepare_run_dir(out if out is not None else default_run_dir())
     if not (out_dir / "grid.toml").exists():
         shutil.copyfile(grid, out_dir / "grid.toml")
     store = ResultStore(out_dir / "results.jsonl")

@@ -317,6 +317,13 @@ def log_result(
     sensor = frame.poses[-1, :3, 3]
     gt = np.full(3, np.nan) if gt is None else gt
     var = est.variance
+    if est.measurement is not None:  # a Kalman filter's z
+        meas_error = float(np.linalg.norm(est.measurement - gt))
+    elif est.particles is not None and result.periods > 0 and len(result.foreground):
+        # a particle filter updates on every foreground point: the nearest counts
+        meas_error = float(np.min(np.linalg.norm(result.foreground - gt, axis=1)))
+    else:
+        meas_error = math.nan
     log.append(
         t=frame.end,
         gt=gt,
@@ -333,6 +340,7 @@ def log_result(
         pos_var=float(var[0]) if var is not None else math.nan,
         vel_var=float(var[3]) if var is not None else math.nan,
         measured=est.measurement is not None,
+        meas_error=meas_error,
     )
 
 

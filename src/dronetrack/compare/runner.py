@@ -17,7 +17,7 @@ import numpy as np
 
 from dronetrack.compare.suites import Case, Suite
 from dronetrack.errors import ConfigError
-from dronetrack.eval.metrics import correct, longest_run, rmse
+from dronetrack.eval.metrics import correct, longest_run, max_tracking_distance, rmse
 from dronetrack.factory import build_tracker
 from dronetrack.geometry import FloatArray
 from dronetrack.io.strategy_logs import StrategyLogger
@@ -158,7 +158,9 @@ def run_metrics(suite: Suite, sim: SimulationRun) -> dict[str, float]:
     step_ms = float(np.mean(a["step_ms"])) if len(a["step_ms"]) else 0.0
     out = {
         "coverage_pct": 100.0 * float(ok.mean()) if counted and len(ok) else 0.0,
-        "max_tracking_distance_m": (float(a["range_m"][ok].max()) if counted and ok.any() else 0.0),
+        "max_tracking_distance_m": (
+            max_tracking_distance(err, a["range_m"], radius, a["meas_error_m"]) if counted else 0.0
+        ),
         "rmse_m": r.value,
         "rmse_3d_m": r.value,
         "rmse_ci_low_m": r.ci95[0],

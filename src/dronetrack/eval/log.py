@@ -39,9 +39,10 @@ FRAME_COLUMNS = (
     "tilt_rad",
     "step_ms",
 )
-# Written after ``flags``: a Kalman filter's x and v_x variances, and whether the
-# frame's update used a measurement.
-EXTRA_COLUMNS = ("pos_var", "vel_var", "measured")
+# Written after ``flags``: a Kalman filter's x and v_x variances, whether the
+# frame's update used a measurement, and how far the measurement it used lay from
+# the truth (see ``TrackLog.meas_error``).
+EXTRA_COLUMNS = ("pos_var", "vel_var", "measured", "meas_error_m")
 
 
 @dataclass(slots=True)
@@ -63,6 +64,10 @@ class TrackLog:
     pos_var: list[float] = field(default_factory=list)  # P(x, x) of a Kalman filter [m²]
     vel_var: list[float] = field(default_factory=list)  # P(vx, vx) [(m/s)²]
     measured: list[bool] = field(default_factory=list)  # the filter used a measurement
+    # Distance [m] from the true position to the measurement the frame's update used:
+    # a Kalman filter's z, or the foreground point nearest the truth for a particle
+    # filter (which weighs every point); NaN without an update or without truth.
+    meas_error: list[float] = field(default_factory=list)
 
     def append(
         self,
@@ -82,6 +87,7 @@ class TrackLog:
         pos_var: float = float("nan"),
         vel_var: float = float("nan"),
         measured: bool = False,
+        meas_error: float = float("nan"),
     ) -> None:
         self.t.append(t)
         self.gt.append(np.asarray(gt, dtype=np.float64))
@@ -98,6 +104,7 @@ class TrackLog:
         self.pos_var.append(float(pos_var))
         self.vel_var.append(float(vel_var))
         self.measured.append(bool(measured))
+        self.meas_error.append(float(meas_error))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -126,6 +133,7 @@ class TrackLog:
             "pos_var": np.array(self.pos_var, dtype=np.float64),
             "vel_var": np.array(self.vel_var, dtype=np.float64),
             "measured": np.array(self.measured, dtype=bool),
+            "meas_error_m": np.array(self.meas_error, dtype=np.float64),
             "flags": np.array(self.flags, dtype=object),
         }
 
@@ -149,7 +157,9 @@ class TrackLog:
         err = est - gt
         out["correct_radius_m"] = radius
         out["coverage_pct"] = coverage_pct(err, radius)
-        out["max_tracking_distance_m"] = max_tracking_distance(err, a["range_m"], radius)
+        out["max_tracking_distance_m"] = max_tracking_distance(
+            err, a["range_m"], radius, a["meas_error_m"]
+        )
         # RMSE over the frames from the first lock on (tracked or not), as the
         # reference windows its accuracy runs after the filter has locked.
         start = int(np.argmax(tracked)) if tracked.any() else len(err)

@@ -6,7 +6,8 @@ Seed 000 (§III-A, III-C, III-E):
   accuracy) of the ground truth;
 - track coverage = correct frames / all frames [%];
 - maximum tracking distance = the largest sensor-to-target range among the
-  correct frames;
+  correct frames whose update used a measurement near the truth (so a filter
+  coasting on its prediction past the last return does not extend it);
 - RMSE = √(1/n Σ ‖x̂_i − x_i‖²) (eq. 13), with the 95 % confidence interval
   from the chi-squared distribution: n·RMSE² / σ² ~ χ²(n), so
   σ ∈ [√(n RMSE² / χ²₀.₉₇₅(n)), √(n RMSE² / χ²₀.₀₂₅(n))].
@@ -53,10 +54,22 @@ def coverage_pct(errors: FloatArray, radius: float = CORRECT_RADIUS_M) -> float:
 
 
 def max_tracking_distance(
-    errors: FloatArray, ranges: FloatArray, radius: float = CORRECT_RADIUS_M
+    errors: FloatArray,
+    ranges: FloatArray,
+    radius: float = CORRECT_RADIUS_M,
+    meas_errors: FloatArray | None = None,
 ) -> float:
-    """Largest sensor-to-target range [m] among the correct frames (0 if none)."""
+    """Largest sensor-to-target range [m] among the correct frames (0 if none).
+
+    With ``meas_errors`` (N,), the distance of each frame's measurement from the
+    truth (NaN: the update used none), only frames whose update used a measurement
+    within ``radius`` of the truth count: an estimate coasting on the prediction
+    is not tracking at that range, however close it happens to be.
+    """
     ok = correct(errors, radius)
+    if meas_errors is not None:
+        m = np.asarray(meas_errors, dtype=np.float64)
+        ok &= np.isfinite(m) & (m <= radius)
     return float(ranges[ok].max()) if np.any(ok) else 0.0
 
 

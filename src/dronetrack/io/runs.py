@@ -69,6 +69,7 @@ def frame_row(log: TrackLog, i: int) -> list[str]:
         _number(log.pos_var[i]),
         _number(log.vel_var[i]),
         str(int(log.measured[i])),
+        _number(log.meas_error[i]),
     ]
 
 
