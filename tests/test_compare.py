@@ -58,7 +58,11 @@ def test_ranking_differences_name_the_disagreements() -> None:
     assert ranking_differences(same) == []
     flipped = aggregate(_SUITE, [_result("a", 0, 80, 1), _result("b", 0, 70, 1)])
     (line,) = ranking_differences(flipped)
-    assert line == "x, coverage_pct (best first): ours a, b; seed b, a"
+    # One run each: the order of the means, with no claim that the gap is real.
+    assert line == (
+        "x, coverage_pct (higher is better): ours a 80, then b 70; seed b 60, a 50.  "
+        "Swapped against the seed: a 80 before b 70 (unjudged)"
+    )
     # A tie ranks nothing.
     tie = aggregate(_SUITE, [_result("a", 0, 70, 1), _result("b", 0, 70, 1)])
     assert ranking_differences(tie) == []
@@ -153,7 +157,13 @@ def test_compare_writes_the_table_contract(tmp_path: Path) -> None:
     assert paper["moving", "pf-delta", "coverage_pct"] == "71.35"
     assert paper["fixed", "ekf-dogru", "max_tracking_distance_m"] == "80.3"
     assert all(math.isfinite(float(r[3])) for r in body)
-    assert "| pf-delta |" in (out / "table.md").read_text()
+    md = (out / "table.md").read_text()
+    assert "| pf-delta |" in md
+    # The options the table was run with, and the warning for the cut flights.
+    assert "- `--runs 2`: seeds 0 and 1 " in md
+    assert "- `--duration 4` s: shortened" in md
+    assert "- methods: ekf-dogru, pf-delta (`--methods`; not run: pf-cv)" in md
+    assert "**Shortened runs.**  These flights were cut to 4 s" in md
 
 
 @pytest.mark.parametrize(

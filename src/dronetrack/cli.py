@@ -380,7 +380,8 @@ def compare(
             progress=report,
         )
     rows = aggregate(chosen, results)
-    paths = write_tables(chosen, rows, out_dir)
+    ran = tuple(dict.fromkeys(r.method for r in results))
+    paths = write_tables(chosen, rows, out_dir, runs=runs, duration=duration, methods=ran)
     Console().print((out_dir / "table.md").read_text(), markup=False, highlight=False)
     for p in paths:
         typer.echo(str(p))

@@ -38,8 +38,10 @@ class Suite:
     lockstep: bool = True  # methods share one world
     init_on_clean_view: bool = False  # Kalman filters start on the drone alone in view
     min_consecutive: int = 0  # a run counts only after this many correct frames in a row
-    note: str = ""
-    ranking_note: str = ""  # why our ranking of the methods differs from the seed's
+    note: str = ""  # definitions of the metrics and of the set-up
+    # How our set-up differs from the seed's and what that acts on.  It explains, it
+    # does not rank: table.md writes every ranking from the numbers.
+    setup_note: str = ""
 
 
 def _grid(
@@ -161,19 +163,17 @@ _SEED003 = _grid(
     _SEED003_METRICS,
 )
 
-_DOGRU_WHY = (
-    "ekf-dogru loses the drone within 25 m here (seed: 131 m): with the reference's "
-    "Q = 0.05² I its search sphere r = 3 √max(Pxx, Pyy, Pzz) shrinks to about 0.3 m once "
-    "locked, and its velocity changes by 0.05 m/s a step, so it falls behind the climb "
-    "and the acceleration to 8-15 m/s that follow our clean-view start at take-off; "
-    "the seed restarted it 3 s into each recording, in flight.  ekf-catalano-mod's fixed "
-    "1.5 m sphere holds on longer for the same reason.  The particle filters cover more "
-    "than in the seed because the simulated sky is clean and the truth carries no GPS "
-    "error.  pf-cv and pf-delta tie on the steady flights (their order there is noise); "
-    "on horizontal fast pf-cv loses the drone at a 15 m/s reversal, a "
-    "15 m/s² turn its σ_vel = 0.5 m/s-per-step velocity walk cannot follow while the "
-    "points thin out, where the delta model re-estimates the velocity from the "
-    "particles' displacement every step."
+_OUTDOOR_SETUP = (
+    "ekf-dogru runs with the reference's Q = 0.05² I: once locked, its search sphere "
+    "r = 3 √max(Pxx, Pyy, Pzz) shrinks to about 0.3 m and its velocity changes by about "
+    "0.05 m/s a step.  Our Kalman filters start on the clean view at take-off, so they "
+    "have to follow the climb and the acceleration to 8-15 m/s that come after it; the "
+    "seed restarted ekf-dogru 3 s into each recording, in flight.  ekf-catalano-mod "
+    "searches a fixed 1.5 m sphere.  The simulated sky is clean and the truth carries "
+    "no GPS error, unlike the seed's recordings.  The horizontal-fast flight reverses at "
+    "15 m/s, a 15 m/s² turn, while the points thin out: pf-cv's velocity follows a "
+    "random walk of σ_vel = 0.5 m/s per step, while pf-delta re-estimates the velocity "
+    "from the particles' displacement every step."
 )
 
 _LIST = [
@@ -191,7 +191,7 @@ _LIST = [
             "frames; the Kalman filters start on the first frame whose foreground is the drone "
             "alone; a run with fewer than five consecutive correct frames scores 0."
         ),
-        ranking_note=_DOGRU_WHY,
+        setup_note=_OUTDOOR_SETUP,
     ),
     Suite(
         name="seed000-ablation",
@@ -209,10 +209,10 @@ _LIST = [
             "Fixed: the turret holds its home direction.  Moving: it follows the true drone, "
             "as in Table III."
         ),
-        ranking_note=(
-            "The fixed sensor does worse than in the seed for every method: the simulated "
-            "rosette is 10-20 times sparser 20-30° off its axis than at its centre, and the "
-            "passes sweep ±40 m across the line of sight.  " + _DOGRU_WHY
+        setup_note=(
+            "From the fixed sensor, the simulated rosette is 10-20 times sparser 20-30° off "
+            "its axis than at its centre, and the passes sweep ±40 m across the line of "
+            "sight.  " + _OUTDOOR_SETUP
         ),
     ),
     Suite(
@@ -229,19 +229,15 @@ _LIST = [
             "tracked or not (eq. 13), per run and then averaged; the interval ends are each "
             "run's chi-square 95 % interval, averaged (the seed pooled its five runs)."
         ),
-        ranking_note=(
-            "pf-delta is the most accurate on the fast and lost-and-found patterns, as in "
-            "the seed; on the slow horizontal and vertical patterns Dogru's EKF is more "
-            "accurate, 5 cm on every run, where pf-delta's error varies from run to run "
-            "(horizontal 5-16 cm, vertical 3-17 cm over seeds 0-4): the simulated returns "
-            "carry no motion-capture marker offsets, so the centroid near the prediction is "
-            "already within centimetres and a constant-velocity Kalman filter smooths it "
-            "better than particles weighted at σ_m = 6 cm.  ekf-catalano is accurate on our "
-            "vertical pattern (the seed's 0.6 m came "
-            "from its vertical-equals-planar-speed model; our pattern climbs 6 cm a frame "
-            "with no planar speed, which its 0.2 m sphere still catches), and its fixed "
-            "sphere never recaptures the drone after the partition, as in the seed.  "
-            "pf-cv trails pf-delta everywhere, as there."
+        setup_note=(
+            "The simulated returns carry no motion-capture marker offsets, so the centroid "
+            "near the prediction is already within centimetres of the drone; a "
+            "constant-velocity Kalman filter smooths it, and the particles are weighted at "
+            "σ_m = 6 cm.  ekf-catalano's model sets the vertical speed equal to the planar "
+            "one, where the seed's 0.6 m on the vertical pattern came from; our vertical "
+            "pattern climbs 6 cm a frame with no planar speed, within its 0.2 m sphere.  Its "
+            "fixed sphere does not grow while the drone is hidden, so it recaptures the "
+            "drone after the partition only if the drone reappears inside it."
         ),
     ),
     Suite(
@@ -260,16 +256,14 @@ _LIST = [
             "second, capped at the sensor rate.  The paper's 3-D RMSE (13.0 m "
             "for the KF) is below its own x and y RMSE, which a 3-D RMSE cannot be."
         ),
-        ranking_note=(
-            "The accuracy ranking is the seed's (aekf-ca, then pf-systematic, then kf-ca), "
-            "at larger errors: our target spends long stretches beyond about 50 m, where "
-            "the Mid-360 gets no returns from an F550 and every filter is blind; the ended "
-            "aekf-ca track holds its last position, kf-ca extrapolates its last "
-            "acceleration for hundreds of metres (the divergence the seed describes), and "
-            "the particle cloud drifts.  cpu_pct and memory_mb rank the other way round "
-            "because they measure different things: ours the tracker's own time per frame "
-            "and allocations, where 2,000 particles cost more than a 9-state filter; the "
-            "seed's whole ROS processes on a Jetson Nano."
+        setup_note=(
+            "Our target spends long stretches beyond about 50 m, where the Mid-360 gets no "
+            "returns from an F550 and every filter is blind: the ended aekf-ca track holds "
+            "its last position, kf-ca extrapolates its last acceleration (the divergence the "
+            "seed describes), and the particle cloud drifts.  cpu_pct and memory_mb measure "
+            "something else than the seed's: ours the tracker's own time per frame and "
+            "allocations (2,000 particles, or a 9-state filter), the seed's whole ROS "
+            "processes on a Jetson Nano."
         ),
     ),
     Suite(
@@ -287,18 +281,15 @@ _LIST = [
             "mean 3-D error, over the frames it is tracking (not lost: a detection within "
             "2 s and its covariance below the limit), as seed 003's EKF only runs when "
             "centroids arrive.  Our flight is 100 s of laps; the thesis logged a longer "
-            "one, so its detection counts are higher."
+            "one, so the detection counts are not on the same footing."
         ),
-        ranking_note=(
-            "As in the thesis, sweeping is the worst on every count and swing is the most "
-            "accurate fixed strategy (error_3d_m); adaptive is better still, with the "
-            "lowest error of all five.  Stop collects about as many "
-            "detections as swing here, not clearly more: our drone laps at 4 m/s at "
-            "10-33 m, 7-23°/s across the beam, so during a 5 s hold it leaves the 30° fan "
-            "and the stop waits for the sweep to come back; the thesis's drone was slower "
-            "across the beam.  Slow-down gains little over the sweep because a quarter "
-            "speed over 10° keeps the fan on the target for only about a second more per "
-            "pass.  The variances rank with the detection rate: more fixes, smaller P."
+        setup_note=(
+            "Our drone laps at 4 m/s at 10-33 m, 7-23°/s across the beam, so during a 5 s "
+            "stop it can leave the 30° fan, and the stop then waits for the sweep to come "
+            "back; the thesis's drone crossed the beam slower.  Slow-down turns at a quarter "
+            "speed over 10°, which keeps the fan on the target for about a second more per "
+            "pass.  The EKF's variances shrink with every fix, so they follow the detection "
+            "rate."
         ),
     ),
 ]
