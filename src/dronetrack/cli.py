@@ -51,7 +51,13 @@ RunDirOption = Annotated[
 ]
 FlightDurationOption = Annotated[
     float | None,
-    typer.Option("--duration", "-d", min=0.01, help="Seconds of flight after the scan."),
+    typer.Option(
+        "--duration",
+        "-d",
+        min=0.01,
+        help="Seconds of flight, after the background scan (scan_s, 10 s by default): "
+        "the run lasts scan + flight.",
+    ),
 ]
 FoxgloveOption = Annotated[
     Path | None,
@@ -188,7 +194,8 @@ def render(
             "--duration",
             "-d",
             min=0.01,
-            help="Seconds to simulate (default: the scenario's).",
+            help="Seconds of flight to render (default: the scenario's); unlike simulate, "
+            "no background scan comes first, so this is the whole rendering.",
         ),
     ] = None,
     seed: SeedOption = None,
@@ -393,18 +400,16 @@ def run(argv: list[str] | None = None) -> int:
     Ctrl-C ends a running loop after its current frame (``dronetrack.interrupt``); the
     command keeps what it had done and exits with 130 after one ``interrupted`` line.
     """
-    from click.exceptions import NoArgsIsHelpError
-
     from dronetrack.interrupt import handling_sigint
 
+    if argv is not None and not argv:
+        argv = ["--help"]  # bare `dronetrack`: the help, and no error
     command = typer.main.get_command(app)
     try:
         with handling_sigint():
             result = command.main(args=argv, prog_name="dronetrack", standalone_mode=False)
     except typer.Exit as stop:
         return int(stop.exit_code)
-    except NoArgsIsHelpError:  # the help was printed: no error to add
-        return 0
     except RunInterruptedError as stop:
         return _interrupted(str(stop))
     except (typer.Abort, KeyboardInterrupt):

@@ -144,6 +144,7 @@ def track(
     from dronetrack.sim.scenarios import SCENARIOS
     from dronetrack.simulate import RunFolder
 
+    folder = RunFolder(out if out is not None else default_run_dir())
     origin = _floats(gt_origin, 3, "--gt-origin")
     options = ReplayOptions(
         lidar_topic=lidar_topic,
@@ -164,7 +165,6 @@ def track(
         background_file=background,
         background_from=background_from,
     )
-    folder = RunFolder(out if out is not None else default_run_dir())
     try:
         viewers = open_viewers(foxglove, rerun, start=source.origin)
         try:

@@ -29,6 +29,46 @@ def test_coverage_and_max_distance() -> None:
     assert coverage_pct(np.empty((0, 3))) == 0.0
 
 
+def test_max_distance_counts_only_frames_updated_near_the_truth() -> None:
+    """A filter coasting on its prediction past the last return is close to the truth
+    for a while; those frames do not extend the maximum tracking distance."""
+    err = np.zeros((5, 3))  # every estimate correct
+    ranges = np.array([30.0, 31.0, 33.8, 34.9, 35.9])
+    # Measurement errors: frames 3 and 4 had no update (NaN), frame 1 updated on
+    # a return 6 m from the truth (clutter).
+    meas = np.array([0.2, 6.0, 0.3, np.nan, np.nan])
+    assert max_tracking_distance(err, ranges) == 35.9
+    assert max_tracking_distance(err, ranges, 4.0, meas) == 33.8
+    # An update near the truth with a wrong estimate does not count either.
+    err[2] = [5.0, 0.0, 0.0]
+    assert max_tracking_distance(err, ranges, 4.0, meas) == 30.0
+    assert max_tracking_distance(err, ranges, 4.0, np.full(5, np.nan)) == 0.0
+
+
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(0, 10),
+            st.floats(0, 200),
+            st.one_of(st.just(float("nan")), st.floats(0, 10)),
+        ),
+        min_size=1,
+        max_size=30,
+    )
+)
+def test_max_distance_with_measurements_never_exceeds_the_plain_one(
+    rows: list[tuple[float, float, float]],
+) -> None:
+    err = np.array([[e, 0.0, 0.0] for e, _, _ in rows])
+    ranges = np.array([r for _, r, _ in rows])
+    meas = np.array([m for _, _, m in rows])
+    plain = max_tracking_distance(err, ranges, 4.0)
+    supported = max_tracking_distance(err, ranges, 4.0, meas)
+    assert supported <= plain
+    ok = (err[:, 0] <= 4.0) & (meas <= 4.0)
+    assert supported == (ranges[ok].max() if ok.any() else 0.0)
+
+
 def test_rmse_and_its_chi_square_interval() -> None:
     err = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0], [1.0, 2.0, 2.0]])
     r = rmse(err)

@@ -56,29 +56,31 @@ def _read(path: Path, cells: bool) -> tuple[BackgroundSettings, IntArray | None]
     (the npz members load lazily, so settings alone skip the cells)."""
     if not path.is_file():
         raise InputError(f"background file not found: {path}")
-    with path.open("rb") as fh:
-        if fh.read(4) != b"PK\x03\x04":  # an .npz is a zip archive
-            raise InputError(f"{path} is not a background model (not an .npz archive); {_HINT}")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            missing = [name for name in _MEMBERS if name not in data.files]
-            if missing:
-                raise InputError(
-                    f"{path} is not a dronetrack background model (it has no "
-                    f"{', '.join(missing)}); {_HINT}"
+        # The file is opened here, so it is closed even when numpy cannot read it.
+        with path.open("rb") as fh:
+            if fh.read(4) != b"PK\x03\x04":  # an .npz is a zip archive
+                raise InputError(f"{path} is not a background model (not an .npz archive); {_HINT}")
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as data:
+                missing = [name for name in _MEMBERS if name not in data.files]
+                if missing:
+                    raise InputError(
+                        f"{path} is not a dronetrack background model (it has no "
+                        f"{', '.join(missing)}); {_HINT}"
+                    )
+                if str(data["format"]) != FORMAT:
+                    raise InputError(
+                        f"{path} is a background model of another format "
+                        f"({str(data['format'])!r}, not {FORMAT!r}); {_HINT}"
+                    )
+                settings = BackgroundSettings(
+                    float(data["resolution"]),
+                    int(data["inflate"]),
+                    int(data["lookup_depth"]),
+                    int(data["min_hits"]),
                 )
-            if str(data["format"]) != FORMAT:
-                raise InputError(
-                    f"{path} is a background model of another format "
-                    f"({str(data['format'])!r}, not {FORMAT!r}); {_HINT}"
-                )
-            settings = BackgroundSettings(
-                float(data["resolution"]),
-                int(data["inflate"]),
-                int(data["lookup_depth"]),
-                int(data["min_hits"]),
-            )
-            return settings, (data["cells"] if cells else None)
+                return settings, (data["cells"] if cells else None)
     except ValueError as err:
         if "pickle" in str(err):  # object arrays, which are never loaded
             raise InputError(
