@@ -326,5 +326,6 @@ def write_run(
     noise = noise_parameters(run.config.pipeline.tracker, run.config.sensor.integration_time_s)
     threshold = noise.threshold
     radius = run.config.pipeline.evaluation.correct_radius_m
-    write_plots(run.log, out_dir, threshold, run.config.name, radius)
+    kind = run.config.pipeline.tracker.kind
+    write_plots(run.log, out_dir, threshold, run.config.name, radius, kind)
     return metrics
