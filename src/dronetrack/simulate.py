@@ -402,7 +402,9 @@ class RunFolder:
         write_metrics(metrics, out_dir / "metrics.json")
         noise = noise_parameters(config.pipeline.tracker, config.sensor.integration_time_s)
         radius = config.pipeline.evaluation.correct_radius_m
-        write_plots(run.log, out_dir, noise.threshold, config.name, radius)
+        write_plots(
+            run.log, out_dir, noise.threshold, config.name, radius, config.pipeline.tracker.kind
+        )
         return metrics
 
 

@@ -13,6 +13,7 @@ from dronetrack.eval.metrics import (
     detection_gaps,
     longest_run,
     max_tracking_distance,
+    nice_bin_width,
     points_by_distance,
     rmse,
     timing,
@@ -91,14 +92,14 @@ def test_the_interval_covers_the_truth_95_percent_of_the_time() -> None:
 
 
 def test_points_by_distance_gaps_and_timing() -> None:
-    rows = points_by_distance(np.array([5.0, 15.0, 16.0, 27.0]), np.array([10, 4, 6, 0]))
+    rows = points_by_distance(np.array([5.0, 15.0, 16.0, 27.0]), np.array([10, 4, 6, 0]), 10.0)
     assert [(r["range_from_m"], r["frames"], r["points_mean"]) for r in rows] == [
         (0.0, 1, 10.0),
         (10.0, 2, 5.0),
         (20.0, 1, 0.0),
     ]
     # A stray huge range adds one row; a bin edge belongs to the upper bin.
-    far = points_by_distance(np.array([10.0, 1e9, np.nan]), np.array([3, 1, 7]))
+    far = points_by_distance(np.array([10.0, 1e9, np.nan]), np.array([3, 1, 7]), 10.0)
     assert [(r["range_from_m"], r["range_to_m"], r["frames"]) for r in far] == [
         (10.0, 20.0, 1),
         (1e9, 1e9 + 10.0, 1),
@@ -142,3 +143,64 @@ def test_longest_run_counts_the_longest_stretch(values: list[bool]) -> None:
         current = current + 1 if v else 0
         best = max(best, current)
     assert longest_run(np.array(values, dtype=bool)) == best
+
+
+@pytest.mark.parametrize(
+    ("lo", "hi", "width"),
+    [
+        (1.0, 6.0, 0.5),  # 5 m / 20 = 0.25 → 0.5: 10 bins
+        (0.0, 100.0, 5.0),  # exactly 20 bins of 5
+        (0.0, 200.0, 10.0),
+        (20.0, 300.0, 20.0),  # 14 m → 20
+        (3.03, 3.13, 0.005),
+        (7.0, 7.0, 0.05),  # no span: 10 % of the value in 20 bins
+        (0.0, 0.0, 0.05),
+    ],
+)
+def test_nice_bin_width_known_answers(lo: float, hi: float, width: float) -> None:
+    assert nice_bin_width(lo, hi) == pytest.approx(width)
+
+
+def test_nice_bin_width_refuses_a_reversed_or_infinite_interval() -> None:
+    for lo, hi in ((2.0, 1.0), (0.0, np.inf), (np.nan, 1.0)):
+        with pytest.raises(ValueError, match="bin width"):
+            nice_bin_width(lo, hi)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.floats(0.0, 500.0),
+    st.floats(1e-2, 500.0),
+    st.integers(50, 400),
+)
+def test_data_scaled_bins_cover_the_ranges_in_8_to_22_bins(lo: float, span: float, n: int) -> None:
+    """Whatever the scale (a 1 cm indoor wobble to 500 m outdoors), the ranges spread
+    evenly over [lo, lo + span] fill about 10 to 20 bins of a 1-2-5 width, and every
+    frame is in the bin whose edges hold its range."""
+    ranges = np.linspace(lo, lo + span, n)
+    counts = np.arange(n)
+    rows = points_by_distance(ranges, counts)
+    assert 8 <= len(rows) <= 22
+    widths = {round(r["range_to_m"] - r["range_from_m"], 12) for r in rows}
+    assert len(widths) == 1
+    w = widths.pop()
+    mantissa = w / 10.0 ** np.floor(np.log10(w))
+    assert min(abs(mantissa - m) for m in (1.0, 2.0, 5.0, 10.0)) < 1e-6
+    assert sum(r["frames"] for r in rows) == n
+    tol = 1e-9 * max(1.0, lo + span)
+    assert rows[0]["range_from_m"] <= ranges[0] + tol
+    assert rows[-1]["range_to_m"] >= ranges[-1] - tol
+    for row in rows:
+        inside = (ranges >= row["range_from_m"] - tol) & (ranges < row["range_to_m"] - tol)
+        assert row["frames"] == int(inside.sum())
+        assert row["points_max"] == counts[inside].max()
+
+
+def test_indoor_ranges_get_more_than_three_bins() -> None:
+    ranges = np.linspace(1.0, 6.0, 120)
+    rows = points_by_distance(ranges, np.full(120, 40))
+    assert len(rows) > 3
+    assert rows[0]["range_from_m"] == 1.0
+    assert rows[-1]["range_to_m"] == 6.5
+    # the same keys as before the bins scaled with the data
+    assert set(rows[0]) == {"range_from_m", "range_to_m", "frames", "points_mean", "points_max"}

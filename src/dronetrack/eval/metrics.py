@@ -15,6 +15,7 @@ Seed 000 (§III-A, III-C, III-E):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,7 @@ __all__ = [
     "detection_gaps",
     "longest_run",
     "max_tracking_distance",
+    "nice_bin_width",
     "points_by_distance",
     "rmse",
     "timing",
@@ -98,24 +100,53 @@ def rmse(errors: FloatArray) -> Rmse:
     )
 
 
+def nice_bin_width(lo: float, hi: float, most: int = 20) -> float:
+    """The smallest width 1, 2 or 5 × 10ᵏ [m] that covers [lo, hi] in at most ``most`` bins
+    (so 8 to 20 of them); a zero span is treated as 10 % of the value (1 m at 0)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo or most < 1:
+        raise ValueError(f"no bin width for the interval [{lo}, {hi}] in {most} bins")
+    span = hi - lo
+    if span <= 0.0:
+        span = 0.1 * abs(hi) if hi != 0.0 else 1.0
+    raw = span / most
+    decade = 10.0 ** math.floor(math.log10(raw))
+    for step in (1.0, 2.0, 5.0, 10.0):
+        # the tolerance keeps an exact fit (span = most · width) in ``most`` bins
+        if step * decade >= raw * (1.0 - 1e-9):
+            return step * decade
+    return 10.0 * decade  # not reached
+
+
 def points_by_distance(
-    ranges: FloatArray, counts: NDArray[np.int64] | FloatArray, bin_m: float = 10.0
+    ranges: FloatArray, counts: NDArray[np.int64] | FloatArray, bin_m: float | None = None
 ) -> list[dict[str, float]]:
-    """Target points per frame against range, in bins of ``bin_m`` (seed 000 Fig. 7)."""
+    """Target points per frame against range, in bins of ``bin_m`` (seed 000 Fig. 7).
+
+    Without ``bin_m`` the width follows the data: ``nice_bin_width`` over the 1st to
+    99th percentile of the ranges, so an indoor flight over a few metres and an
+    outdoor one over a hundred both get about 10 to 20 bins, and a few stray ranges
+    do not coarsen the rest."""
     ok = np.isfinite(ranges)
     r, c = ranges[ok], np.asarray(counts, dtype=np.float64)[ok]
     if len(r) == 0:
         return []
+    if bin_m is None:
+        lo, hi = np.percentile(r, [1.0, 99.0])
+        bin_m = nice_bin_width(float(lo), float(hi))
+    if not bin_m > 0.0:
+        raise ValueError(f"bin_m must be positive, got {bin_m}")
     # Bin b holds ranges in [b·bin, (b+1)·bin); only occupied bins are listed, so a
-    # stray far range costs one row, not a row per empty bin.
-    which = np.floor(r / bin_m).astype(np.int64)
+    # stray far range costs one row, not a row per empty bin.  The edges are rounded
+    # to the bin width's digits (3.1, not 3.1000000000000005).
+    digits = max(0, 2 - math.floor(math.log10(bin_m)))
+    which = np.floor(r / bin_m + 1e-9).astype(np.int64)
     rows = []
     for b in np.unique(which):
         sel = which == b
         rows.append(
             {
-                "range_from_m": float(b * bin_m),
-                "range_to_m": float((b + 1) * bin_m),
+                "range_from_m": round(float(b * bin_m), digits),
+                "range_to_m": round(float((b + 1) * bin_m), digits),
                 "frames": int(sel.sum()),
                 "points_mean": float(c[sel].mean()),
                 "points_max": float(c[sel].max()),

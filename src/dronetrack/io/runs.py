@@ -179,11 +179,17 @@ def write_metrics(metrics: dict[str, Any], path: Path) -> None:
 
 
 def write_plots(
-    log: TrackLog, out_dir: Path, threshold: float, title: str, radius: float
+    log: TrackLog, out_dir: Path, threshold: float, title: str, radius: float, kind: str
 ) -> list[Path]:
     """The seed-style figures: top view, error and spread, points against distance;
-    ``radius``: an estimate this close to the truth is correct [m]."""
-    from dronetrack.eval.plots import plot_error_and_spread, plot_points_vs_distance, plot_top_view
+    ``radius``: an estimate this close to the truth is correct [m]; ``kind``: the
+    tracker (config ``pipeline.tracker.kind``), which says what its spread is."""
+    from dronetrack.eval.plots import (
+        plot_error_and_spread,
+        plot_points_vs_distance,
+        plot_top_view,
+        spread_label,
+    )
 
     a = log.arrays()
     paths = [
@@ -193,7 +199,9 @@ def write_plots(
     ]
     if len(log) == 0:
         return []
-    plot_top_view(a, paths[0], f"{title}: returned points along the flight", radius)
-    plot_error_and_spread(a, threshold, paths[1], f"{title}: error and particle spread")
+    plot_top_view(a, paths[0], f"{title}: truth, estimate and returned points", radius)
+    plot_error_and_spread(
+        a, threshold, paths[1], f"{title} ({kind}): error and {spread_label(kind)}", kind=kind
+    )
     plot_points_vs_distance(a, paths[2], f"{title}: points on the target against range")
     return paths
