@@ -133,7 +133,7 @@ def small_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ("argv", "message"),
     [
         (["track", "missing.bag"], "no such recording"),
-        (["track", "{tmp}/notes.txt"], "unknown recording type '.txt'"),
+        (["track", "{tmp}/notes.txt"], "it starts with b'hello', not a ROS 1 bag"),
         (["track", "{bag}", "--lidar-topic", "/nope"], "no topic '/nope'"),
         (["track", "{bag}", "--gt-topic", "/livox/lidar"], "not a ground-truth type"),
         (["track", "{bag}", "--gt-origin", "47.1,19"], "--gt-origin takes 3"),

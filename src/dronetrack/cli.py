@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
@@ -25,7 +25,10 @@ from dronetrack.cli_output import (
 )
 from dronetrack.errors import DronetrackError
 
-__all__ = ["app", "main", "run", "stop_if_interrupted"]
+if TYPE_CHECKING:
+    from dronetrack.sim.scenario import ScenarioConfig
+
+__all__ = ["app", "main", "run", "scenario_from_options", "stop_if_interrupted"]
 
 app = typer.Typer(
     add_completion=False,
@@ -95,6 +98,53 @@ class TrackerName(StrEnum):
     ekf_cv = "ekf-cv"
     kf_ca = "kf-ca"
     aekf_ca = "aekf-ca"
+
+
+MAX_PARTICLES = 2_000_000  # the configuration's upper bound ([pipeline.tracker] particles)
+TrackerOption = Annotated[
+    TrackerName | None,
+    typer.Option("--tracker", help="The tracking method (see the README's method table)."),
+]
+TurretOption = Annotated[
+    ControlMode | None,
+    typer.Option(
+        "--turret",
+        help="Track the estimate, hold still, follow the true target, "
+        "or run one of seed 003's scan strategies.",
+    ),
+]
+ParticlesOption = Annotated[
+    int | None,
+    typer.Option(
+        "--particles",
+        min=10,
+        max=MAX_PARTICLES,
+        help=f"Particle count, 10 to {MAX_PARTICLES:,} (default: the tracker's).",
+    ),
+]
+ConfigOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        help="A full configuration to run again (a run's config.toml, or a scenario or site "
+        ".toml); the other options override it.",
+    ),
+]
+
+
+def scenario_from_options(
+    scenario: str | None, config: Path | None, **overrides: Any
+) -> ScenarioConfig:
+    """The scenario a command's SCENARIO argument or --config names (not both), with the
+    command line's overrides (see ``apply_overrides``)."""
+    from dronetrack.errors import ConfigError
+    from dronetrack.sim.scenario import apply_overrides, load_scenario_file
+    from dronetrack.sim.scenarios import SCENARIOS, get_scenario
+
+    if config is not None and scenario is not None:
+        raise ConfigError("give a SCENARIO or --config, not both")
+    base = load_scenario_file(config, SCENARIOS) if config else get_scenario(scenario or "default")
+    return apply_overrides(base, **overrides)
 
 
 def _version(value: bool) -> None:
@@ -257,27 +307,12 @@ def simulate(
         str | None,
         typer.Argument(help="A scenario name or .toml file (default: 'default')."),
     ] = None,
-    tracker: Annotated[
-        TrackerName | None,
-        typer.Option("--tracker", help="The tracking method (see the README's method table)."),
-    ] = None,
-    turret: Annotated[
-        ControlMode | None,
-        typer.Option(
-            "--turret",
-            help="Track the estimate, hold still, follow the true target, "
-            "or run one of seed 003's scan strategies.",
-        ),
-    ] = None,
-    particles: Annotated[
-        int | None, typer.Option("--particles", min=10, help="Particle count.")
-    ] = None,
+    tracker: TrackerOption = None,
+    turret: TurretOption = None,
+    particles: ParticlesOption = None,
     seed: SeedOption = None,
     duration: FlightDurationOption = None,
-    config: Annotated[
-        Path | None,
-        typer.Option("--config", help="A full configuration (a run's config.toml) to run again."),
-    ] = None,
+    config: ConfigOption = None,
     trajectory: TrajectoryOption = None,
     visibility: VisibilityOption = None,
     drone: DroneOption = None,
@@ -292,18 +327,13 @@ def simulate(
     frames.csv, metrics.json and plots to the output folder, and prints the metrics.
     """
 
-    from dronetrack.errors import ConfigError
     from dronetrack.io.runs import default_run_dir
     from dronetrack.io.viewers import close_viewers, open_viewers
-    from dronetrack.sim.scenario import apply_overrides, load_scenario_file
-    from dronetrack.sim.scenarios import SCENARIOS, get_scenario
     from dronetrack.simulate import RunFolder, run_simulation, simulation_viewer_hook
 
-    if config is not None and scenario is not None:
-        raise ConfigError("give a SCENARIO or --config, not both")
-    base = load_scenario_file(config, SCENARIOS) if config else get_scenario(scenario or "default")
-    cfg = apply_overrides(
-        base,
+    cfg = scenario_from_options(
+        scenario,
+        config,
         seed=seed,
         duration=duration,
         trajectory=trajectory,

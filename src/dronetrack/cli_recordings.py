@@ -6,6 +6,7 @@ Registered on the ``dronetrack`` app by ``cli``; they follow its conventions
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from datetime import UTC, datetime
 from enum import StrEnum
 from pathlib import Path
@@ -17,13 +18,22 @@ from rich.console import Console
 from rich.table import Table
 
 from dronetrack.cli import (
+    ConfigOption,
+    DroneOption,
     FlightDurationOption,
     FoxgloveOption,
+    ParticlesOption,
     RerunOption,
     RunDirOption,
     SeedOption,
+    SensorOption,
     TrackerName,
+    TrackerOption,
+    TrajectoryOption,
+    TurretOption,
+    VisibilityOption,
     app,
+    scenario_from_options,
     stop_if_interrupted,
 )
 from dronetrack.cli_output import (
@@ -34,6 +44,9 @@ from dronetrack.cli_output import (
     progress_bar,
 )
 from dronetrack.errors import ConfigError
+from dronetrack.io.recordings import recording_info
+from dronetrack.io.runs import check_run_dir
+from dronetrack.io.source import TopicInfo
 
 __all__ = ["info", "record", "track"]
 
@@ -69,8 +82,9 @@ def track(
     recording: Annotated[
         Path,
         typer.Argument(
-            help="A ROS 1 .bag, a ROS 2 bag folder, a .mcap or .db3 file, a folder of .pcd "
-            "files, a .las/.laz file or a folder of seed 003's CSV logs."
+            help="A ROS 1 bag, a ROS 2 bag folder, an MCAP or .db3 file, a PCD file or a folder "
+            "of them, a LAS/LAZ file, or a folder of seed 003's CSV logs; files are recognised "
+            "by their content, whatever their name."
         ),
     ],
     lidar_topic: Annotated[
@@ -185,6 +199,8 @@ def track(
         raise
     metrics = folder.finish(result.run, extra=result.metrics())
     write_commands_csv(result.commands, folder.out_dir / "commands.csv")
+    for warning in result.warnings:
+        err_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
     print_kernel_note(result.run.kernels)
     stop_if_interrupted(
         result.run.interrupted, f"; kept {len(result.run.log)} frames in {folder.out_dir}"
@@ -201,16 +217,17 @@ def info(
     recording: Annotated[Path, typer.Argument(help="A recording (see `dronetrack track --help`).")],
 ) -> None:
     """List a recording's topics, message types, counts and duration."""
-    from dronetrack.io.recordings import recording_info
+    from rich.markup import escape
 
     summary = recording_info(recording)
     start = datetime.fromtimestamp(summary.start, tz=UTC).isoformat(timespec="milliseconds")
-    table = Table(title=f"{summary.path} ({summary.kind}, {summary.duration_s:.3f} s from {start})")
+    title = f"{summary.path} ({summary.kind}, {summary.duration_s:.3f} s from {start})"
+    table = Table(title=escape(title))
     table.add_column("topic")
     table.add_column("type")
     table.add_column("messages", justify="right")
     for topic in summary.topics:
-        table.add_row(topic.topic, topic.msgtype, str(topic.count))
+        table.add_row(escape(topic.topic), escape(topic.msgtype), str(topic.count))
     Console().print(table)
 
 
@@ -222,18 +239,22 @@ class RecordFormatName(StrEnum):
 
 @app.command()
 def record(
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            help="The recording to write: NAME.bag (ROS 1), NAME.mcap or NAME.db3 (one ROS 2 "
+            "file); without a suffix, a ROS 1 bag file, or a rosbag2 folder with a ros2 --format.",
+        ),
+    ],
     scenario: Annotated[
         str | None, typer.Argument(help="A scenario name or .toml file (default: 'default').")
     ] = None,
-    out: Annotated[
-        Path | None,
-        typer.Option(
-            "--out", "-o", help="The recording to write (.bag; .mcap/.db3 or a folder for ROS 2)."
-        ),
-    ] = None,
     fmt: Annotated[
-        RecordFormatName, typer.Option("--format", help="The container.")
-    ] = RecordFormatName.ros1,
+        RecordFormatName | None,
+        typer.Option("--format", help="The container (default: from the --out suffix, else ros1)."),
+    ] = None,
     livox_custom: Annotated[
         bool,
         typer.Option(
@@ -241,40 +262,60 @@ def record(
             help="Points as livox_ros_driver(2)/CustomMsg or sensor_msgs/PointCloud2.",
         ),
     ] = True,
+    compress: Annotated[
+        bool,
+        typer.Option(
+            "--compress",
+            help="Compress: lz4 chunks (ROS 1), zstd chunks (MCAP), zstd messages (a rosbag2 "
+            "sqlite3 folder).",
+        ),
+    ] = False,
     seed: SeedOption = None,
     duration: FlightDurationOption = None,
-    tracker: Annotated[
-        TrackerName | None, typer.Option("--tracker", help="The method that steers the turret.")
-    ] = None,
+    tracker: TrackerOption = None,
+    turret: TurretOption = None,
+    particles: ParticlesOption = None,
+    config: ConfigOption = None,
+    trajectory: TrajectoryOption = None,
+    visibility: VisibilityOption = None,
+    drone: DroneOption = None,
+    sensor: SensorOption = None,
 ) -> None:
     """Write a simulated closed-loop flight as the recording a real rig would make.
 
     It holds the LiDAR, /tf with the turret links, ground truth and the scenario,
-    so `dronetrack track FILE` replays it with the same settings.
+    so `dronetrack track FILE` replays it with the same settings.  Prints the
+    metrics of the run, then what it wrote.
     """
-
-    from dronetrack.io.bag_writer import RecordingWriter
+    from dronetrack.io.bag_writer import RecordingWriter, record_format
     from dronetrack.sim.build import turret_spec
-    from dronetrack.sim.scenario import apply_overrides, dump_scenario
-    from dronetrack.sim.scenarios import get_scenario
+    from dronetrack.sim.scenario import dump_scenario
     from dronetrack.simulate import resolve_run, run_simulation
 
-    if out is None:
-        raise ConfigError("give the file to write with --out")
-    cfg = apply_overrides(
-        get_scenario(scenario or "default"),
+    container = record_format(out, fmt.value if fmt is not None else None)
+    cfg = scenario_from_options(
+        scenario,
+        config,
         seed=seed,
         duration=duration,
+        trajectory=trajectory,
+        visibility=visibility,
+        drone=drone,
+        sensor=sensor,
         tracker=tracker.value if tracker else None,
+        particles=particles,
+        turret_mode=turret.value if turret else None,
     )
     resolved = resolve_run(cfg)
+    check_run_dir(out.parent)
     writer = RecordingWriter(
         out,
-        fmt.value,
+        container,
         turret_spec(resolved.turret).mount,
         livox_custom=livox_custom,
         config_text=dump_scenario(resolved),
         observer=resolved.observer is not None,
+        compress=compress,
     )
     try:
         with progress_bar() as bar:
@@ -288,7 +329,35 @@ def record(
                     truth.target_attitude,
                     (truth.turret.pan, truth.turret.tilt),
                 ),
+                compiling=compile_reporter(bar, task),
             )
     finally:
         writer.close()
+    print_kernel_note(run.kernels)
+    summary = recording_summary(out, container, writer.compression)
+    stop_if_interrupted(run.interrupted, f"; kept {summary}")
     print_metrics(run.metrics(), out)
+    typer.echo(f"wrote {summary}")
+    _print_topics(recording_info(out).topics)
+
+
+def recording_summary(path: Path, container: str, compression: str | None) -> str:
+    """One line on a written recording: path, container, frames, length and size."""
+    from dronetrack.io.bag_writer import FORMAT_NAMES, LIDAR_TOPIC
+
+    info = recording_info(path)
+    frames = sum(t.count for t in info.topics if t.topic == LIDAR_TOPIC)
+    files = [p for p in path.rglob("*") if p.is_file()] if path.is_dir() else [path]
+    size = sum(p.stat().st_size for p in files)
+    packing = f", compressed ({compression})" if compression else ""
+    return (
+        f"{path}: {FORMAT_NAMES[container]}{packing}, {frames} frames, "
+        f"{info.duration_s:.1f} s, {size / 1e6:.1f} MB"
+    )
+
+
+def _print_topics(topics: Sequence[TopicInfo]) -> None:
+    width = max(len(t.topic) for t in topics)
+    type_width = max(len(t.msgtype) for t in topics)
+    for t in topics:
+        typer.echo(f"  {t.topic:<{width}}  {t.msgtype:<{type_width}}  {t.count:>7}")

@@ -67,11 +67,14 @@ class ReplayRun:
     commands: list[TurretCommand]
     skipped: dict[str, int]
     has_truth: bool
+    warnings: tuple[str, ...] = ()  # what the replay had to assume (say, the sensor pose)
 
     def metrics(self) -> dict[str, Any]:
         out = self.run.metrics()
         out["skipped_messages"] = dict(self.skipped)
         out["turret_commands"] = len(self.commands)
+        if self.warnings:
+            out["warnings"] = list(self.warnings)
         return out
 
 
@@ -218,7 +221,8 @@ def run_replay(
         )
     wall = time.perf_counter() - start
     run = SimulationRun(cfg, log, pipeline, wall, last - first, kernels, interrupted)
-    return ReplayRun(run, commands, dict(recording.skipped), truth is not None)
+    warnings = (recording.pose_warning,) if recording.pose_warning else ()
+    return ReplayRun(run, commands, dict(recording.skipped), truth is not None, warnings)
 
 
 def _record(

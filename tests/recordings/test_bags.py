@@ -127,8 +127,16 @@ def test_options_choose_and_reject_topics(recorded: dict[str, Any]) -> None:
         RecordingError, match="/ground_truth/pose has type geometry_msgs/msg/PoseStamped"
     ):
         BagRecording(path, ReplayOptions(lidar_topic="/ground_truth/pose"))
-    with pytest.raises(RecordingError, match="not below 'map'"):
+    # An unknown pose frame: the error lists the frames /tf has.
+    with pytest.raises(
+        RecordingError,
+        match="'map' is not in the /tf tree; its frames are: lidar, pan_link, tilt_link, "
+        "turret_base, world",
+    ):
         list(BagRecording(path, ReplayOptions(pose_frame="map")).frames())
+    # A frame of the tree that is not above the LiDAR's: its chain is shown.
+    with pytest.raises(RecordingError, match="not below 'pan_link'.*its chain is"):
+        list(BagRecording(path, ReplayOptions(pose_frame="pan_link")).frames())
 
 
 def test_writer_refuses_existing_paths_and_bad_formats(tmp_path: Path) -> None:

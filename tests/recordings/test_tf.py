@@ -71,8 +71,12 @@ def test_bad_trees_raise_recording_errors() -> None:
         tf.chain("b")
     tf2 = TransformBuffer()
     tf2.add("world", "lidar", 0.0, np.eye(4), static=True)
-    with pytest.raises(RecordingError, match="not below 'map'"):
+    with pytest.raises(RecordingError, match="'map' is not in the /tf tree; its frames are: "):
         tf2.lookup("map", "lidar", [0.0])
+    assert tf2.frames() == ["lidar", "world"]
+    tf2.add("world", "radar", 0.0, np.eye(4), static=True)
+    with pytest.raises(RecordingError, match="not below 'radar'.*chain is world → lidar"):
+        tf2.lookup("radar", "lidar", [0.0])
     # A second parent for a frame is ignored and counted.
     tf2.add("odom", "lidar", 0.0, np.eye(4), static=True)
     assert tf2.conflicts == 1

@@ -23,7 +23,10 @@ Times are the messages' header stamps, relative to the first LiDAR stamp.
 from __future__ import annotations
 
 import logging
+import shutil
 import struct
+import tempfile
+import weakref
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -46,6 +49,7 @@ from dronetrack.io.livox import (
     livox_points,
     livox_typestore,
 )
+from dronetrack.io.magic import EXPECTED, sniff_file
 from dronetrack.io.pointcloud2 import CloudPoints, cloud_points
 from dronetrack.io.pointcloud2_raw import (
     RawCloud,
@@ -59,11 +63,12 @@ from dronetrack.io.source import (
     TopicInfo,
     fixed_pose_frame,
     frame_period,
+    identity_pose_warning,
 )
 from dronetrack.io.tf import TransformBuffer
 from dronetrack.types import Frame
 
-__all__ = ["CONFIG_TOPIC", "BagFile", "BagRecording", "bag_paths", "is_bag"]
+__all__ = ["CONFIG_TOPIC", "BagFile", "BagRecording", "bag_paths", "check_mcap_end", "is_bag"]
 
 log = logging.getLogger(__name__)
 
@@ -79,11 +84,15 @@ _PERIOD_SAMPLES = 21  # LiDAR stamps read to estimate the frame period
 _MAX_WARNINGS = 5  # per reason; later skips are only counted
 
 
+_SUFFIX = {"ros1": ".bag", "mcap": ".mcap", "sqlite3": ".db3"}
+MCAP_MAGIC = b"\x89MCAP0\r\n"  # an MCAP file starts and ends with it
+
+
 def is_bag(path: Path) -> bool:
-    """Whether ``path`` is a recording rosbags opens."""
+    """Whether ``path`` is a recording rosbags opens (by content, see ``io.magic``)."""
     if path.is_dir():
         return (path / "metadata.yaml").exists() or any(path.glob("*.bag"))
-    return path.suffix in (".bag", ".mcap", ".db3")
+    return path.is_file() and sniff_file(path) in _SUFFIX
 
 
 def bag_paths(path: Path) -> list[Path]:
@@ -94,13 +103,53 @@ def bag_paths(path: Path) -> list[Path]:
 
 
 def _kind(path: Path) -> str:
-    if path.suffix == ".bag" or (path.is_dir() and any(path.glob("*.bag"))):
-        return "ros1"
-    if path.suffix == ".mcap":
-        return "mcap"
-    if path.suffix == ".db3" or (path.is_dir() and any(path.glob("*.db3"))):
-        return "ros2-sqlite3"
-    return "ros2-mcap"
+    """The container, as ``dronetrack info`` names it."""
+    if path.is_dir():
+        if any(path.glob("*.bag")) and not (path / "metadata.yaml").exists():
+            return "ros1"
+        return "ros2-sqlite3" if any(path.glob("*.db3")) else "ros2-mcap"
+    return {"ros1": "ros1", "mcap": "mcap", "sqlite3": "ros2-sqlite3"}.get(
+        sniff_file(path) or "", "unknown"
+    )
+
+
+def check_mcap_end(path: Path) -> None:
+    """A ``RecordingError`` if the MCAP file ``path`` lacks its closing magic: the writer
+    stopped before finishing it (a crash, a full disk, a copy cut short)."""
+    size = path.stat().st_size
+    with path.open("rb") as fh:
+        fh.seek(max(0, size - len(MCAP_MAGIC)))
+        tail = fh.read()
+    if tail != MCAP_MAGIC:
+        raise RecordingError(
+            f"{path} is a truncated MCAP file: it does not end with MCAP's closing magic, "
+            "so its writer stopped before finishing it; recover the messages it holds with "
+            f"the mcap command-line tool, `mcap recover {path} -o recovered.mcap`, and read "
+            "recovered.mcap"
+        )
+
+
+def _rosbags_paths(path: Path) -> tuple[list[Path], Path | None]:
+    """The paths to hand to rosbags, which tells the containers apart by suffix, and a
+    temporary folder to remove afterwards: a bag file whose suffix does not say what it
+    holds (``record --out flight`` writes one) is handed over as a link named right."""
+    paths = bag_paths(path)
+    if path.is_dir():
+        for inner in path.glob("*.mcap"):
+            check_mcap_end(inner)
+        return paths, None
+    kind = sniff_file(path)
+    if kind == "mcap":
+        check_mcap_end(path)
+    suffix = _SUFFIX.get(kind or "")
+    if suffix is None:
+        raise RecordingError(f"{path} is not a bag: it starts with none of {EXPECTED}")
+    if path.suffix == suffix:
+        return paths, None
+    alias = Path(tempfile.mkdtemp(prefix="dronetrack-bag-"))
+    link = alias / f"{path.stem or 'recording'}{suffix}"
+    link.symlink_to(path.resolve())
+    return [link], alias
 
 
 def _stamp_ns(header: Any) -> int:
@@ -130,6 +179,7 @@ class BagFile:
         self.path = path
         self.skipped: Counter[str] = Counter()
         self._warned: Counter[str] = Counter()
+        self._paths: list[Path] | None = None
         if check:
             with self._reader():
                 pass  # fail now, with one line, if it cannot be opened
@@ -146,9 +196,18 @@ class BagFile:
             self.path, _kind(self.path), start * 1e-9, (end - start) * 1e-9, topics
         )
 
+    def _rosbags_paths(self) -> list[Path]:
+        if self._paths is None:
+            if not self.path.exists():
+                raise RecordingError(f"{self.path}: no such recording")
+            self._paths, alias = _rosbags_paths(self.path)
+            if alias is not None:
+                weakref.finalize(self, shutil.rmtree, alias, ignore_errors=True)
+        return self._paths
+
     @contextmanager
     def _reader(self) -> Iterator[Any]:
-        paths = bag_paths(self.path)
+        paths = self._rosbags_paths()
         if not paths or not all(p.exists() for p in paths):
             raise RecordingError(f"{self.path}: no such recording")
         try:
@@ -201,6 +260,7 @@ class BagRecording(BagFile):
         super().__init__(path, check=False)  # opened below
         self.options = options = options or ReplayOptions()
         self._lidar_frame: str | None = None  # the clouds' frame_id, once one is decoded
+        self.pose_warning: str | None = None  # set once a frame has no pose source
         with self._reader() as reader:
             conns = reader.connections
             lidar = _choose(conns, options.lidar_topic, LIDAR_TYPES, "LiDAR", "--lidar-topic")
@@ -379,11 +439,8 @@ class BagRecording(BagFile):
             poses = self.tf.lookup(root, frame_id, times)
             return fixed_pose_frame(stamp, self.period, xyz, t, intensity, line, poses, times)
         pose = self.options.sensor_pose
-        if pose is None and len(self.tf) and not self._warned["no_tf_for_frame"]:
-            self._warned["no_tf_for_frame"] += 1
-            log.warning(
-                "%s: frame %r is not in /tf; using the identity pose", self.path.name, frame_id
-            )
+        if pose is None and self.pose_warning is None:
+            self.pose_warning = identity_pose_warning(self.path, frame_id)
         return fixed_pose_frame(stamp, self.period, xyz, t, intensity, line, pose)
 
 

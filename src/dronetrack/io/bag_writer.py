@@ -16,7 +16,13 @@ Topics:
 
 Containers: ``ros1`` (``.bag``), ``ros2-sqlite3`` and ``ros2-mcap``.  A ROS 2 path
 ending in ``.db3`` or ``.mcap`` is written as that one bare file; any other path
-becomes a rosbag2 folder with ``metadata.yaml``.
+becomes a rosbag2 folder with ``metadata.yaml``.  ``record_format`` takes the
+container from the path's suffix and refuses a suffix that says another one.
+
+Compression (``compress=True``): LZ4 chunks in a ROS 1 bag (rosbag's own choice
+for speed), zstd chunks in MCAP (the MCAP storage's), and zstd per message in a
+rosbag2 sqlite3 folder (rosbag2's message mode; its metadata.yaml says so, which
+is why a bare ``.db3`` file, which has none, is written uncompressed only).
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from __future__ import annotations
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Any, Literal, cast, get_args
 
 import numpy as np
 from rosbags.typesys import get_types_from_msg
@@ -49,7 +55,14 @@ from dronetrack.kinematics import (
 )
 from dronetrack.types import Frame
 
-__all__ = ["DEFAULT_START_NS", "LIDAR_TOPIC", "RecordFormat", "RecordingWriter"]
+__all__ = [
+    "DEFAULT_START_NS",
+    "FORMAT_NAMES",
+    "LIDAR_TOPIC",
+    "RecordFormat",
+    "RecordingWriter",
+    "record_format",
+]
 
 RecordFormat = Literal["ros1", "ros2-sqlite3", "ros2-mcap"]
 RECORD_FORMATS: tuple[str, ...] = get_args(RecordFormat)
@@ -59,6 +72,37 @@ DEFAULT_START_NS = 1_767_225_600 * 1_000_000_000  # t = 0 is 2026-01-01 00:00:00
 _LIDAR_FRAME = TURRET_FRAMES[-1]
 BODY_FRAME = "base_link"  # a moving observer's body
 TF_MSG = "geometry_msgs/TransformStamped[] transforms"
+# The container a suffix names; no suffix (or another) leaves the choice to --format.
+SUFFIX_FORMATS: dict[str, RecordFormat] = {
+    ".bag": "ros1",
+    ".mcap": "ros2-mcap",
+    ".db3": "ros2-sqlite3",
+}
+FORMAT_NAMES = {
+    "ros1": "ROS 1 bag",
+    "ros2-mcap": "ROS 2 bag, MCAP storage",
+    "ros2-sqlite3": "ROS 2 bag, sqlite3 storage",
+}
+COMPRESSION = {"ros1": "lz4", "ros2-mcap": "zstd", "ros2-sqlite3": "zstd, per message"}
+
+
+def record_format(path: Path, fmt: str | None) -> RecordFormat:
+    """The container to write ``path`` as: ``fmt`` if given, else the one its suffix
+    names (.bag, .mcap, .db3), else ROS 1.  A ``ConfigError`` when the two disagree
+    (a .mcap file of ROS 1 bytes would be unreadable as MCAP)."""
+    implied = SUFFIX_FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        return implied or "ros1"
+    if fmt not in RECORD_FORMATS:
+        raise ConfigError(f"unknown format {fmt!r}; choose one of {', '.join(RECORD_FORMATS)}")
+    if implied is not None and implied != fmt:
+        wanted = {v: k for k, v in SUFFIX_FORMATS.items()}[cast(RecordFormat, fmt)]
+        raise ConfigError(
+            f"--format {fmt} writes a {FORMAT_NAMES[fmt]}, but --out {path} ends in "
+            f"{path.suffix}, which is for {implied}; name it {path.stem}{wanted} "
+            f"(or a folder, for ROS 2), or give --format {implied}"
+        )
+    return cast(RecordFormat, fmt)
 
 
 class RecordingWriter:
@@ -75,11 +119,17 @@ class RecordingWriter:
         start_ns: int = DEFAULT_START_NS,
         tf_rate_hz: float = 100.0,
         observer: bool = False,
+        compress: bool = False,
     ) -> None:
-        if fmt not in RECORD_FORMATS:
-            raise ConfigError(f"unknown format {fmt!r}; choose one of {', '.join(RECORD_FORMATS)}")
+        fmt = record_format(path, fmt)  # the container the suffix names, if fmt agrees
         if path.exists():
             raise ConfigError(f"{path} exists; choose a new --out")
+        if compress and fmt == "ros2-sqlite3" and path.suffix == ".db3":
+            raise ConfigError(
+                f"--compress: a bare .db3 file has no metadata.yaml to say its messages are "
+                f"compressed, so no reader could decompress {path}; write a rosbag2 folder "
+                "(--out without a suffix) or MCAP (--out NAME.mcap)"
+            )
         if tf_rate_hz <= 0:
             raise ConfigError(f"tf_rate_hz must be > 0, got {tf_rate_hz}")
         self.path = path
@@ -93,7 +143,9 @@ class RecordingWriter:
             self.ts.register(get_types_from_msg(TF_MSG, TF_TYPE))
         self._seq = 0
         self._bare: Path | None = None
-        self._writer = self._open(path, fmt)
+        self.format = fmt
+        self.compression = COMPRESSION[fmt] if compress else None
+        self._writer = self._open(path, fmt, compress)
         lidar_type = (
             ("livox_ros_driver" if self.ros1 else "livox_ros_driver2") + "/msg/CustomMsg"
             if livox_custom
@@ -119,22 +171,29 @@ class RecordingWriter:
             msg = self.ts.types[STRING_TYPE](data=config_text)
             self._write(conn, 0.0, msg, STRING_TYPE)
 
-    def _open(self, path: Path, fmt: str) -> Any:
+    def _open(self, path: Path, fmt: str, compress: bool) -> Any:
+        path.parent.mkdir(parents=True, exist_ok=True)
         if self.ros1:
             from rosbags.rosbag1 import Writer as Writer1
 
             w1 = Writer1(path)
+            if compress:
+                w1.set_compression(Writer1.CompressionFormat.LZ4)
             w1.open()
             return w1
-        from rosbags.rosbag2 import StoragePlugin
+        from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin
         from rosbags.rosbag2 import Writer as Writer2
 
-        plugin = StoragePlugin.MCAP if fmt == "ros2-mcap" else StoragePlugin.SQLITE3
+        mcap = fmt == "ros2-mcap"
+        plugin = StoragePlugin.MCAP if mcap else StoragePlugin.SQLITE3
         target = path
         if path.suffix in (".mcap", ".db3"):
             self._bare = Path(tempfile.mkdtemp(prefix="dronetrack-record-")) / "bag"
             target = self._bare
         w2 = Writer2(target, version=9, storage_plugin=plugin)
+        if compress:
+            mode = CompressionMode.STORAGE if mcap else CompressionMode.MESSAGE
+            w2.set_compression(mode, CompressionFormat.ZSTD)
         w2.open()
         return w2
 

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from dronetrack.errors import MissingExtraError, RecordingError
 from dronetrack.geometry import FloatArray
+from dronetrack.io.magic import sniff_file
 from dronetrack.io.source import (
     PointFileRecording,
     RecordingInfo,
@@ -40,6 +41,7 @@ from dronetrack.io.source import (
     TopicInfo,
     fixed_pose_frame,
     frame_period,
+    identity_pose_warning,
     sensor_pose,
 )
 from dronetrack.types import Frame
@@ -124,9 +126,10 @@ class LasRecording(PointFileRecording):
         options = options or ReplayOptions()
         if not self.path.is_file():
             raise RecordingError(f"{self.path} does not exist or is not a file")
-        if self.path.suffix.lower() not in LAS_SUFFIXES:
-            raise RecordingError(f"{self.path} is not a .las or .laz file")
+        if sniff_file(self.path) != "las":
+            raise RecordingError(f"{self.path} is not a LAS or LAZ file (no 'LASF' signature)")
         self._pose = sensor_pose(options)
+        self.pose_warning = None if self._pose is not None else identity_pose_warning(self.path)
         self.period = frame_period(options, None)
         points = read_las(self.path)
         if not len(points.xyz):

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from dronetrack.errors import DecodeError, RecordingError
 from dronetrack.geometry import FloatArray
+from dronetrack.io.magic import sniff_file
 from dronetrack.io.pcd import PcdHeader, read_pcd, read_pcd_header
 from dronetrack.io.source import (
     DEFAULT_PERIOD_S,
@@ -40,6 +41,7 @@ from dronetrack.io.source import (
     TopicInfo,
     fixed_pose_frame,
     frame_period,
+    identity_pose_warning,
     sensor_pose,
 )
 from dronetrack.types import Frame
@@ -320,8 +322,8 @@ def _pcd_files(path: Path) -> list[Path]:
     if not path.exists():
         raise RecordingError(f"{path} does not exist")
     if path.is_file():
-        if path.suffix.lower() != ".pcd":
-            raise RecordingError(f"{path} is not a .pcd file")
+        if sniff_file(path) != "pcd":
+            raise RecordingError(f"{path} is not a PCD file (no PCD header)")
         return [path]
     files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".pcd" and p.is_file())
     if not files:
@@ -343,6 +345,7 @@ class PcdRecording(PointFileRecording):
         super().__init__(path)
         options = options or ReplayOptions()
         self._pose = sensor_pose(options)
+        self.pose_warning = None if self._pose is not None else identity_pose_warning(self.path)
         files = _pcd_files(self.path)
         fallback = options.period_s if options.period_s is not None else DEFAULT_PERIOD_S
         times = folder_times(files, options.timestamps, fallback)

@@ -1,12 +1,17 @@
-"""Open any recording by what its path looks like.
+"""Open any recording by what it holds, not by what it is called.
 
-- ``.bag`` (ROS 1), a folder of split ``.bag`` files, a rosbag2 folder
-  (``metadata.yaml``), a bare ``.mcap`` or ``.db3`` file: ``io.bag``;
-- a ``.pcd`` file or a folder of them: ``io.pcd_folder``;
-- a ``.las``/``.laz`` file: ``io.las``;
-- a folder with seed 003's ``filtered_points.csv``: ``io.field_logs``.
+A file is recognised by its first bytes:
 
-Each reader is imported only when its kind of recording is opened.
+- ``#ROSBAG V2.0``: a ROS 1 bag;
+- ``\x89MCAP0\r\n``: MCAP (a ROS 2 bag, or any other MCAP);
+- ``SQLite format 3``: a ROS 2 sqlite3 bag file (``.db3``);
+- ``LASF``: LAS or LAZ;
+- a PCD header (``VERSION`` or ``FIELDS`` after any ``#`` comments): PCD.
+
+A folder: a rosbag2 folder (``metadata.yaml``), split ROS 1 bags (``*.bag``), seed
+003's CSV logs (``filtered_points.csv``) or ``.pcd`` files.  The readers are
+``io.bag``, ``io.pcd_folder``, ``io.las`` and ``io.field_logs``, each imported only
+when its kind of recording is opened.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from dronetrack.errors import RecordingError
+from dronetrack.io.magic import EXPECTED, sniff_file
 from dronetrack.io.source import Recording, RecordingInfo, ReplayOptions
 
 __all__ = ["open_recording", "recording_info", "recording_kind"]
@@ -34,24 +40,33 @@ def recording_kind(path: Path) -> str:
             f"{path}: a folder with no bag (metadata.yaml, *.bag), .pcd files or "
             "filtered_points.csv"
         )
-    suffix = path.suffix.lower()
-    if suffix in (".bag", ".mcap", ".db3"):
+    if path.stat().st_size == 0:
+        raise RecordingError(f"{path} is empty; expected {EXPECTED}")
+    kind = sniff_file(path)
+    if kind in ("ros1", "mcap", "sqlite3"):
         return "bag"
-    if suffix in (".las", ".laz"):
-        return "las"
-    if suffix == ".pcd":
-        return "pcd"
+    if kind is not None:
+        return kind
+    with path.open("rb") as fh:
+        start = fh.read(12)
     raise RecordingError(
-        f"{path}: unknown recording type {suffix or '(no suffix)'!r}; expected .bag, .mcap, "
-        ".db3, .pcd, .las, .laz or a folder"
+        f"{path} is not a recording dronetrack reads: it starts with {start!r}, not "
+        f"{EXPECTED} (a file cut off at its start cannot be read)"
     )
 
 
 def recording_info(path: Path) -> RecordingInfo:
-    """Topics, types, counts and duration; a bag need not have a LiDAR topic."""
+    """Topics, types, counts and duration; a bag need not have a LiDAR topic, and an
+    MCAP file may have any profile (Foxglove's own files have none)."""
     if recording_kind(path) == "bag":
-        from dronetrack.io.bag import BagFile
+        from dronetrack.io.bag import BagFile, check_mcap_end
 
+        if path.is_file() and sniff_file(path) == "mcap":
+            from dronetrack.io.mcap_info import mcap_info, mcap_profile
+
+            check_mcap_end(path)
+            if mcap_profile(path) != "ros2":
+                return mcap_info(path)
         return BagFile(path).info()
     return open_recording(path).info()
 

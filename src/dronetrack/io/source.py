@@ -30,6 +30,7 @@ __all__ = [
     "TopicInfo",
     "fixed_pose_frame",
     "frame_period",
+    "identity_pose_warning",
     "sensor_pose",
 ]
 
@@ -121,6 +122,8 @@ class Recording(Protocol):
     ground_truth: GroundTruth | None
     config_text: str | None  # a dronetrack scenario (TOML) the recording carries, if any
     skipped: Counter[str]
+    # Set when no pose source was found and the sensor is taken as fixed at the origin.
+    pose_warning: str | None
 
     def frames(self) -> Iterator[Frame]:
         """The LiDAR frames, in time order."""
@@ -140,6 +143,7 @@ class PointFileRecording:
         self.ground_truth: GroundTruth | None = None
         self.config_text: str | None = None
         self.skipped: Counter[str] = Counter()
+        self.pose_warning: str | None = None
 
 
 def fixed_pose_frame(
@@ -173,6 +177,16 @@ def fixed_pose_frame(
         ),
         pose_t=pose_t,
         poses=poses,
+    )
+
+
+def identity_pose_warning(path: Path, frame_id: str | None = None) -> str:
+    """What replay says when nothing gives the sensor's pose: it assumes the identity."""
+    where = f"no /tf for its LiDAR frame {frame_id!r}" if frame_id else "no sensor pose"
+    return (
+        f"{path.name} has {where}, and no --sensor-pose was given: the sensor is taken as "
+        "fixed at the world origin, looking along x (the identity pose); give "
+        "--sensor-pose x,y,z,roll,pitch,yaw (m, deg) if it was elsewhere"
     )
 
 

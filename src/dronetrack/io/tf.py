@@ -108,6 +108,11 @@ class TransformBuffer:
         edge.q.append((w, x, y, z))
         edge.table = None
 
+    def frames(self) -> list[str]:
+        """Every frame of the tree, sorted."""
+        names = set(self._edges) | {e.parent for e in self._edges.values()}
+        return sorted(names)
+
     def root(self, frame: str) -> str:
         """The top of ``frame``'s tree."""
         return self.chain(frame)[0] if frame in self._edges else frame
@@ -120,7 +125,15 @@ class TransformBuffer:
             if len(path) > len(self._edges) + 1:
                 raise RecordingError(f"the /tf tree has a loop through {frame!r}")
         if root is not None and path[-1] != root:
-            raise RecordingError(f"frame {frame!r} is not below {root!r} in the /tf tree")
+            listed = ", ".join(self.frames()) or "none"
+            if root not in self:
+                raise RecordingError(
+                    f"frame {root!r} is not in the /tf tree; its frames are: {listed}"
+                )
+            raise RecordingError(
+                f"frame {frame!r} is not below {root!r} in the /tf tree (its chain is "
+                f"{' → '.join(path[::-1])}); the tree's frames are: {listed}"
+            )
         return path[::-1]
 
     def lookup(self, root: str, frame: str, times: ArrayLike) -> FloatArray:
