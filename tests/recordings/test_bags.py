@@ -135,7 +135,7 @@ def test_options_choose_and_reject_topics(recorded: dict[str, Any]) -> None:
     ):
         list(BagRecording(path, ReplayOptions(pose_frame="map")).frames())
     # A frame of the tree that is not above the LiDAR's: its chain is shown.
-    with pytest.raises(RecordingError, match="not below 'pan_link'.*its chain is"):
+    with pytest.raises(RecordingError, match=r"not below 'pan_link'.*its chain is"):
         list(BagRecording(path, ReplayOptions(pose_frame="pan_link")).frames())
 
 

@@ -75,7 +75,7 @@ def test_bad_trees_raise_recording_errors() -> None:
         tf2.lookup("map", "lidar", [0.0])
     assert tf2.frames() == ["lidar", "world"]
     tf2.add("world", "radar", 0.0, np.eye(4), static=True)
-    with pytest.raises(RecordingError, match="not below 'radar'.*chain is world → lidar"):
+    with pytest.raises(RecordingError, match=r"not below 'radar'.*chain is world → lidar"):
         tf2.lookup("radar", "lidar", [0.0])
     # A second parent for a frame is ignored and counted.
     tf2.add("odom", "lidar", 0.0, np.eye(4), static=True)
