@@ -202,3 +202,35 @@ def test_bare_dronetrack_prints_help_and_no_error(capsys: pytest.CaptureFixture[
 def test_dash_h_is_help(command: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     assert run([*command, "-h"]) == 0
     assert "Usage" in capsys.readouterr().out
+
+
+def _help(command: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    assert run([*command, "--help"]) == 0
+    # Rich wraps the help in a box: join the cells of each option's rows.
+    return " ".join(line.strip("│ ").strip() for line in capsys.readouterr().out.splitlines())
+
+
+def test_help_states_the_particle_cap(capsys: pytest.CaptureFixture[str]) -> None:
+    for command in (["simulate"], ["record"]):
+        text = _help(command, capsys)
+        assert "2,000,000" in text
+    assert run(["simulate", "--particles", "2000001", "--duration", "1"]) == 2
+    assert "2000000" in capsys.readouterr().err
+
+
+def test_record_marks_out_as_required(capsys: pytest.CaptureFixture[str]) -> None:
+    text = _help(["record"], capsys)
+    assert "[required]" in text
+    assert run(["record", "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err
+    assert "Missing option" in err
+
+
+def test_both_durations_say_whether_a_scan_comes_first(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    simulate = _help(["simulate"], capsys)
+    render = _help(["render"], capsys)
+    assert "after the background scan" in re.sub(r"\s+", " ", simulate)
+    assert "no background scan comes first" in re.sub(r"\s+", " ", render)

@@ -210,3 +210,31 @@ def test_ctrl_c_from_a_terminal_stops_a_sweep_and_it_resumes(tmp_path: Path) -> 
     keys = [json.loads(line)["key"] for line in results.read_text().splitlines()]
     assert len(keys) == 6
     assert len(set(keys)) == 6
+
+
+def test_ctrl_c_stops_record_and_the_bag_reads_back(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The recording is closed properly after the frame in hand: info and track read it."""
+    from dronetrack.io.bag_writer import RecordingWriter
+
+    frame = RecordingWriter.frame
+    written: list[int] = []
+
+    def frame_then_interrupt(self: RecordingWriter, *args: object, **kwargs: object) -> None:
+        frame(self, *args, **kwargs)  # type: ignore[arg-type]
+        written.append(1)
+        if len(written) == 40:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(RecordingWriter, "frame", frame_then_interrupt)
+    bag = tmp_path / "flight.bag"
+    assert run(["record", "--duration", "30", "--out", str(bag)]) == 130
+    err = capsys.readouterr().err
+    assert err.strip().splitlines()[-1].startswith(f"interrupted; kept {bag}"), err
+    assert "40 frames" in err
+    monkeypatch.undo()
+    assert run(["info", str(bag)]) == 0
+    listing = capsys.readouterr().out
+    lidar = [line for line in listing.splitlines() if "/livox/lidar" in line]
+    assert lidar[0].split("│")[3].strip() == "40"

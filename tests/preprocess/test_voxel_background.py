@@ -108,7 +108,7 @@ def test_bad_background_files(tmp_path: Path) -> None:
         load_background(tmp_path / "none.npz")
     junk = tmp_path / "junk.npz"
     junk.write_bytes(b"not a zip")
-    with pytest.raises(InputError, match="cannot read"):
+    with pytest.raises(InputError, match=r"not a background model \(not an \.npz archive\)"):
         load_background(junk)
     with pytest.raises(InputError, match="not been built"):
         VoxelBackground(1.0).is_background(np.zeros((1, 3)))
