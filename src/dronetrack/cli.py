@@ -7,6 +7,8 @@ and exit with code 2.
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -26,9 +28,19 @@ from dronetrack.cli_output import (
 from dronetrack.errors import DronetrackError
 
 if TYPE_CHECKING:
+    from dronetrack.io.view import ViewerSink
     from dronetrack.sim.scenario import ScenarioConfig
+    from dronetrack.simulate import RunFolder, SimulationRun
 
-__all__ = ["app", "main", "run", "scenario_from_options", "stop_if_interrupted"]
+__all__ = [
+    "app",
+    "main",
+    "report_run",
+    "run",
+    "run_outputs",
+    "scenario_from_options",
+    "stop_if_interrupted",
+]
 
 app = typer.Typer(
     add_completion=False,
@@ -328,7 +340,6 @@ def simulate(
     """
 
     from dronetrack.io.runs import default_run_dir
-    from dronetrack.io.viewers import close_viewers, open_viewers
     from dronetrack.simulate import RunFolder, run_simulation, simulation_viewer_hook
 
     cfg = scenario_from_options(
@@ -345,27 +356,16 @@ def simulate(
         turret_mode=turret.value if turret else None,
     )
     folder = RunFolder(out if out is not None else default_run_dir())
-    try:
-        viewers = open_viewers(foxglove, rerun)
-        try:
-            with progress_bar() as bar:
-                task = bar.add_task(f"simulating {cfg.name}", total=None)
-                run = run_simulation(
-                    cfg,
-                    progress=lambda i, n: bar.update(task, completed=i, total=n),
-                    on_frame=simulation_viewer_hook(viewers, cfg) if viewers else None,
-                    compiling=compile_reporter(bar, task),
-                    log_sink=folder.log_sink,
-                )
-        finally:
-            close_viewers(viewers)
-    except BaseException:
-        folder.close()  # the frames done so far stay in frames.csv
-        raise
-    metrics = folder.finish(run)
-    print_kernel_note(run.kernels)
-    stop_if_interrupted(run.interrupted, f"; kept {len(run.log)} frames in {folder.out_dir}")
-    print_metrics(metrics, folder.out_dir)
+    with run_outputs(folder, foxglove, rerun) as viewers, progress_bar() as bar:
+        task = bar.add_task(f"simulating {cfg.name}", total=None)
+        run = run_simulation(
+            cfg,
+            progress=lambda i, n: bar.update(task, completed=i, total=n),
+            on_frame=simulation_viewer_hook(viewers, cfg) if viewers else None,
+            compiling=compile_reporter(bar, task),
+            log_sink=folder.log_sink,
+        )
+    report_run(folder, run, folder.finish(run))
 
 
 @app.command()
@@ -486,6 +486,33 @@ def _caused_by_interrupt(err: BaseException) -> bool:
         seen.add(id(cause))
         cause = cause.__cause__ or cause.__context__
     return False
+
+
+@contextmanager
+def run_outputs(
+    folder: RunFolder, foxglove: Path | None, rerun: Path | None, start: float = 0.0
+) -> Iterator[list[ViewerSink]]:
+    """The viewer files a run writes besides its folder, closed after the block; if
+    the block fails, or Ctrl-C stops it at once, the folder keeps the frames done."""
+    from dronetrack.io.viewers import close_viewers, open_viewers
+
+    try:
+        viewers = open_viewers(foxglove, rerun, start=start)
+        try:
+            yield viewers
+        finally:
+            close_viewers(viewers)
+    except BaseException:
+        folder.close()
+        raise
+
+
+def report_run(folder: RunFolder, run: SimulationRun, metrics: dict[str, Any]) -> None:
+    """After a run's folder is written: the kernels' compile time if it compiled, then
+    one ``interrupted`` line (exit 130) if Ctrl-C ended it, else the metrics table."""
+    print_kernel_note(run.kernels)
+    stop_if_interrupted(run.interrupted, f"; kept {len(run.log)} frames in {folder.out_dir}")
+    print_metrics(metrics, folder.out_dir)
 
 
 def stop_if_interrupted(interrupted: bool, note: str = "") -> None:

@@ -33,6 +33,8 @@ from dronetrack.cli import (
     TurretOption,
     VisibilityOption,
     app,
+    report_run,
+    run_outputs,
     scenario_from_options,
     stop_if_interrupted,
 )
@@ -152,7 +154,6 @@ def track(
     from dronetrack.io.recordings import open_recording
     from dronetrack.io.runs import default_run_dir
     from dronetrack.io.source import ReplayOptions
-    from dronetrack.io.viewers import close_viewers, open_viewers
     from dronetrack.replay import recording_config, run_replay, write_commands_csv
     from dronetrack.sim.scenario import load_scenario_file
     from dronetrack.sim.scenarios import SCENARIOS
@@ -179,33 +180,22 @@ def track(
         background_file=background,
         background_from=background_from,
     )
-    try:
-        viewers = open_viewers(foxglove, rerun, start=source.origin)
-        try:
-            with progress_bar() as bar:
-                task = bar.add_task(f"replaying {recording.name}", total=None)
-                result = run_replay(
-                    source,
-                    cfg,
-                    progress=lambda i, n: bar.update(task, completed=i, total=n),
-                    viewers=viewers,
-                    compiling=compile_reporter(bar, task),
-                    log_sink=folder.log_sink,
-                )
-        finally:
-            close_viewers(viewers)
-    except BaseException:
-        folder.close()  # the frames done so far stay in frames.csv
-        raise
+    outputs = run_outputs(folder, foxglove, rerun, start=source.origin)
+    with outputs as viewers, progress_bar() as bar:
+        task = bar.add_task(f"replaying {recording.name}", total=None)
+        result = run_replay(
+            source,
+            cfg,
+            progress=lambda i, n: bar.update(task, completed=i, total=n),
+            viewers=viewers,
+            compiling=compile_reporter(bar, task),
+            log_sink=folder.log_sink,
+        )
     metrics = folder.finish(result.run, extra=result.metrics())
     write_commands_csv(result.commands, folder.out_dir / "commands.csv")
     for warning in result.warnings:
         err_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
-    print_kernel_note(result.run.kernels)
-    stop_if_interrupted(
-        result.run.interrupted, f"; kept {len(result.run.log)} frames in {folder.out_dir}"
-    )
-    print_metrics(metrics, folder.out_dir)
+    report_run(folder, result.run, metrics)
     if result.skipped:
         err_console.print(
             "skipped messages: " + ", ".join(f"{k} {v}" for k, v in result.skipped.items())

@@ -3,14 +3,13 @@ what a reader needs is on them and nothing misleading is."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
@@ -32,22 +31,6 @@ from dronetrack.eval.plots import (
 )
 
 PERIOD = 0.1
-
-
-@pytest.fixture
-def keep_figures(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[], Figure]]:
-    """The plot functions close their figure after saving it; keep it open to inspect."""
-    monkeypatch.setattr(plt, "close", lambda *_args, **_kw: None)
-    plt.close("all")
-
-    def last() -> Figure:
-        fig = plt.figure(plt.get_fignums()[-1])
-        fig.canvas.draw()
-        return fig
-
-    yield last
-    monkeypatch.undo()
-    plt.close("all")
 
 
 def _flight(lost: slice | None = None, n: int = 200) -> dict[str, NDArray[Any]]:

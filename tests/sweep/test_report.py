@@ -4,14 +4,13 @@ colour scale, and every point named."""
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
@@ -26,22 +25,6 @@ from dronetrack.sweep.report import (
 )
 
 EQ11 = {"sigma_pos": 0.5, "sigma_vel": 0.5, "sigma_acc": 0.0, "sigma_m": 0.2}
-
-
-@pytest.fixture
-def keep_figures(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[], Figure]]:
-    """The report closes its figure after saving it; keep it open to inspect."""
-    monkeypatch.setattr(plt, "close", lambda *_args, **_kw: None)
-    plt.close("all")
-
-    def last() -> Figure:
-        fig = plt.figure(plt.get_fignums()[-1])
-        fig.canvas.draw()
-        return fig
-
-    yield last
-    monkeypatch.undo()
-    plt.close("all")
 
 
 def _row(
