@@ -4,8 +4,8 @@ Each threshold is set from the values measured here (seed 0) with margin, and
 from the seed's published figures where the simulation can be compared:
 
 - default flight, turret tracking against fixed: measured 73 % / 142 m against
-  17 % / 33 m (seed 000 Table II: 71 % / 130 m against 52 % / 103 m);
-- field test, sunny against fog (V = 100 m): 153 m against 65 m (seed: 128 m
+  17 % / 29 m (seed 000 Table II: 71 % / 130 m against 52 % / 103 m);
+- field test, sunny against fog (V = 100 m): 153 m against 59 m (seed: 128 m
   against 58 m);
 - indoor slow patterns: RMSE 2.9 cm (seed Table IV: 5.4 and 5.7 cm), every
   frame from the first lock within 0.17 m; coverage (within 0.3 m) 96 %, the

@@ -312,3 +312,70 @@ def test_a_bag_without_tf_warns_of_the_identity_pose(
     err = capsys.readouterr().err
     assert "warning: points has no /tf for its LiDAR frame 'velodyne'" in err
     assert "warnings" in _metrics(tmp_path / "r")
+
+
+def test_a_cut_or_unclosed_ros1_bag_says_so_with_the_way_to_repair_it(
+    flights: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = flights["ros1"].read_bytes()
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(data[: len(data) // 2])
+    # The ROS bag 2.0 file header: index_pos, 8 bytes, 0 until the bag is closed.
+    unclosed = tmp_path / "unclosed.bag"
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    unclosed.write_bytes(data[:at] + bytes(8) + data[at + 8 :])
+    for path, words in ((cut, "is truncated"), (unclosed, "was never closed")):
+        assert run(["info", str(path)]) == 2
+        line = _err_line(capsys)
+        assert words in line
+        assert "rosbag reindex" in line
+
+
+def test_an_mcap_of_another_profile_is_listed_but_not_replayed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    view = tmp_path / "view.mcap"
+    args = ["simulate", "--duration", "0.5", "--foxglove", str(view), "--out", str(tmp_path / "r")]
+    assert run(args) == 0
+    capsys.readouterr()
+    assert run(["track", str(view), "--out", str(tmp_path / "t")]) == 2
+    line = _err_line(capsys)
+    assert "not a ROS 2 bag" in line
+    assert "dronetrack info" in line
+
+
+def test_info_counts_an_mcap_without_a_summary_by_reading_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A writer that leaves out the summary section (statistics): the counts come from
+    the messages themselves; a channel without a schema is listed as such."""
+    from mcap.writer import IndexType, Writer
+
+    path = tmp_path / "plain.mcap"
+    with path.open("wb") as fh:
+        w = Writer(
+            fh,
+            index_types=IndexType.NONE,
+            use_chunking=False,
+            use_statistics=False,
+            use_summary_offsets=False,
+            repeat_channels=False,
+            repeat_schemas=False,
+        )
+        w.start(profile="", library="a test")
+        schema = w.register_schema("test.Reading", "jsonschema", b"{}")
+        readings = w.register_channel("/readings", "json", schema)
+        notes = w.register_channel("/notes", "text", 0)
+        for k in range(7):
+            w.add_message(readings, log_time=10**9 + k * 10**8, data=b"{}", publish_time=0)
+        for k in range(3):
+            w.add_message(notes, log_time=2 * 10**9 + k, data=b"hi", publish_time=0)
+        w.finish()
+    assert run(["info", str(path)]) == 0
+    listing = capsys.readouterr().out
+    rows = {line.split()[1]: line for line in listing.splitlines() if line.startswith("│ /")}
+    assert "test.Reading (jsonschema)" in rows["/readings"]
+    assert rows["/readings"].split("│")[3].strip() == "7"
+    assert "(no schema), text" in rows["/notes"]
+    assert rows["/notes"].split("│")[3].strip() == "3"
+    assert "1.000 s" in listing  # from the first message (1 s) to the last (2 s)

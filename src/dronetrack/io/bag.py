@@ -129,6 +129,57 @@ def check_mcap_end(path: Path) -> None:
         )
 
 
+ROSBAG1_MAGIC = b"#ROSBAG V2.0\n"
+_REINDEX = "`rosbag reindex FILE` (ROS 1's tools) rebuilds its index; or record it again"
+
+
+def _ros1_index_pos(path: Path) -> int | None:
+    """The ``index_pos`` of a ROS 1 bag's file-header record (ROS bag format 2.0): where
+    the index starts, 0 while the bag is being written and until it is closed."""
+    with path.open("rb") as fh:
+        head = fh.read(len(ROSBAG1_MAGIC) + 4096)
+    at = head.find(b"index_pos=")
+    if not head.startswith(ROSBAG1_MAGIC) or at < 0 or at + 18 > len(head):
+        return None
+    pos: int = struct.unpack_from("<Q", head, at + len(b"index_pos="))[0]
+    return pos
+
+
+def _open_error(path: Path, exc: Exception) -> RecordingError:
+    """One line on why the bag ``path`` does not open, and what can be done about it."""
+    if path.is_file() and sniff_file(path) == "ros1":
+        pos, size = _ros1_index_pos(path), path.stat().st_size
+        if pos == 0:
+            return RecordingError(
+                f"{path}: the ROS 1 bag was never closed (its header points to no index); "
+                + _REINDEX
+            )
+        if pos is not None and pos >= size:
+            return RecordingError(
+                f"{path}: the ROS 1 bag is truncated (its index should start at byte {pos}, "
+                f"the file has {size}); " + _REINDEX
+            )
+    if isinstance(exc, UnicodeDecodeError):
+        return RecordingError(
+            f"{path}: cannot open the recording: it is corrupt (a header field that should "
+            "be text is not UTF-8)"
+        )
+    return RecordingError(f"{path}: cannot open the recording: {exc}")
+
+
+def _check_mcap_profile(path: Path) -> None:
+    """rosbags replays MCAP files of the ``ros2`` profile; say so of any other."""
+    from dronetrack.io.mcap_info import mcap_profile
+
+    profile = mcap_profile(path)
+    if profile != "ros2":
+        raise RecordingError(
+            f"{path}: an MCAP file of profile {profile or 'none'!r}, not a ROS 2 bag, so it "
+            "cannot be replayed (`dronetrack info` lists its channels); Foxglove's own files "
+            "(simulate --foxglove) are for viewing"
+        )
+
+
 def _rosbags_paths(path: Path) -> tuple[list[Path], Path | None]:
     """The paths to hand to rosbags, which tells the containers apart by suffix, and a
     temporary folder to remove afterwards: a bag file whose suffix does not say what it
@@ -141,6 +192,7 @@ def _rosbags_paths(path: Path) -> tuple[list[Path], Path | None]:
     kind = sniff_file(path)
     if kind == "mcap":
         check_mcap_end(path)
+        _check_mcap_profile(path)
     suffix = _SUFFIX.get(kind or "")
     if suffix is None:
         raise RecordingError(f"{path} is not a bag: it starts with none of {EXPECTED}")
@@ -214,7 +266,7 @@ class BagFile:
             reader = AnyReader(paths, default_typestore=livox_typestore(ros1=False))
             reader.open()
         except (OSError, *_BAD_DATA) as exc:
-            raise RecordingError(f"{self.path}: cannot open the recording: {exc}") from None
+            raise _open_error(self.path, exc) from None
         try:
             yield reader
         except (AnyReaderError, OSError) as exc:
