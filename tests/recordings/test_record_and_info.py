@@ -196,14 +196,21 @@ def test_a_compressed_bare_db3_is_refused(
     assert not out.exists()
 
 
-def test_info_lists_any_mcap_file_foxgloves_own_included(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    view = tmp_path / "view.mcap"
-    args = ["simulate", "--duration", "1", "--foxglove", str(view), "--out", str(tmp_path / "r")]
+@pytest.fixture(scope="module")
+def foxglove_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """What ``simulate --foxglove`` writes for a 1 s flight: protobuf schemas, no profile."""
+    folder = tmp_path_factory.mktemp("view")
+    view = folder / "view.mcap"
+    args = ["simulate", "--duration", "1", "--foxglove", str(view), "--out", str(folder / "r")]
     assert run(args) == 0
+    return view
+
+
+def test_info_lists_any_mcap_file_foxgloves_own_included(
+    foxglove_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     capsys.readouterr()
-    assert run(["info", str(view)]) == 0
+    assert run(["info", str(foxglove_file)]) == 0
     listing = capsys.readouterr().out
     rows = {line.split()[1]: line for line in listing.splitlines() if line.startswith("│ /")}
     # 110 frames (the 10 s scan and the 1 s flight); four transforms each on /tf.
@@ -332,13 +339,10 @@ def test_a_cut_or_unclosed_ros1_bag_says_so_with_the_way_to_repair_it(
 
 
 def test_an_mcap_of_another_profile_is_listed_but_not_replayed(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    foxglove_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    view = tmp_path / "view.mcap"
-    args = ["simulate", "--duration", "0.5", "--foxglove", str(view), "--out", str(tmp_path / "r")]
-    assert run(args) == 0
     capsys.readouterr()
-    assert run(["track", str(view), "--out", str(tmp_path / "t")]) == 2
+    assert run(["track", str(foxglove_file), "--out", str(tmp_path / "t")]) == 2
     line = _err_line(capsys)
     assert "not a ROS 2 bag" in line
     assert "dronetrack info" in line
