@@ -49,7 +49,8 @@ from dronetrack.io.livox import (
     livox_points,
     livox_typestore,
 )
-from dronetrack.io.magic import EXPECTED, sniff_file
+from dronetrack.io.magic import EXPECTED, check_mcap_end, ros1_damage, sniff_file
+from dronetrack.io.mcap_info import check_ros2_profile
 from dronetrack.io.pointcloud2 import CloudPoints, cloud_points
 from dronetrack.io.pointcloud2_raw import (
     RawCloud,
@@ -68,7 +69,7 @@ from dronetrack.io.source import (
 from dronetrack.io.tf import TransformBuffer
 from dronetrack.types import Frame
 
-__all__ = ["CONFIG_TOPIC", "BagFile", "BagRecording", "bag_paths", "check_mcap_end", "is_bag"]
+__all__ = ["CONFIG_TOPIC", "BagFile", "BagRecording", "bag_paths"]
 
 log = logging.getLogger(__name__)
 
@@ -85,14 +86,6 @@ _MAX_WARNINGS = 5  # per reason; later skips are only counted
 
 
 _SUFFIX = {"ros1": ".bag", "mcap": ".mcap", "sqlite3": ".db3"}
-MCAP_MAGIC = b"\x89MCAP0\r\n"  # an MCAP file starts and ends with it
-
-
-def is_bag(path: Path) -> bool:
-    """Whether ``path`` is a recording rosbags opens (by content, see ``io.magic``)."""
-    if path.is_dir():
-        return (path / "metadata.yaml").exists() or any(path.glob("*.bag"))
-    return path.is_file() and sniff_file(path) in _SUFFIX
 
 
 def bag_paths(path: Path) -> list[Path]:
@@ -113,71 +106,17 @@ def _kind(path: Path) -> str:
     )
 
 
-def check_mcap_end(path: Path) -> None:
-    """A ``RecordingError`` if the MCAP file ``path`` lacks its closing magic: the writer
-    stopped before finishing it (a crash, a full disk, a copy cut short)."""
-    size = path.stat().st_size
-    with path.open("rb") as fh:
-        fh.seek(max(0, size - len(MCAP_MAGIC)))
-        tail = fh.read()
-    if tail != MCAP_MAGIC:
-        raise RecordingError(
-            f"{path} is a truncated MCAP file: it does not end with MCAP's closing magic, "
-            "so its writer stopped before finishing it; recover the messages it holds with "
-            f"the mcap command-line tool, `mcap recover {path} -o recovered.mcap`, and read "
-            "recovered.mcap"
-        )
-
-
-ROSBAG1_MAGIC = b"#ROSBAG V2.0\n"
-_REINDEX = "`rosbag reindex FILE` (ROS 1's tools) rebuilds its index; or record it again"
-
-
-def _ros1_index_pos(path: Path) -> int | None:
-    """The ``index_pos`` of a ROS 1 bag's file-header record (ROS bag format 2.0): where
-    the index starts, 0 while the bag is being written and until it is closed."""
-    with path.open("rb") as fh:
-        head = fh.read(len(ROSBAG1_MAGIC) + 4096)
-    at = head.find(b"index_pos=")
-    if not head.startswith(ROSBAG1_MAGIC) or at < 0 or at + 18 > len(head):
-        return None
-    pos: int = struct.unpack_from("<Q", head, at + len(b"index_pos="))[0]
-    return pos
-
-
 def _open_error(path: Path, exc: Exception) -> RecordingError:
     """One line on why the bag ``path`` does not open, and what can be done about it."""
-    if path.is_file() and sniff_file(path) == "ros1":
-        pos, size = _ros1_index_pos(path), path.stat().st_size
-        if pos == 0:
-            return RecordingError(
-                f"{path}: the ROS 1 bag was never closed (its header points to no index); "
-                + _REINDEX
-            )
-        if pos is not None and pos >= size:
-            return RecordingError(
-                f"{path}: the ROS 1 bag is truncated (its index should start at byte {pos}, "
-                f"the file has {size}); " + _REINDEX
-            )
+    damage = ros1_damage(path) if path.is_file() and sniff_file(path) == "ros1" else None
+    if damage is not None:
+        return RecordingError(f"{path}: {damage}")
     if isinstance(exc, UnicodeDecodeError):
         return RecordingError(
             f"{path}: cannot open the recording: it is corrupt (a header field that should "
             "be text is not UTF-8)"
         )
     return RecordingError(f"{path}: cannot open the recording: {exc}")
-
-
-def _check_mcap_profile(path: Path) -> None:
-    """rosbags replays MCAP files of the ``ros2`` profile; say so of any other."""
-    from dronetrack.io.mcap_info import mcap_profile
-
-    profile = mcap_profile(path)
-    if profile != "ros2":
-        raise RecordingError(
-            f"{path}: an MCAP file of profile {profile or 'none'!r}, not a ROS 2 bag, so it "
-            "cannot be replayed (`dronetrack info` lists its channels); Foxglove's own files "
-            "(simulate --foxglove) are for viewing"
-        )
 
 
 def _rosbags_paths(path: Path) -> tuple[list[Path], Path | None]:
@@ -192,7 +131,7 @@ def _rosbags_paths(path: Path) -> tuple[list[Path], Path | None]:
     kind = sniff_file(path)
     if kind == "mcap":
         check_mcap_end(path)
-        _check_mcap_profile(path)
+        check_ros2_profile(path)
     suffix = _SUFFIX.get(kind or "")
     if suffix is None:
         raise RecordingError(f"{path} is not a bag: it starts with none of {EXPECTED}")

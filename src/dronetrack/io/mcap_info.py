@@ -15,7 +15,7 @@ from typing import Any
 from dronetrack.errors import RecordingError
 from dronetrack.io.source import RecordingInfo, TopicInfo
 
-__all__ = ["mcap_info", "mcap_profile"]
+__all__ = ["check_ros2_profile", "mcap_info", "mcap_profile"]
 
 _NS = 1e-9
 
@@ -29,6 +29,18 @@ def mcap_profile(path: Path) -> str:
             return str(make_reader(fh).get_header().profile)
         except Exception as err:  # mcap raises its own classes, and struct/EOF errors
             raise RecordingError(f"{path}: cannot read the MCAP header: {err}") from None
+
+
+def check_ros2_profile(path: Path) -> None:
+    """rosbags replays MCAP files of the ``ros2`` profile; a ``RecordingError`` for any
+    other, which ``info`` can still list."""
+    profile = mcap_profile(path)
+    if profile != "ros2":
+        raise RecordingError(
+            f"{path}: an MCAP file of profile {profile or 'none'!r}, not a ROS 2 bag, so it "
+            "cannot be replayed (`dronetrack info` lists its channels); Foxglove's own files "
+            "(simulate --foxglove) are for viewing"
+        )
 
 
 def mcap_info(path: Path) -> RecordingInfo:

@@ -19,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from dronetrack.errors import RecordingError
-from dronetrack.io.magic import EXPECTED, sniff_file
+from dronetrack.io.magic import EXPECTED, check_mcap_end, sniff_file
 from dronetrack.io.source import Recording, RecordingInfo, ReplayOptions
 
 __all__ = ["open_recording", "recording_info", "recording_kind"]
@@ -59,7 +59,7 @@ def recording_info(path: Path) -> RecordingInfo:
     """Topics, types, counts and duration; a bag need not have a LiDAR topic, and an
     MCAP file may have any profile (Foxglove's own files have none)."""
     if recording_kind(path) == "bag":
-        from dronetrack.io.bag import BagFile, check_mcap_end
+        from dronetrack.io.bag import BagFile
 
         if path.is_file() and sniff_file(path) == "mcap":
             from dronetrack.io.mcap_info import mcap_info, mcap_profile
