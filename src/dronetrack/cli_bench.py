@@ -25,7 +25,8 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from dronetrack.cli import RunDirOption, app
+from dronetrack.cli import app
+from dronetrack.cli_options import RunDirOption
 from dronetrack.cli_output import progress_bar
 
 __all__ = ["bench", "bench_table"]

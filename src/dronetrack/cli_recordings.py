@@ -18,6 +18,12 @@ from rich.console import Console
 from rich.table import Table
 
 from dronetrack.cli import (
+    app,
+    report_run,
+    run_outputs,
+    stop_if_interrupted,
+)
+from dronetrack.cli_options import (
     ConfigOption,
     DroneOption,
     FlightDurationOption,
@@ -32,11 +38,7 @@ from dronetrack.cli import (
     TrajectoryOption,
     TurretOption,
     VisibilityOption,
-    app,
-    report_run,
-    run_outputs,
     scenario_from_options,
-    stop_if_interrupted,
 )
 from dronetrack.cli_output import (
     compile_reporter,

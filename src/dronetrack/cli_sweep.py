@@ -13,7 +13,8 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from dronetrack.cli import RunDirOption, app, stop_if_interrupted
+from dronetrack.cli import app, stop_if_interrupted
+from dronetrack.cli_options import RunDirOption
 from dronetrack.cli_output import err_console, progress_bar
 from dronetrack.errors import ConfigError
 
