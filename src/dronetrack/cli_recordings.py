@@ -50,7 +50,7 @@ from dronetrack.cli_output import (
 from dronetrack.errors import ConfigError
 from dronetrack.io.recordings import recording_info
 from dronetrack.io.runs import check_run_dir
-from dronetrack.io.source import TopicInfo
+from dronetrack.io.source import RecordingInfo, TopicInfo
 
 __all__ = ["info", "record", "track"]
 
@@ -326,18 +326,19 @@ def record(
     finally:
         writer.close()
     print_kernel_note(run.kernels)
-    summary = recording_summary(out, container, writer.compression)
+    written = recording_info(out)
+    summary = recording_summary(written, container, writer.compression)
     stop_if_interrupted(run.interrupted, f"; kept {summary}")
     print_metrics(run.metrics(), out)
     typer.echo(f"wrote {summary}")
-    _print_topics(recording_info(out).topics)
+    _print_topics(written.topics)
 
 
-def recording_summary(path: Path, container: str, compression: str | None) -> str:
+def recording_summary(info: RecordingInfo, container: str, compression: str | None) -> str:
     """One line on a written recording: path, container, frames, length and size."""
     from dronetrack.io.bag_writer import FORMAT_NAMES, LIDAR_TOPIC
 
-    info = recording_info(path)
+    path = info.path
     frames = sum(t.count for t in info.topics if t.topic == LIDAR_TOPIC)
     files = [p for p in path.rglob("*") if p.is_file()] if path.is_dir() else [path]
     size = sum(p.stat().st_size for p in files)
