@@ -13,7 +13,7 @@ ground, so every point is looked up in the background model (the worst case).
 
 Each measurement runs ``--rounds`` times and every round is printed; the verdict
 uses the best round, as timeit does, since a shared virtual machine's neighbours
-only ever add time.  The workload and its timing are ``dronetrack.bench``'s
+only ever add time.  The workload and its timing are ``dronetrack.experiments.bench``'s
 (``pipeline_step_ms``), which ``dronetrack bench`` runs with the rest of the suite.
 """
 
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from dronetrack.allocator import tune_allocator
-from dronetrack.bench import (
+from dronetrack.experiments.bench import (
     TARGETS,
     heavy_repeats,
     pipeline_step_ms,
@@ -40,8 +40,8 @@ from dronetrack.bench import (
     stats,
     worst_case_frames,
 )
+from dronetrack.jobs.simulate import run_simulation
 from dronetrack.sim.scenarios import SCENARIOS
-from dronetrack.simulate import run_simulation
 
 TARGETS_MS = {int(t.path[1]): t.limit for t in TARGETS if t.path[0] == "pf_step_ms"}
 

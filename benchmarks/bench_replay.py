@@ -12,7 +12,7 @@ its ground truth.  It is written in two containers and point formats (ROS 1 with
 Livox CustomMsg, ROS 2 MCAP with PointCloud2) and replayed end to end: reading,
 decoding, /tf lookup, the pipeline with 5,000 particles, and the ground-truth
 bookkeeping.  Each round replays the whole file; the verdict uses the best round.
-The recording and the timing are ``dronetrack.bench``'s (``write_recording``,
+The recording and the timing are ``dronetrack.experiments.bench``'s (``write_recording``,
 ``time_replay``), which ``dronetrack bench`` runs with the rest of the suite.
 """
 
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from dronetrack.allocator import tune_allocator
-from dronetrack.bench import REPLAY_FORMATS, single_thread, time_replay, write_recording
+from dronetrack.experiments.bench import REPLAY_FORMATS, single_thread, time_replay, write_recording
 
 TARGET_X_REALTIME = 20.0
 

@@ -6,7 +6,7 @@ Targets (issue 2): a 100 ms Avia frame (24,000 rays) against the outdoor scene
 plus a drone in at most 10 ms median; one VLP-16 revolution in at most 10 ms.
 Each frame is a full ``SimWorld.step()``: turret motion, scan pattern, per-point
 poses, ray casting, detection physics and noise.  The turret follows the true
-target, as in seed 000's comparison runs.  The timing is ``dronetrack.bench``'s
+target, as in seed 000's comparison runs.  The timing is ``dronetrack.experiments.bench``'s
 (``sim_frame_ms``), which ``dronetrack bench`` runs with the rest of the suite.
 """
 
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from dronetrack.allocator import tune_allocator
-from dronetrack.bench import SIM_CASES, TARGETS, cpu_model, sim_frame_ms, single_thread
+from dronetrack.experiments.bench import SIM_CASES, TARGETS, cpu_model, sim_frame_ms, single_thread
 
 # Sensor → the scenario whose frames are timed (all in the outdoor scene).
 CASES = SIM_CASES

@@ -14,8 +14,8 @@ CORE = ["types.py", "errors.py", "geometry.py", "kinematics.py", "config.py", "p
 FORBIDDEN = (
     "dronetrack.sim",
     "dronetrack.io",
-    "dronetrack.render",
-    "dronetrack.cli",
+    "dronetrack.jobs.render",
+    "dronetrack.cli.main",
     "dronetrack.viz",
 )
 

@@ -14,7 +14,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dronetrack.bench import (
+from dronetrack.cli.main import run
+from dronetrack.errors import ConfigError
+from dronetrack.experiments.bench import (
     PF_PARTICLES,
     SENSORS,
     STAT_KEYS,
@@ -26,9 +28,7 @@ from dronetrack.bench import (
     single_thread,
     thread_counts,
 )
-from dronetrack.cli import run
-from dronetrack.errors import ConfigError
-from dronetrack.factory import TRACKER_NAMES
+from dronetrack.jobs.factory import TRACKER_NAMES
 
 
 def _positive(value: Any) -> bool:

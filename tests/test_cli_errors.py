@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.cli import run
+from dronetrack.cli.main import run
 
 LATIN1_DEGREE = b"\xb0"  # "°" in Latin-1: not UTF-8
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.cli import run
+from dronetrack.cli.main import run
 from dronetrack.eval.log import FRAME_COLUMNS
 
 
@@ -226,7 +226,7 @@ def test_track_reads_pcd_folders_las_files_and_field_logs(tmp_path: Path) -> Non
     names, a .las file split into frames by GPS time, and seed 003's CSV logs."""
     import laspy
 
-    from dronetrack.io.pcd import write_pcd
+    from dronetrack.formats.pcd import write_pcd
 
     rng = np.random.default_rng(11)
     clouds = [_moving_cluster(k, rng) for k in range(30)]

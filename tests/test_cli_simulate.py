@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.cli import run
+from dronetrack.cli.main import run
 from dronetrack.eval.log import FRAME_COLUMNS
 
 METRIC_KEYS = {

@@ -9,14 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.cli import run
-from dronetrack.compare.runner import RunMetrics, case_config, run_suite
-from dronetrack.compare.suites import SUITES, Case, Suite, get_suite
-from dronetrack.compare.tables import TABLE_COLUMNS, aggregate, ranking_differences
+from dronetrack.cli.main import run
 from dronetrack.errors import ConfigError
-from dronetrack.factory import TRACKER_NAMES
+from dronetrack.experiments.compare.runner import RunMetrics, case_config, run_suite
+from dronetrack.experiments.compare.suites import SUITES, Case, Suite, get_suite
+from dronetrack.experiments.compare.tables import TABLE_COLUMNS, aggregate, ranking_differences
+from dronetrack.jobs.factory import TRACKER_NAMES
+from dronetrack.jobs.simulate import run_lockstep, run_simulation
 from dronetrack.sim.scenarios import SCENARIOS
-from dronetrack.simulate import run_lockstep, run_simulation
 
 _SUITE = Suite(
     name="toy",

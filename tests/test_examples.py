@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.cli import run
-from dronetrack.sim.scenario import load_scenario_file
+from dronetrack.cli.main import run
+from dronetrack.config.run import load_scenario_file
+from dronetrack.experiments.sweep.grid import expand, load_grid
 from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.trajectories import load_csv_trajectory
-from dronetrack.sweep.grid import expand, load_grid
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dronetrack.config import PipelineConfig, TrackerConfig
-from dronetrack.factory import (
+from dronetrack.config.pipeline import PipelineConfig, TrackerConfig
+from dronetrack.jobs.factory import (
     CA_SIGMA_ACC,
     DEFAULT_S_DIAG,
     build_pipeline,
@@ -68,9 +68,9 @@ def test_s_diag_comes_from_the_config_then_the_drone() -> None:
 def test_pf_systematic_runs_seed002s_filter_through_the_command_line_path() -> None:
     """Built the way the CLI builds it (overrides re-validate every field), pf-systematic
     is 2,000 particles with systematic resampling, and the resolved config says so."""
-    from dronetrack.sim.scenario import apply_overrides
+    from dronetrack.config.run import apply_overrides
+    from dronetrack.jobs.simulate import resolve_run
     from dronetrack.sim.scenarios import SCENARIOS
-    from dronetrack.simulate import resolve_run
 
     cfg = resolve_run(apply_overrides(SCENARIOS["seed002-relative"], tracker="pf-systematic"))
     tc = cfg.pipeline.tracker

@@ -12,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from dronetrack.cli_output import COMPILING
+from dronetrack.cli.output import COMPILING
 
 # The worst pipeline step of the default scenario with compiled kernels is 3-6 ms
 # on this 2-core machine (README, Speed); compiling even one kernel inside a step

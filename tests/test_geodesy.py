@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dronetrack.geodesy import WGS84_A, WGS84_F, enu_from_geodetic, geodetic_to_ecef
+from dronetrack.geometry.geodesy import WGS84_A, WGS84_F, enu_from_geodetic, geodetic_to_ecef
 
 
 def test_ecef_known_points() -> None:

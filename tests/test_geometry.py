@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import (
+from dronetrack.geometry.transforms import (
     MAX_SEGMENT_ANGLE,
     apply_interpolated_poses,
     azimuth_elevation,

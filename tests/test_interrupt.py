@@ -19,10 +19,10 @@ from pathlib import Path
 
 import pytest
 
-from dronetrack.cli import run
+from dronetrack.cli.main import run
 from dronetrack.eval.log import TrackLog
 from dronetrack.interrupt import handling_sigint, stop_requested, stoppable
-from dronetrack.io import runs
+from dronetrack.sinks import run_folder as runs
 
 ROWS_BEFORE_INTERRUPT = 5
 
@@ -216,7 +216,7 @@ def test_ctrl_c_stops_record_and_the_bag_reads_back(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The recording is closed properly after the frame in hand: info and track read it."""
-    from dronetrack.io.bag_writer import RecordingWriter
+    from dronetrack.sinks.bag_writer import RecordingWriter
 
     frame = RecordingWriter.frame
     written: list[int] = []

@@ -16,17 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
-from dronetrack.kernels import PIPELINE_WARM_UPS, compiled_signatures, dispatchers, warm_up
+from dronetrack.jobs.kernels import PIPELINE_WARM_UPS, compiled_signatures, dispatchers, warm_up
 
 CHECK = textwrap.dedent(
     """
     import json, sys
     from pathlib import Path
-    from dronetrack import kernels
-    from dronetrack.io.recordings import open_recording
-    from dronetrack.replay import recording_config, run_replay
+    from dronetrack.jobs import kernels
+    from dronetrack.sources.recordings import open_recording
+    from dronetrack.jobs.replay import recording_config, run_replay
     from dronetrack.sim.scenarios import get_scenario
-    from dronetrack.simulate import run_simulation
+    from dronetrack.jobs.simulate import run_simulation
 
     out = Path(sys.argv[1])
     grown = {}
@@ -75,7 +75,7 @@ CHECK = textwrap.dedent(
 
 
 def test_nothing_compiles_inside_a_run(tmp_path: Path) -> None:
-    from dronetrack.cli import run
+    from dronetrack.cli.main import run
 
     recordings = tmp_path / "recordings"
     recordings.mkdir()
@@ -108,7 +108,7 @@ def test_warm_up_reports_what_it_compiled() -> None:
     assert report.seconds >= 0
     names = {f"{d.py_func.__module__}.{d.__name__}" for d in dispatchers()}
     assert "dronetrack.track.particle._predict_kernel" in names
-    assert "dronetrack.geometry._transform_kernel" in names
+    assert "dronetrack.geometry.transforms._transform_kernel" in names
     assert all(n > 0 for k, n in compiled_signatures().items() if "track.particle" in k)
 
 

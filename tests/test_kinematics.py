@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dronetrack.kinematics import MountGeometry, pointing_angles, sensor_poses, turret_links
+from dronetrack.geometry.mount import MountGeometry, pointing_angles, sensor_poses, turret_links
 
 MOUNT = MountGeometry((0.5, -1.0, 1.2), (0.02, 0.0, 0.15), (0.08, 0.01, 0.04))
 

@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dronetrack.config import BackgroundConfig, PipelineConfig, TrackerConfig
-from dronetrack.factory import build_pipeline
-from dronetrack.geometry import make_pose
+from dronetrack.config.pipeline import BackgroundConfig, PipelineConfig, TrackerConfig
+from dronetrack.geometry.transforms import make_pose
+from dronetrack.jobs.factory import build_pipeline
 from dronetrack.pipeline import Pipeline
 from dronetrack.sim.turret import make_turret
 from dronetrack.types import Frame

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dronetrack.config.run import ScenarioConfig, apply_overrides
+from dronetrack.jobs.simulate import SimulationRun, resolve_run, run_simulation
 from dronetrack.sim.drones import DRONE_NAMES, make_drone
-from dronetrack.sim.scenario import ScenarioConfig, apply_overrides
 from dronetrack.sim.scenarios import SCENARIOS
-from dronetrack.simulate import SimulationRun, resolve_run, run_simulation
 
 
 @cache

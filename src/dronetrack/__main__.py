@@ -1,5 +1,5 @@
 """``python -m dronetrack``."""
 
-from dronetrack.cli import main
+from dronetrack.cli.main import main
 
 main()

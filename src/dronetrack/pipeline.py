@@ -28,7 +28,7 @@ import numpy as np
 
 from dronetrack.control.controller import Controller
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.foreground import Foreground, extract_foreground

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray, interpolate_poses, transform_at_times
+from dronetrack.geometry.transforms import FloatArray, interpolate_poses, transform_at_times
 
 __all__ = ["Frame", "TurretCommand", "TurretState"]
 

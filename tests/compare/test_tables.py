@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dronetrack.compare.suites import SUITES, get_suite
-from dronetrack.compare.tables import (
+from dronetrack.experiments.compare.suites import SUITES, get_suite
+from dronetrack.experiments.compare.tables import (
     Row,
     Verdict,
     combined_standard_error,

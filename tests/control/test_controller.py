@@ -10,7 +10,7 @@ import pytest
 from dronetrack.control.aiming import aim_angles
 from dronetrack.control.controller import TurretController
 from dronetrack.control.scan import raster, triangle
-from dronetrack.kinematics import MountGeometry
+from dronetrack.geometry.mount import MountGeometry
 from dronetrack.track.tracker import TrackEstimate
 
 MOUNT = MountGeometry((0.0, 0.0, 1.0), (0.0, 0.0, 0.05), (0.025, 0.0, 0.086))

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dronetrack.geometry import make_pose, rot_y, rot_z
+from dronetrack.geometry.transforms import make_pose, rot_y, rot_z
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import box_mask, finite_mask
 from dronetrack.preprocess.foreground import extract_foreground

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import InputError
-from dronetrack.io.background import load_background, save_background
+from dronetrack.formats.background import load_background, save_background
 from dronetrack.preprocess import voxel
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.voxel import KeySet, coarsen_keys, dilate_keys, unique_keys, voxel_keys

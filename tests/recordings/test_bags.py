@@ -11,15 +11,15 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dronetrack.config.run import apply_overrides, dump_scenario
 from dronetrack.errors import ConfigError, RecordingError
-from dronetrack.io.bag import BagRecording
-from dronetrack.io.bag_writer import RecordingWriter
-from dronetrack.io.recordings import open_recording, recording_info
-from dronetrack.io.source import ReplayOptions
+from dronetrack.jobs.simulate import resolve_run, run_simulation
 from dronetrack.sim.build import turret_spec
-from dronetrack.sim.scenario import apply_overrides, dump_scenario
 from dronetrack.sim.scenarios import get_scenario
-from dronetrack.simulate import resolve_run, run_simulation
+from dronetrack.sinks.bag_writer import RecordingWriter
+from dronetrack.sources.bag import BagRecording
+from dronetrack.sources.recording import ReplayOptions
+from dronetrack.sources.recordings import open_recording, recording_info
 from dronetrack.types import Frame
 
 VARIANTS = [
@@ -280,7 +280,7 @@ def test_navsatfix_ground_truth_in_a_local_enu_frame(
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
-    from dronetrack.geodesy import enu_from_geodetic
+    from dronetrack.geometry.geodesy import enu_from_geodetic
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types

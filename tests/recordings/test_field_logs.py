@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import RecordingError
-from dronetrack.geometry import make_pose
-from dronetrack.io.field_logs import FieldLogRecording, read_points_csv
-from dronetrack.io.source import ReplayOptions
-from dronetrack.io.strategy_logs import StrategyLogger
+from dronetrack.geometry.transforms import make_pose
+from dronetrack.sinks.strategy_logs import StrategyLogger
+from dronetrack.sources.field_logs import FieldLogRecording, read_points_csv
+from dronetrack.sources.recording import ReplayOptions
 
 PERIOD = 0.1
 
@@ -88,7 +88,7 @@ def test_bad_rows_are_skipped_and_counted(tmp_path: Path, caplog: pytest.LogCapt
         "2,1.2,7,8,9\n"
         "3,1.3,7,8\n"  # cut short
     )
-    with caplog.at_level(logging.WARNING, logger="dronetrack.io.field_logs"):
+    with caplog.at_level(logging.WARNING, logger="dronetrack.sources.field_logs"):
         rec = FieldLogRecording(tmp_path, ReplayOptions())
     frames = list(rec.frames())
     assert rec.skipped == {"bad_row": 4}

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import MissingExtraError, RecordingError
-from dronetrack.geometry import make_pose
-from dronetrack.io.las import LasRecording, read_las
-from dronetrack.io.source import ReplayOptions
+from dronetrack.geometry.transforms import make_pose
+from dronetrack.sources.las import LasRecording, read_las
+from dronetrack.sources.recording import ReplayOptions
 
 GPS0 = 1_300_000_000.0  # adjusted standard GPS time [s]
 

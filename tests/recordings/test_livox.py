@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dronetrack.errors import DecodeError, InputError
-from dronetrack.io.livox import (
+from dronetrack.formats.livox import (
     CUSTOM_MSG_MSG,
     CUSTOM_POINT_MSG,
     LIVOX_POINT,

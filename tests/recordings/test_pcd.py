@@ -11,11 +11,11 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import DecodeError, InputError, RecordingError
-from dronetrack.geometry import make_pose
-from dronetrack.io.lzf import lzf_compress_literal, lzf_decompress
-from dronetrack.io.pcd import decode_pcd, encode_pcd, parse_pcd_header, read_pcd, write_pcd
-from dronetrack.io.pcd_folder import PcdRecording, cloud_frame, folder_times
-from dronetrack.io.source import ReplayOptions
+from dronetrack.formats.lzf import lzf_compress_literal, lzf_decompress
+from dronetrack.formats.pcd import decode_pcd, encode_pcd, parse_pcd_header, read_pcd, write_pcd
+from dronetrack.geometry.transforms import make_pose
+from dronetrack.sources.pcd_folder import PcdRecording, cloud_frame, folder_times
+from dronetrack.sources.recording import ReplayOptions
 
 XYZI = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4")])
 
@@ -483,7 +483,7 @@ def test_a_corrupt_file_is_skipped_and_counted(
     (folder / "1.6.pcd").write_bytes(b"\x00\xffnot a pcd")  # the header does not parse
     whole = (folder / "1.7.pcd").read_bytes()
     (folder / "1.7.pcd").write_bytes(whole[:-10])  # the data are cut short
-    with caplog.at_level(logging.WARNING, logger="dronetrack.io.pcd"):
+    with caplog.at_level(logging.WARNING, logger="dronetrack.formats.pcd"):
         rec = PcdRecording(folder, ReplayOptions())
         frames = list(rec.frames())
     assert [f.stamp for f in frames] == pytest.approx([0.0, 0.3])

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dronetrack.errors import DecodeError, InputError
-from dronetrack.io.pointcloud2 import (
+from dronetrack.formats.pointcloud2 import (
     ENCODED_POINT_STEP,
     POINTFIELD_TYPES,
     CloudPoints,

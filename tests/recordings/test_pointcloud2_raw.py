@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from rosbags.typesys import Stores, get_typestore
 
 from dronetrack.errors import DecodeError
-from dronetrack.io.pointcloud2 import Field
-from dronetrack.io.pointcloud2_raw import decode_pointcloud2_cdr, decode_pointcloud2_ros1
+from dronetrack.formats.pointcloud2 import Field
+from dronetrack.formats.pointcloud2_raw import decode_pointcloud2_cdr, decode_pointcloud2_ros1
 
 TS2 = get_typestore(Stores.ROS2_HUMBLE)
 TS1 = get_typestore(Stores.ROS1_NOETIC)

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.cli import run
-from dronetrack.io.magic import sniff_file
-from dronetrack.io.pcd import write_pcd
+from dronetrack.cli.main import run
+from dronetrack.formats.magic import sniff_file
+from dronetrack.formats.pcd import write_pcd
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import RecordingError
-from dronetrack.geometry import make_pose, matrix_to_quaternion, rot_y, rot_z
-from dronetrack.io.tf import TransformBuffer, transform_matrix
-from dronetrack.kinematics import MountGeometry, sensor_poses, turret_links
+from dronetrack.geometry.mount import MountGeometry, sensor_poses, turret_links
+from dronetrack.geometry.transforms import make_pose, matrix_to_quaternion, rot_y, rot_z
+from dronetrack.sources.tf import TransformBuffer, transform_matrix
 
 
 def _turret_buffer(

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import ConfigError, InputError, MissingExtraError
-from dronetrack.geometry import FloatArray
-from dronetrack.io.view import NamedTransform, ViewFrame
-from dronetrack.io.viewers import (
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.sinks.view import NamedTransform, ViewFrame
+from dronetrack.sinks.viewers import (
     EstimateTrail,
     checked,
     close_viewers,
@@ -140,7 +140,7 @@ def _read_summary(path: Path) -> McapSummary:
 
 
 def _write_mcap(path: Path, frames: list[ViewFrame], start: float = START) -> None:
-    from dronetrack.io.foxglove_out import FoxgloveWriter
+    from dronetrack.sinks.foxglove_out import FoxgloveWriter
 
     with FoxgloveWriter(path, start=start) as writer:
         for frame in frames:
@@ -149,7 +149,7 @@ def _write_mcap(path: Path, frames: list[ViewFrame], start: float = START) -> No
 
 def test_mcap_has_the_documented_topics_schemas_and_times(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
-    from dronetrack.io.foxglove_out import TOPICS
+    from dronetrack.sinks.foxglove_out import TOPICS
 
     path = tmp_path / "run.mcap"
     _write_mcap(path, _frames())
@@ -226,7 +226,7 @@ def test_mcap_point_clouds_and_transforms_read_back(tmp_path: Path) -> None:
 
 def test_two_mcap_writers_in_one_process_keep_their_own_messages(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
-    from dronetrack.io.foxglove_out import FoxgloveWriter
+    from dronetrack.sinks.foxglove_out import FoxgloveWriter
 
     frames = _frames()
     a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
@@ -246,7 +246,7 @@ def test_two_mcap_writers_in_one_process_keep_their_own_messages(tmp_path: Path)
 
 
 def _write_rrd(path: Path, frames: list[ViewFrame], start: float = START) -> None:
-    from dronetrack.io.rerun_out import RerunWriter
+    from dronetrack.sinks.rerun_out import RerunWriter
 
     with RerunWriter(path, start=start) as writer:
         for frame in frames:
@@ -270,7 +270,7 @@ def _rrd_rows(path: Path) -> dict[str, list[dict[str, Any]]]:
 
 def test_rrd_has_the_documented_entities_rows_and_values(tmp_path: Path) -> None:
     pytest.importorskip("rerun")
-    from dronetrack.io.rerun_out import ENTITY_PATHS
+    from dronetrack.sinks.rerun_out import ENTITY_PATHS
 
     frames = _frames()
     path = tmp_path / "run.rrd"
@@ -348,7 +348,7 @@ def test_rerun_disabled_by_the_environment_is_refused(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     pytest.importorskip("rerun")
-    from dronetrack.io.rerun_out import RerunWriter
+    from dronetrack.sinks.rerun_out import RerunWriter
 
     monkeypatch.setenv("RERUN", "off")
     with pytest.raises(ConfigError, match="RERUN"):
@@ -363,8 +363,8 @@ def test_rerun_disabled_by_the_environment_is_refused(
 def test_a_bad_frame_raises_and_writes_nothing(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
     pytest.importorskip("rerun")
-    from dronetrack.io.foxglove_out import FoxgloveWriter
-    from dronetrack.io.rerun_out import RerunWriter
+    from dronetrack.sinks.foxglove_out import FoxgloveWriter
+    from dronetrack.sinks.rerun_out import RerunWriter
 
     good = _frames()[1]
     bad_shape = dataclasses.replace(good, foreground=np.ones((4, 2)))

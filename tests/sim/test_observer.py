@@ -12,18 +12,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.kinematics import sensor_poses
-from dronetrack.sim.build import build_world, resolve_scenario
-from dronetrack.sim.drones import make_drone
-from dronetrack.sim.flights import make_flight
-from dronetrack.sim.physics import extinction_coefficient
-from dronetrack.sim.primitives import Primitives
-from dronetrack.sim.scenario import (
+from dronetrack.config.run import (
     ObserverConfig,
     SensorConfig,
     dump_scenario,
     load_scenario_file,
 )
+from dronetrack.geometry.mount import sensor_poses
+from dronetrack.jobs.simulate import run_simulation
+from dronetrack.sim.build import build_world, resolve_scenario
+from dronetrack.sim.drones import make_drone
+from dronetrack.sim.flights import make_flight
+from dronetrack.sim.physics import extinction_coefficient
+from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.scene import Scene, make_scene
 from dronetrack.sim.sensors import make_sensor
@@ -31,7 +32,6 @@ from dronetrack.sim.shapes import box, cylinder, ground
 from dronetrack.sim.trajectories import PiecewiseAcceleration, Trajectory, fly_waypoints
 from dronetrack.sim.turret import make_turret
 from dronetrack.sim.world import Observer, OdometryDrift, SimWorld
-from dronetrack.simulate import run_simulation
 from dronetrack.types import TurretCommand
 
 TURRET = make_turret("widowx")
@@ -182,8 +182,8 @@ def test_resolved_observer_file_is_absolute_and_round_trips(tmp_path: Path) -> N
     ],
 )
 def test_bad_observer_sections(observer: dict[str, object], message: str) -> None:
+    from dronetrack.config.run import validate_scenario
     from dronetrack.errors import ScenarioError
-    from dronetrack.sim.scenario import validate_scenario
 
     with pytest.raises(ScenarioError, match=message):
         validate_scenario({"observer": observer}, "test")

@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from dronetrack.errors import SensorError
-from dronetrack.geometry import azimuth_elevation, unit
+from dronetrack.geometry.transforms import azimuth_elevation, unit
 from dronetrack.sim.patterns import (
     VLP16_ELEVATION_DEG,
     avia_pattern,

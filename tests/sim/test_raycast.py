@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import unit
+from dronetrack.geometry.transforms import unit
 from dronetrack.sim.cubemap import build_cube_map, cube_cells
 from dronetrack.sim.raycast import Primitives, cast_rays
 from dronetrack.sim.shapes import box, cylinder, ellipsoid, ground

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dronetrack.config.run import dump_scenario, load_scenario_file
 from dronetrack.errors import ScenarioError, SensorError
 from dronetrack.sim.build import build_world, resolve_scenario
-from dronetrack.sim.scenario import dump_scenario, load_scenario_file
 from dronetrack.sim.scenarios import SCENARIOS, get_scenario
 
 

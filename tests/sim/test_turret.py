@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from dronetrack.control.aiming import aim_angles
 from dronetrack.errors import ConfigError, InputError
-from dronetrack.kinematics import MountGeometry, sensor_poses
+from dronetrack.geometry.mount import MountGeometry, sensor_poses
 from dronetrack.sim.turret import TurretPlant, make_turret
 from dronetrack.types import TurretCommand
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import SensorError
-from dronetrack.geometry import rot_x, rot_z, wrap_angle
-from dronetrack.kinematics import MountGeometry, sensor_poses
+from dronetrack.geometry.mount import MountGeometry, sensor_poses
+from dronetrack.geometry.transforms import rot_x, rot_z, wrap_angle
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.lidar import LidarSimulator
 from dronetrack.sim.mounted import RotatedPattern, side_mount

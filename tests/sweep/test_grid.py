@@ -7,8 +7,15 @@ from pathlib import Path
 import pytest
 
 from dronetrack.errors import ConfigError, ScenarioError
+from dronetrack.experiments.sweep.grid import (
+    GridSpec,
+    RunSpec,
+    check_keys,
+    expand,
+    load_grid,
+    run_config,
+)
 from dronetrack.sim.scenarios import get_scenario
-from dronetrack.sweep.grid import GridSpec, RunSpec, check_keys, expand, load_grid, run_config
 
 
 def _write(tmp_path: Path, text: str) -> Path:

@@ -16,7 +16,7 @@ import pytest
 from matplotlib.figure import Figure
 from matplotlib.text import Annotation, Text
 
-from dronetrack.sweep.report import (
+from dronetrack.experiments.sweep.report import (
     nearby_groups,
     padded_limits,
     point_key,

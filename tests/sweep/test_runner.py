@@ -9,9 +9,9 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
-from dronetrack.sweep.grid import RunSpec
-from dronetrack.sweep.runner import MAX_ATTEMPTS, run_sweep
-from dronetrack.sweep.store import ResultStore, read_results
+from dronetrack.experiments.sweep.grid import RunSpec
+from dronetrack.experiments.sweep.runner import MAX_ATTEMPTS, run_sweep
+from dronetrack.experiments.sweep.store import ResultStore, read_results
 
 
 class DyingPool(cf.Executor):

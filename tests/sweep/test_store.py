@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.sweep.store import ResultStore, read_results
+from dronetrack.experiments.sweep.store import ResultStore, read_results
 
 
 def test_resume_and_no_duplicates(tmp_path: Path) -> None:

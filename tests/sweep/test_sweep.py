@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from dronetrack.cli import run
-from dronetrack.sweep.store import read_results
+from dronetrack.cli.main import run
+from dronetrack.experiments.sweep.store import read_results
 
 # Two particle counts × two σ_pos on a short run of the default scenario (a 1 s scan).
 GRID = """scenario = "default"

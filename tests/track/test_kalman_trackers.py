@@ -9,7 +9,7 @@ import pytest
 from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter
 
 from dronetrack.errors import ConfigError, InputError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.cluster_kalman import (
     SEED003_P0,
     AdaptiveEKF,

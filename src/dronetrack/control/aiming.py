@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dronetrack.geometry import rot_z
-from dronetrack.kinematics import MountGeometry
+from dronetrack.geometry.mount import MountGeometry
+from dronetrack.geometry.transforms import rot_z
 
 __all__ = ["aim_angles"]
 

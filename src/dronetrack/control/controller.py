@@ -21,8 +21,8 @@ import numpy as np
 
 from dronetrack.control.aiming import aim_angles
 from dronetrack.control.scan import raster, triangle
-from dronetrack.geometry import FloatArray
-from dronetrack.kinematics import MountGeometry
+from dronetrack.geometry.mount import MountGeometry
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.tracker import TrackEstimate
 from dronetrack.types import TurretCommand
 

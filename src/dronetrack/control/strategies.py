@@ -54,8 +54,8 @@ from dronetrack.control.plans import (
     swing_time_bound,
 )
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray, wrap_angle
-from dronetrack.kinematics import MountGeometry
+from dronetrack.geometry.mount import MountGeometry
+from dronetrack.geometry.transforms import FloatArray, wrap_angle
 from dronetrack.track.tracker import TrackEstimate
 from dronetrack.types import TurretCommand
 

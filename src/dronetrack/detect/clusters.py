@@ -24,7 +24,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = ["Cluster", "cluster_features", "cylinder_mask", "dbscan", "voxel_centroids"]
 

@@ -17,7 +17,7 @@ from dronetrack.eval.metrics import (
     rmse,
     timing,
 )
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = ["EXTRA_COLUMNS", "FRAME_COLUMNS", "TrackLog"]
 

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.preprocess.crop import finite_mask
 from dronetrack.preprocess.voxel import (
     KeySet,

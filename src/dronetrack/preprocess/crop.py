@@ -7,7 +7,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull, QhullError
 
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = ["HullCrop", "box_mask", "finite_mask"]
 

@@ -13,7 +13,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from dronetrack.geometry import FloatArray, transform_at_times
+from dronetrack.geometry.transforms import FloatArray, transform_at_times
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.voxel import occupied
 from dronetrack.types import Frame

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = ["KeySet", "coarsen_keys", "dilate_keys", "unique_keys", "voxel_keys"]
 

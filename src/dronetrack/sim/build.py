@@ -12,11 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from dronetrack.kinematics import MountGeometry
-from dronetrack.sim.drones import make_drone
-from dronetrack.sim.flights import make_flight
-from dronetrack.sim.physics import extinction_coefficient
-from dronetrack.sim.scenario import (
+from dronetrack.config.run import (
     FlightSource,
     ObserverConfig,
     ScenarioConfig,
@@ -25,6 +21,10 @@ from dronetrack.sim.scenario import (
     absolute_path,
     map_paths,
 )
+from dronetrack.geometry.mount import MountGeometry
+from dronetrack.sim.drones import make_drone
+from dronetrack.sim.flights import make_flight
+from dronetrack.sim.physics import extinction_coefficient
 from dronetrack.sim.scene import make_scene
 from dronetrack.sim.sensors import SensorModel, make_sensor
 from dronetrack.sim.trajectories import Trajectory, load_csv_trajectory

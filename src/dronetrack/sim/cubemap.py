@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.geometry import FloatArray, unit
+from dronetrack.geometry.transforms import FloatArray, unit
 from dronetrack.sim.primitives import PLANE, Primitives
 
 __all__ = ["CubeMapIndex", "build_cube_map", "cube_cells"]

@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray, unit
+from dronetrack.geometry.transforms import FloatArray, unit
 from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.shapes import box, cylinder, oriented
 

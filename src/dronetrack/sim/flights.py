@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dronetrack.errors import TrajectoryError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.trajectories import (
     PiecewiseAcceleration,
     Trajectory,

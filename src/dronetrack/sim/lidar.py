@@ -25,7 +25,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.geometry import FloatArray, apply_interpolated_poses
+from dronetrack.geometry.transforms import FloatArray, apply_interpolated_poses
 from dronetrack.sim.cubemap import CubeMapIndex, build_cube_map
 from dronetrack.sim.drones import DroneModel, attitude_from_acceleration
 from dronetrack.sim.patterns import Pulses

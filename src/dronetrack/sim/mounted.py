@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dronetrack.errors import SensorError
-from dronetrack.geometry import FloatArray, rot_x
+from dronetrack.geometry.transforms import FloatArray, rot_x
 from dronetrack.sim.patterns import Pulses, ScanPattern
 
 __all__ = ["RotatedPattern", "side_mount"]

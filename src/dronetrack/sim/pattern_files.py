@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from dronetrack.errors import SensorError
-from dronetrack.geometry import FloatArray, direction_from_azimuth_elevation
-from dronetrack.io.tables import read_csv_columns
+from dronetrack.formats.tables import read_csv_columns
+from dronetrack.geometry.transforms import FloatArray, direction_from_azimuth_elevation
 from dronetrack.sim.pulses import Pulses, pulse_indices
 
 __all__ = ["TablePattern", "load_pattern_table"]

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = [
     "KOSCHMIEDER_CONSTANT",

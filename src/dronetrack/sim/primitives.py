@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = ["BOX", "CYLINDER", "ELLIPSOID", "PLANE", "Primitives"]
 

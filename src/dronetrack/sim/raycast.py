@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.cubemap import CubeMapIndex
 from dronetrack.sim.primitives import BOX, CYLINDER, ELLIPSOID, PLANE, Primitives
 

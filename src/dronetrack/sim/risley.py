@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import SensorError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.pulses import Pulses, pulse_indices
 
 __all__ = [

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from dronetrack.config import (
+from dronetrack.config.pipeline import (
     BackgroundConfig,
     ControllerConfig,
     CropConfig,
@@ -16,8 +16,7 @@ from dronetrack.config import (
     PipelineConfig,
     TrackerConfig,
 )
-from dronetrack.errors import ScenarioError
-from dronetrack.sim.scenario import (
+from dronetrack.config.run import (
     DroneConfig,
     ObserverConfig,
     ScenarioConfig,
@@ -28,6 +27,7 @@ from dronetrack.sim.scenario import (
     WeatherConfig,
     load_scenario_file,
 )
+from dronetrack.errors import ScenarioError
 from dronetrack.sim.turret import make_turret
 
 __all__ = ["SCENARIOS", "get_scenario"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dronetrack.geometry import rot_x, rot_y, rot_z
+from dronetrack.geometry.transforms import rot_x, rot_y, rot_z
 from dronetrack.sim.primitives import BOX, CYLINDER, ELLIPSOID, PLANE, Primitives
 
 __all__ = ["box", "cylinder", "ellipsoid", "ground", "oriented"]

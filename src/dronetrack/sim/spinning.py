@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import SensorError
-from dronetrack.geometry import FloatArray, direction_from_azimuth_elevation
+from dronetrack.geometry.transforms import FloatArray, direction_from_azimuth_elevation
 from dronetrack.sim.pulses import Pulses, pulse_indices
 
 __all__ = [

@@ -24,8 +24,8 @@ from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 
 from dronetrack.errors import TrajectoryError
-from dronetrack.geometry import FloatArray
-from dronetrack.io.tables import read_csv_columns
+from dronetrack.formats.tables import read_csv_columns
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = [
     "PiecewiseAcceleration",

@@ -23,8 +23,8 @@ import numba as nb
 import numpy as np
 
 from dronetrack.errors import ConfigError, InputError
-from dronetrack.geometry import FloatArray
-from dronetrack.kinematics import MountGeometry
+from dronetrack.geometry.mount import MountGeometry
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TurretCommand, TurretState
 
 __all__ = ["TURRET_NAMES", "AxisSpec", "TurretPlant", "TurretSpec", "make_turret"]

@@ -28,8 +28,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
 from dronetrack.errors import InputError
-from dronetrack.geometry import FloatArray, make_pose, rot_z
-from dronetrack.kinematics import MountGeometry, sensor_poses
+from dronetrack.geometry.mount import MountGeometry, sensor_poses
+from dronetrack.geometry.transforms import FloatArray, make_pose, rot_z
 from dronetrack.sim.drones import DroneModel
 from dronetrack.sim.lidar import LidarSimulator
 from dronetrack.sim.scene import Scene

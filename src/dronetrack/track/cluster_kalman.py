@@ -22,7 +22,7 @@ from dronetrack.detect.clusters import (
     voxel_centroids,
 )
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.kalman import (
     CHI2_3DOF_99,
     adapt_measurement_noise,

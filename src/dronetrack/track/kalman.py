@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = [
     "CHI2_3DOF_99",

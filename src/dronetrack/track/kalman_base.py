@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dronetrack.errors import ConfigError, InputError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.kalman import position_selector
 from dronetrack.track.tracker import TrackEstimate
 

@@ -7,7 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 
 __all__ = ["nearest_distances"]
 

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.nearest import nearest_distances
 from dronetrack.track.resample import RESAMPLERS
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dronetrack.geometry import FloatArray, wrap_angle
+from dronetrack.geometry.transforms import FloatArray, wrap_angle
 from dronetrack.track.kalman import (
     centroid_within,
     ctrv_jacobian,

@@ -7,7 +7,7 @@ from typing import Protocol
 
 import numpy as np
 
-from dronetrack.geometry import FloatArray
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.particle import MotionModel, NoiseParameters, ParticleFilter
 
 __all__ = ["ParticleTracker", "TrackEstimate", "Tracker"]

@@ -1,0 +1,101 @@
+"""The one ``dronetrack`` app every command registers on, and what the commands share:
+the viewer files beside a run folder, the run report and the ``interrupted`` exit."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from dronetrack import __version__
+from dronetrack.cli.output import (
+    print_kernel_note,
+    print_metrics,
+)
+from dronetrack.errors import DronetrackError
+
+if TYPE_CHECKING:
+    from dronetrack.jobs.simulate import RunFolder, SimulationRun
+    from dronetrack.sinks.view import ViewerSink
+
+
+__all__ = [
+    "INTERRUPTED",
+    "RunInterruptedError",
+    "app",
+    "report_run",
+    "run_outputs",
+    "stop_if_interrupted",
+]
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    context_settings={"help_option_names": ["-h", "--help"]},
+    pretty_exceptions_enable=False,
+    rich_markup_mode="rich",
+    help="Detect and track small drones with LiDAR on a pan-tilt turret.",
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"dronetrack {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
+    """Detect and track small drones with LiDAR on a pan-tilt turret."""
+
+
+class RunInterruptedError(DronetrackError):
+    """A command whose loop Ctrl-C stopped, after it wrote what it had; the message
+    ends the ``interrupted`` line."""
+
+
+INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command killed by Ctrl-C
+
+
+@contextmanager
+def run_outputs(
+    folder: RunFolder, foxglove: Path | None, rerun: Path | None, start: float = 0.0
+) -> Iterator[list[ViewerSink]]:
+    """The viewer files a run writes besides its folder, closed after the block; if
+    the block fails, or Ctrl-C stops it at once, the folder keeps the frames done."""
+    from dronetrack.sinks.viewers import close_viewers, open_viewers
+
+    try:
+        viewers = open_viewers(foxglove, rerun, start=start)
+        try:
+            yield viewers
+        finally:
+            close_viewers(viewers)
+    except BaseException:
+        folder.close()
+        raise
+
+
+def report_run(folder: RunFolder, run: SimulationRun, metrics: dict[str, Any]) -> None:
+    """After a run's folder is written: the kernels' compile time if it compiled, then
+    one ``interrupted`` line (exit 130) if Ctrl-C ended it, else the metrics table."""
+    print_kernel_note(run.kernels)
+    stop_if_interrupted(run.interrupted, f"; kept {len(run.log)} frames in {folder.out_dir}")
+    print_metrics(metrics, folder.out_dir)
+
+
+def stop_if_interrupted(interrupted: bool, note: str = "") -> None:
+    """End a command whose loop Ctrl-C stopped (after it wrote what it had): one
+    ``interrupted`` line, ending with ``note``, and exit code 130."""
+    if interrupted:
+        raise RunInterruptedError(note)

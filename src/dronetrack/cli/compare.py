@@ -1,0 +1,79 @@
+"""``dronetrack compare``: every method of a seed's table on the same seeded scenarios."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+from rich.console import Console
+
+from dronetrack.cli.options import (
+    RunDirOption,
+)
+from dronetrack.cli.output import (
+    progress_bar,
+)
+
+if TYPE_CHECKING:
+    pass
+
+
+from dronetrack.cli.app import app
+
+__all__ = ["compare"]
+
+
+@app.command()
+def compare(
+    suite: Annotated[
+        str,
+        typer.Option(
+            "--suite",
+            help="seed000-outdoor, seed000-ablation, seed000-indoor, seed002 or seed003.",
+        ),
+    ],
+    runs: Annotated[int, typer.Option("--runs", min=1, help="Seeded runs per method.")] = 5,
+    out: RunDirOption = None,
+    duration: Annotated[
+        float | None,
+        typer.Option("--duration", "-d", min=0.01, help="Shorten every flight to these seconds."),
+    ] = None,
+    methods: Annotated[
+        str | None,
+        typer.Option("--methods", help="Comma-separated subset of the suite's methods."),
+    ] = None,
+) -> None:
+    """Run every method of a seed's table on the same seeded scenarios, side by side.
+
+    Writes table.csv (scenario,method,metric,mean,std,paper), table.md and, for
+    seed003, the seed's CSV logs of every run.
+    """
+
+    from dronetrack.experiments.compare.runner import run_suite
+    from dronetrack.experiments.compare.suites import get_suite
+    from dronetrack.experiments.compare.tables import aggregate, write_tables
+    from dronetrack.sinks.run_folder import check_run_dir, default_run_dir
+
+    chosen = get_suite(suite)
+    subset = [m.strip() for m in methods.split(",") if m.strip()] if methods else None
+    out_dir = check_run_dir(out if out is not None else default_run_dir())
+    with progress_bar() as bar:
+        task = bar.add_task(chosen.name, total=None)
+
+        def report(what: str, i: int, n: int) -> None:
+            bar.update(task, description=f"{chosen.name}: {what}", completed=i, total=n)
+
+        results = run_suite(
+            chosen,
+            runs,
+            duration=duration,
+            methods=subset,
+            log_dir=out_dir / "logs" if chosen.tracker is not None else None,
+            progress=report,
+        )
+    rows = aggregate(chosen, results)
+    ran = tuple(dict.fromkeys(r.method for r in results))
+    paths = write_tables(chosen, rows, out_dir, runs=runs, duration=duration, methods=ran)
+    Console().print((out_dir / "table.md").read_text(), markup=False, highlight=False)
+    for p in paths:
+        typer.echo(str(p))

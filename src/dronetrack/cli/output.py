@@ -1,0 +1,121 @@
+"""What the commands print: progress bars and the metrics table (rich).
+
+Results go to standard output; progress and warnings to standard error.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rich.console import Console
+from rich.progress import ProgressColumn
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
+
+    from dronetrack.jobs.kernels import CompileProgress, KernelWarmUp
+
+__all__ = [
+    "COMPILING",
+    "compile_reporter",
+    "err_console",
+    "print_kernel_note",
+    "print_metrics",
+    "progress_bar",
+    "progress_columns",
+]
+
+COMPILING = "compiling kernels, first run only"
+
+err_console = Console(stderr=True)
+
+
+def progress_columns() -> tuple[ProgressColumn, ...]:
+    """A progress bar with percentage and time left."""
+    from rich.progress import BarColumn, TextColumn, TimeRemainingColumn
+
+    return (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>3.0f}%"),
+        TimeRemainingColumn(),
+    )
+
+
+def progress_bar(*, transient: bool = True, columns: bool = True) -> Progress:
+    """A rich progress bar on standard error, shown only on a terminal: elsewhere (CI,
+    a pipe, a log file) it prints nothing, not even a blank line."""
+    from rich.progress import Progress
+
+    return Progress(
+        *(progress_columns() if columns else ()),
+        console=err_console,
+        transient=transient,
+        disable=not err_console.is_terminal,
+    )
+
+
+def compile_reporter(bar: Progress, task: TaskID) -> CompileProgress:
+    """A ``compiling`` callback for the run functions: once a kernel is found missing
+    from numba's cache, one line (``COMPILING``) above the bar, and the bar counts the
+    warm-up steps; a warm cache shows nothing but the bar."""
+    said = False
+
+    def report(done: int, total: int, compiled: bool) -> None:
+        nonlocal said
+        if compiled and not said:
+            bar.console.print(COMPILING)
+            said = True
+        bar.update(task, completed=done, total=total)
+
+    return report
+
+
+def print_kernel_note(kernels: KernelWarmUp) -> None:
+    """After a run whose warm-up compiled kernels: how long that took, and that it is once."""
+    if kernels.compiled:
+        err_console.print(
+            f"compiled {kernels.compiled} kernel signatures in {kernels.seconds:.1f} s "
+            "before the run (not counted in its step times); later runs load them from "
+            "numba's cache"
+        )
+
+
+def print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
+    from rich.table import Table
+
+    def fmt(value: object, unit: str = "", digits: int = 3) -> str:
+        if value is None:
+            return "n/a"
+        if isinstance(value, float):
+            return f"{value:.{digits}f}{unit}"
+        if isinstance(value, list):
+            return "[" + ", ".join(fmt(v, "", digits) for v in value) + "]" + unit
+        return f"{value}{unit}"
+
+    table = Table(title=f"metrics ({out_dir})", show_header=False)
+    rows = [
+        ("frames", fmt(metrics.get("frames"))),
+        ("coverage", fmt(metrics.get("coverage_pct"), " %", 1)),
+        ("max tracking distance", fmt(metrics.get("max_tracking_distance_m"), " m", 1)),
+        ("RMSE (from the first lock)", fmt(metrics.get("rmse_m"), " m")),
+        ("RMSE 95 % interval", fmt(metrics.get("rmse_ci95_m"), " m")),
+        ("RMSE x, y, z", fmt(metrics.get("rmse_xyz_m"), " m")),
+        ("RMSE while tracked", fmt(metrics.get("rmse_tracked_m"), " m")),
+        ("first lock", fmt(metrics.get("first_lock_s"), " s", 1)),
+        (
+            "step time mean / std / max",
+            " / ".join(
+                fmt(metrics.get(k), "", 2) for k in ("step_ms_mean", "step_ms_std", "step_ms_max")
+            )
+            + " ms",
+        ),
+        ("speed", fmt(metrics.get("realtime_factor"), "× real time", 1)),
+    ]
+    for name, value in rows:
+        table.add_row(name, value)
+    Console().print(table)
+    bad = metrics.get("bad_frames")
+    if isinstance(bad, dict) and bad:
+        err_console.print("frames with problems: " + ", ".join(f"{k} {v}" for k, v in bad.items()))

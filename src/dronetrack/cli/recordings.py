@@ -1,0 +1,356 @@
+"""Commands for recordings: ``track`` (replay), ``info`` and ``record``.
+
+Registered on the ``dronetrack`` app by ``cli``; they follow its conventions
+(one ``error:`` line and exit code 2 for anything the user can fix).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from dronetrack.cli.app import (
+    app,
+    report_run,
+    run_outputs,
+    stop_if_interrupted,
+)
+from dronetrack.cli.options import (
+    ConfigOption,
+    DroneOption,
+    FlightDurationOption,
+    FoxgloveOption,
+    ParticlesOption,
+    RerunOption,
+    RunDirOption,
+    SeedOption,
+    SensorOption,
+    TrackerName,
+    TrackerOption,
+    TrajectoryOption,
+    TurretOption,
+    VisibilityOption,
+    scenario_from_options,
+)
+from dronetrack.cli.output import (
+    compile_reporter,
+    err_console,
+    print_kernel_note,
+    print_metrics,
+    progress_bar,
+)
+from dronetrack.errors import ConfigError
+from dronetrack.sinks.run_folder import check_run_dir
+from dronetrack.sources.recording import RecordingInfo, TopicInfo
+from dronetrack.sources.recordings import recording_info
+
+__all__ = ["info", "record", "track"]
+
+
+def _floats(text: str | None, n: int, option: str) -> tuple[float, ...] | None:
+    """``n`` comma-separated numbers, or None."""
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != n or not all(np.isfinite(values)):
+        raise ConfigError(f"{option} takes {n} comma-separated numbers, got {text!r}")
+    return values
+
+
+def _sensor_pose(text: str | None) -> np.ndarray | None:
+    """world_T_sensor from "x,y,z,roll,pitch,yaw" (metres, degrees; R = Rz Ry Rx)."""
+    from dronetrack.geometry.transforms import make_pose, rot_x, rot_y, rot_z
+
+    values = _floats(text, 6, "--sensor-pose")
+    if values is None:
+        return None
+    x, y, z, roll, pitch, yaw = values
+    R = rot_z(np.radians(yaw)) @ rot_y(np.radians(pitch)) @ rot_x(np.radians(roll))
+    pose: np.ndarray = make_pose(R, (x, y, z))
+    return pose
+
+
+@app.command()
+def track(
+    recording: Annotated[
+        Path,
+        typer.Argument(
+            help="A ROS 1 bag, a ROS 2 bag folder, an MCAP or .db3 file, a PCD file or a folder "
+            "of them, a LAS/LAZ file, or a folder of seed 003's CSV logs; files are recognised "
+            "by their content, whatever their name."
+        ),
+    ],
+    lidar_topic: Annotated[
+        str | None,
+        typer.Option("--lidar-topic", help="The point-cloud topic (default: the only one)."),
+    ] = None,
+    gt_topic: Annotated[
+        str | None,
+        typer.Option(
+            "--gt-topic", help="NavSatFix or PoseStamped ground truth (default: the only one)."
+        ),
+    ] = None,
+    pose_frame: Annotated[
+        str | None,
+        typer.Option("--pose-frame", help="The /tf frame to track in (default: the tree's root)."),
+    ] = None,
+    background: Annotated[
+        Path | None, typer.Option("--background", help="Load this background model (.npz).")
+    ] = None,
+    background_from: Annotated[
+        float | None,
+        typer.Option(
+            "--background-from", min=0.0, help="Build the background from the first S seconds."
+        ),
+    ] = None,
+    tracker: Annotated[
+        TrackerName | None, typer.Option("--tracker", help="The tracking method.")
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            "--config", help="A scenario/config .toml (default: the recording's own, if any)."
+        ),
+    ] = None,
+    out: RunDirOption = None,
+    sensor_pose: Annotated[
+        str | None,
+        typer.Option(
+            "--sensor-pose", help="Fixed sensor pose x,y,z,roll,pitch,yaw (m, deg) without /tf."
+        ),
+    ] = None,
+    gt_origin: Annotated[
+        str | None,
+        typer.Option("--gt-origin", help="NavSatFix ENU origin lat,lon,alt (deg, deg, m)."),
+    ] = None,
+    gt_heading: Annotated[
+        float, typer.Option("--gt-heading", help="Yaw of the world x axis from east (deg).")
+    ] = 0.0,
+    period: Annotated[
+        float | None,
+        typer.Option("--period", min=1e-4, help="Frame period in s (default: from the stamps)."),
+    ] = None,
+    timestamps: Annotated[
+        Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
+    ] = None,
+    foxglove: FoxgloveOption = None,
+    rerun: RerunOption = None,
+) -> None:
+    """Replay a recording through the pipeline; turret commands are logged, not executed.
+
+    Writes config.toml, frames.csv, commands.csv, metrics.json and plots, as simulate
+    does; the metrics that need ground truth appear only when there is some.
+    """
+
+    from dronetrack.config.run import load_scenario_file
+    from dronetrack.jobs.replay import recording_config, run_replay, write_commands_csv
+    from dronetrack.jobs.simulate import RunFolder
+    from dronetrack.sim.scenarios import SCENARIOS
+    from dronetrack.sinks.run_folder import default_run_dir
+    from dronetrack.sources.recording import ReplayOptions
+    from dronetrack.sources.recordings import open_recording
+
+    folder = RunFolder(out if out is not None else default_run_dir())
+    origin = _floats(gt_origin, 3, "--gt-origin")
+    options = ReplayOptions(
+        lidar_topic=lidar_topic,
+        gt_topic=gt_topic,
+        pose_frame=pose_frame,
+        sensor_pose=_sensor_pose(sensor_pose),
+        gt_origin=(origin[0], origin[1], origin[2]) if origin else None,
+        gt_heading_deg=gt_heading,
+        period_s=period,
+        timestamps=timestamps,
+    )
+    source = open_recording(recording, options)
+    base = load_scenario_file(config, SCENARIOS) if config is not None else None
+    cfg = recording_config(
+        source,
+        base,
+        tracker=tracker.value if tracker else None,
+        background_file=background,
+        background_from=background_from,
+    )
+    outputs = run_outputs(folder, foxglove, rerun, start=source.origin)
+    with outputs as viewers, progress_bar() as bar:
+        task = bar.add_task(f"replaying {recording.name}", total=None)
+        result = run_replay(
+            source,
+            cfg,
+            progress=lambda i, n: bar.update(task, completed=i, total=n),
+            viewers=viewers,
+            compiling=compile_reporter(bar, task),
+            log_sink=folder.log_sink,
+        )
+    metrics = folder.finish(result.run, extra=result.metrics())
+    write_commands_csv(result.commands, folder.out_dir / "commands.csv")
+    for warning in result.warnings:
+        err_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
+    report_run(folder, result.run, metrics)
+    if result.skipped:
+        err_console.print(
+            "skipped messages: " + ", ".join(f"{k} {v}" for k, v in result.skipped.items())
+        )
+
+
+@app.command()
+def info(
+    recording: Annotated[Path, typer.Argument(help="A recording (see `dronetrack track --help`).")],
+) -> None:
+    """List a recording's topics, message types, counts and duration."""
+    from rich.markup import escape
+
+    summary = recording_info(recording)
+    start = datetime.fromtimestamp(summary.start, tz=UTC).isoformat(timespec="milliseconds")
+    title = f"{summary.path} ({summary.kind}, {summary.duration_s:.3f} s from {start})"
+    table = Table(title=escape(title))
+    table.add_column("topic")
+    table.add_column("type")
+    table.add_column("messages", justify="right")
+    for topic in summary.topics:
+        table.add_row(escape(topic.topic), escape(topic.msgtype), str(topic.count))
+    Console().print(table)
+
+
+class RecordFormatName(StrEnum):
+    ros1 = "ros1"
+    ros2_sqlite3 = "ros2-sqlite3"
+    ros2_mcap = "ros2-mcap"
+
+
+@app.command()
+def record(
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            help="The recording to write: NAME.bag (ROS 1), NAME.mcap or NAME.db3 (one ROS 2 "
+            "file); without a suffix, a ROS 1 bag file, or a rosbag2 folder with a ros2 --format.",
+        ),
+    ],
+    scenario: Annotated[
+        str | None, typer.Argument(help="A scenario name or .toml file (default: 'default').")
+    ] = None,
+    fmt: Annotated[
+        RecordFormatName | None,
+        typer.Option("--format", help="The container (default: from the --out suffix, else ros1)."),
+    ] = None,
+    livox_custom: Annotated[
+        bool,
+        typer.Option(
+            "--livox-custom/--pointcloud2",
+            help="Points as livox_ros_driver(2)/CustomMsg or sensor_msgs/PointCloud2.",
+        ),
+    ] = True,
+    compress: Annotated[
+        bool,
+        typer.Option(
+            "--compress",
+            help="Compress: lz4 chunks (ROS 1), zstd chunks (MCAP), zstd messages (a rosbag2 "
+            "sqlite3 folder).",
+        ),
+    ] = False,
+    seed: SeedOption = None,
+    duration: FlightDurationOption = None,
+    tracker: TrackerOption = None,
+    turret: TurretOption = None,
+    particles: ParticlesOption = None,
+    config: ConfigOption = None,
+    trajectory: TrajectoryOption = None,
+    visibility: VisibilityOption = None,
+    drone: DroneOption = None,
+    sensor: SensorOption = None,
+) -> None:
+    """Write a simulated closed-loop flight as the recording a real rig would make.
+
+    It holds the LiDAR, /tf with the turret links, ground truth and the scenario,
+    so `dronetrack track FILE` replays it with the same settings.  Prints the
+    metrics of the run, then what it wrote.
+    """
+    from dronetrack.config.run import dump_scenario
+    from dronetrack.jobs.simulate import resolve_run, run_simulation
+    from dronetrack.sim.build import turret_spec
+    from dronetrack.sinks.bag_writer import RecordingWriter, record_format
+
+    container = record_format(out, fmt.value if fmt is not None else None)
+    cfg = scenario_from_options(
+        scenario,
+        config,
+        seed=seed,
+        duration=duration,
+        trajectory=trajectory,
+        visibility=visibility,
+        drone=drone,
+        sensor=sensor,
+        tracker=tracker.value if tracker else None,
+        particles=particles,
+        turret_mode=turret.value if turret else None,
+    )
+    resolved = resolve_run(cfg)
+    check_run_dir(out.parent)
+    writer = RecordingWriter(
+        out,
+        container,
+        turret_spec(resolved.turret).mount,
+        livox_custom=livox_custom,
+        config_text=dump_scenario(resolved),
+        observer=resolved.observer is not None,
+        compress=compress,
+    )
+    try:
+        with progress_bar() as bar:
+            task = bar.add_task(f"recording {cfg.name}", total=None)
+            run = run_simulation(
+                resolved,
+                progress=lambda i, n: bar.update(task, completed=i, total=n),
+                on_frame=lambda frame, truth, _: writer.frame(
+                    frame,
+                    truth.target_position,
+                    truth.target_attitude,
+                    (truth.turret.pan, truth.turret.tilt),
+                ),
+                compiling=compile_reporter(bar, task),
+            )
+    finally:
+        writer.close()
+    print_kernel_note(run.kernels)
+    written = recording_info(out)
+    summary = recording_summary(written, container, writer.compression)
+    stop_if_interrupted(run.interrupted, f"; kept {summary}")
+    print_metrics(run.metrics(), out)
+    typer.echo(f"wrote {summary}")
+    _print_topics(written.topics)
+
+
+def recording_summary(info: RecordingInfo, container: str, compression: str | None) -> str:
+    """One line on a written recording: path, container, frames, length and size."""
+    from dronetrack.sinks.bag_writer import FORMAT_NAMES, LIDAR_TOPIC
+
+    path = info.path
+    frames = sum(t.count for t in info.topics if t.topic == LIDAR_TOPIC)
+    files = [p for p in path.rglob("*") if p.is_file()] if path.is_dir() else [path]
+    size = sum(p.stat().st_size for p in files)
+    packing = f", compressed ({compression})" if compression else ""
+    return (
+        f"{path}: {FORMAT_NAMES[container]}{packing}, {frames} frames, "
+        f"{info.duration_s:.1f} s, {size / 1e6:.1f} MB"
+    )
+
+
+def _print_topics(topics: Sequence[TopicInfo]) -> None:
+    width = max(len(t.topic) for t in topics)
+    type_width = max(len(t.msgtype) for t in topics)
+    for t in topics:
+        typer.echo(f"  {t.topic:<{width}}  {t.msgtype:<{type_width}}  {t.count:>7}")

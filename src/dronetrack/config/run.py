@@ -1,0 +1,291 @@
+"""Scenarios: a scene, a target and its trajectory, a sensor on a turret, and the weather.
+
+The turret stands on the ground at the world origin, or, with an ``[observer]``
+section, rides on a drone flying its own trajectory (seed 002's relative
+tracking); its base is then an offset in the drone's body frame.
+
+A scenario is a validated configuration (TOML at the edge, degrees where humans
+type angles); ``build.py`` turns it into a ``SimWorld``.  Named scenarios live in
+``scenarios.py``; a TOML file can start from one with ``base = "name"`` and
+override any key.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, ClassVar, Literal, Self
+
+import tomli_w
+from pydantic import Field, ValidationError, model_validator
+
+from dronetrack.config.pipeline import PipelineConfig, StrictModel
+from dronetrack.config.tomlfile import read_toml
+from dronetrack.errors import ScenarioError
+
+__all__ = [
+    "DroneConfig",
+    "FlightSource",
+    "ObserverConfig",
+    "ScenarioConfig",
+    "SceneConfig",
+    "SensorConfig",
+    "TrajectoryConfig",
+    "TurretConfig",
+    "WeatherConfig",
+    "absolute_path",
+    "apply_overrides",
+    "dump_scenario",
+    "format_validation_error",
+    "load_scenario_file",
+    "map_paths",
+]
+
+MAX_DURATION_S = 86_400.0  # one day of simulated time
+Vec3 = tuple[float, float, float]
+Pair = tuple[float, float]
+
+
+class SceneConfig(StrictModel):
+    name: str = "outdoor"
+    layout_seed: int = Field(0, ge=0)
+
+
+class DroneConfig(StrictModel):
+    model: str = "phantom4"
+    reflectivity_scale: float = Field(1.0, gt=0)
+
+
+DEFAULT_FLIGHT = "horizontal-fast"
+
+
+class FlightSource(StrictModel):
+    """A path: a named flight (the section's default when no file is given either) or a
+    CSV with columns t,x,y,z, held ``hold_s`` seconds at its start."""
+
+    _section: ClassVar[str] = "trajectory"
+    _default: ClassVar[str] = DEFAULT_FLIGHT
+
+    name: str | None = None  # a named flight; the default one when no file is given either
+    file: str | None = None  # CSV with columns t,x,y,z
+    hold_s: float = Field(0.0, ge=0)  # at the start (on the ground, or at the first sample)
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Self:
+        if self.file is not None and self.name is not None:
+            section = self._section
+            raise ValueError(f"give either {section}.name or {section}.file, not both")
+        if self.file is None and self.name is None:
+            object.__setattr__(self, "name", self._default)
+        return self
+
+
+class TrajectoryConfig(FlightSource):
+    """The target's path."""
+
+
+DEFAULT_OBSERVER_FLIGHT = "observer-hover"
+
+
+class ObserverConfig(FlightSource):
+    """A moving observer: the turret and sensor ride on a drone flying this trajectory.
+
+    With one, the turret's base (``turret.base_height_m``) is its offset in the
+    drone's body frame (x forward, y left, z up; roll and pitch taken as zero).
+    The body's yaw follows the velocity heading with a lag (``heading``; held
+    while hovering, ``yaw_deg`` before the first move) or stays at ``yaw_deg``
+    (``fixed``).  The frames carry the poses the drone's odometry reports:
+    the true ones plus a random walk of ``odometry_sigma_m`` m/√s per axis.
+    """
+
+    _section: ClassVar[str] = "observer"
+    _default: ClassVar[str] = DEFAULT_OBSERVER_FLIGHT
+
+    yaw: Literal["heading", "fixed"] = "heading"
+    yaw_deg: float = Field(0.0, allow_inf_nan=False)
+    odometry_sigma_m: float = Field(0.0, ge=0, allow_inf_nan=False)  # [m/√s]
+
+
+class SensorConfig(StrictModel):
+    model: str = "avia"  # avia, mid40, mid360, vlp16, vlp16-side or file:PATH
+    integration_time_s: float = Field(0.1, ge=1e-3, le=1.0)
+    noise: bool = True
+    rpm: float | None = None  # vlp16 and vlp16-side spin rate
+    rate_hz: float | None = Field(None, gt=0, le=1e7)  # file: patterns
+    lines: int | None = Field(None, ge=1, le=255)  # file: patterns
+    physics: str | None = None  # whose range physics a file: pattern uses (default avia)
+    range_sigma_m: float | None = Field(None, ge=0)
+    angular_sigma_deg: float | None = Field(None, ge=0)
+    false_alarm_rate: float | None = Field(None, ge=0, le=1)
+
+
+class TurretConfig(StrictModel):
+    model: str = "widowx"
+    pan_deg: float = 0.0  # initial angles
+    tilt_deg: float = 0.0
+    base_height_m: float | None = None
+    pan_to_tilt_m: Vec3 | None = None
+    tilt_to_sensor_m: Vec3 | None = None
+    latency_s: float | None = Field(None, ge=0)
+    rate_deg_s: float | None = Field(None, gt=0)
+    accel_deg_s2: float | None = Field(None, gt=0)
+    resolution_deg: float | None = Field(None, ge=0)
+    pan_limits_deg: Pair | None = None
+    tilt_limits_deg: Pair | None = None
+    profile_time_s: float | None = Field(None, ge=0)
+
+
+class WeatherConfig(StrictModel):
+    # Meteorological visibility [m]; inf is clear air.
+    visibility_m: float = Field(math.inf, gt=0, allow_inf_nan=True)
+
+    @model_validator(mode="after")
+    def _not_nan(self) -> WeatherConfig:
+        if math.isnan(self.visibility_m):
+            raise ValueError("visibility_m must be a number or inf")
+        return self
+
+
+class ScenarioConfig(StrictModel):
+    name: str = "custom"
+    description: str = ""
+    duration_s: float = Field(60.0, gt=0, le=MAX_DURATION_S)
+    seed: int = Field(0, ge=0)
+    scene: SceneConfig = SceneConfig()
+    drone: DroneConfig = DroneConfig()
+    trajectory: TrajectoryConfig = TrajectoryConfig()
+    sensor: SensorConfig = SensorConfig()
+    turret: TurretConfig = TurretConfig()
+    weather: WeatherConfig = WeatherConfig()
+    observer: ObserverConfig | None = None  # None: the turret stands on the ground
+    # How the run is processed by ``dronetrack simulate``; the simulator ignores it.
+    pipeline: PipelineConfig = PipelineConfig()
+
+
+def format_validation_error(err: ValidationError, source: str) -> str:
+    """One line naming the first bad key and why."""
+    first = err.errors()[0]
+    key = ".".join(str(p) for p in first["loc"]) or "(top level)"
+    if first["type"] == "extra_forbidden":
+        msg = f"{source}: unknown key '{key}'"
+    else:
+        msg = f"{source}: {key}: {first['msg']}"
+    more = len(err.errors()) - 1
+    return msg + (f" (and {more} more problem{'s' if more > 1 else ''})" if more else "")
+
+
+def _merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def validate_scenario(data: dict[str, Any], source: str) -> ScenarioConfig:
+    """Validate a scenario mapping, raising ScenarioError with a one-line message."""
+    try:
+        return ScenarioConfig.model_validate(data)
+    except ValidationError as err:
+        raise ScenarioError(format_validation_error(err, source)) from None
+
+
+def load_scenario_file(path: Path, named: dict[str, ScenarioConfig]) -> ScenarioConfig:
+    """Read a scenario TOML file; ``base = "name"`` starts from a named scenario."""
+    data = read_toml(path, "scenario file", ScenarioError)
+    base_name = data.pop("base", None)
+    if base_name is not None:
+        if not isinstance(base_name, str) or base_name not in named:
+            raise ScenarioError(f"{path}: unknown base scenario {base_name!r}")
+        base = named[base_name].model_dump()
+        if "file" in data.get("trajectory", {}):
+            base["trajectory"]["name"] = None  # a file replaces the base's named flight
+        observer = data.get("observer")
+        if isinstance(observer, dict) and "file" in observer and base.get("observer"):
+            base["observer"]["name"] = None
+        data = _merge(base, {"name": path.stem, **data})
+    # Files named in a scenario file are relative to that file's folder.
+    return map_paths(validate_scenario(data, str(path)), lambda p: _anchored(p, path.parent))
+
+
+def _anchored(path: str, folder: Path) -> str:
+    """``path`` as given if absolute, else relative to ``folder``."""
+    return path if Path(path).expanduser().is_absolute() else str(folder / path)
+
+
+def absolute_path(path: str) -> str:
+    return str(Path(path).expanduser().resolve())
+
+
+def map_paths(
+    cfg: ScenarioConfig, fix: Callable[[str], str], background: bool = True
+) -> ScenarioConfig:
+    """The scenario with ``fix`` applied to every file it names: the trajectory and
+    observer CSVs, a ``file:`` scan pattern and (with ``background``) a saved background."""
+    traj, sensor, observer = cfg.trajectory, cfg.sensor, cfg.observer
+    if traj.file is not None:
+        traj = traj.model_copy(update={"file": fix(traj.file)})
+    if observer is not None and observer.file is not None:
+        observer = observer.model_copy(update={"file": fix(observer.file)})
+    if sensor.model.lower().startswith("file:"):
+        sensor = sensor.model_copy(update={"model": f"file:{fix(sensor.model[5:])}"})
+    pipeline = cfg.pipeline
+    if background and pipeline.background.file is not None:
+        stored = pipeline.background.model_copy(update={"file": fix(pipeline.background.file)})
+        pipeline = pipeline.model_copy(update={"background": stored})
+    return cfg.model_copy(
+        update={"trajectory": traj, "sensor": sensor, "pipeline": pipeline, "observer": observer}
+    )
+
+
+def apply_overrides(
+    cfg: ScenarioConfig,
+    *,
+    seed: int | None = None,
+    duration: float | None = None,
+    trajectory: Path | None = None,
+    visibility: float | None = None,
+    drone: str | None = None,
+    sensor: str | None = None,
+    noise: bool | None = None,
+    tracker: str | None = None,
+    particles: int | None = None,
+    turret_mode: str | None = None,
+) -> ScenarioConfig:
+    """The scenario with command-line overrides applied (None leaves a value alone)."""
+    data = cfg.model_dump()
+    if tracker is not None:
+        data["pipeline"]["tracker"]["kind"] = tracker
+    if particles is not None:
+        data["pipeline"]["tracker"]["particles"] = particles
+    if turret_mode is not None:
+        data["pipeline"]["controller"]["mode"] = turret_mode
+    if seed is not None:
+        data["seed"] = seed
+    if duration is not None:
+        data["duration_s"] = duration
+    if trajectory is not None:
+        data["trajectory"] = {
+            "name": None,
+            "file": str(trajectory),
+            "hold_s": cfg.trajectory.hold_s,
+        }
+    if visibility is not None:
+        data["weather"]["visibility_m"] = visibility
+    if drone is not None:
+        data["drone"]["model"] = drone
+        data["pipeline"]["tracker"]["s_diag"] = None  # the new drone's diagonal (eq. 11)
+        data["pipeline"]["tracker"]["sigma_m"] = None
+    if sensor is not None:
+        data["sensor"]["model"] = sensor
+    if noise is not None:
+        data["sensor"]["noise"] = noise
+    return validate_scenario(data, "command line")
+
+
+def dump_scenario(config: ScenarioConfig) -> str:
+    """The scenario as TOML (keys left unset are omitted)."""
+    return tomli_w.dumps(config.model_dump(exclude_none=True))

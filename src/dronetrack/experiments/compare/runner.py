@@ -1,0 +1,223 @@
+"""Run a comparison suite: every method on the same seeded scenarios, then its metrics.
+
+Run ``r`` of a case is seed ``r``: the world and every filter draw from the
+seeds it gives, so a method's run here is the same as ``dronetrack simulate``
+of that scenario with that tracker, turret mode and seed.
+"""
+
+from __future__ import annotations
+
+import math
+import tracemalloc
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dronetrack.config.run import ScenarioConfig, apply_overrides
+from dronetrack.errors import ConfigError
+from dronetrack.eval.metrics import correct, longest_run, max_tracking_distance, rmse
+from dronetrack.experiments.compare.suites import Case, Suite
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.jobs.factory import build_tracker
+from dronetrack.jobs.simulate import FrameHook, SimulationRun, run_lockstep, run_simulation
+from dronetrack.pipeline import StepResult
+from dronetrack.sim.scenarios import get_scenario
+from dronetrack.sim.world import FrameTruth
+from dronetrack.sinks.strategy_logs import StrategyLogger
+from dronetrack.types import Frame
+
+__all__ = ["RunMetrics", "case_config", "run_metrics", "run_suite"]
+
+Progress = Callable[[str, int, int], None]  # (what, done, total)
+
+
+@dataclass(frozen=True, slots=True)
+class RunMetrics:
+    """One method's metrics on one run of one case."""
+
+    case: str
+    method: str
+    run: int
+    metrics: dict[str, float]
+
+
+def case_config(
+    case: Case, method: str, suite: Suite, seed: int, duration: float | None
+) -> ScenarioConfig:
+    """The scenario a method runs in a case: the named scenario with the suite's turret
+    mode (or scan strategy), the method's tracker, the run's seed."""
+    base = get_scenario(case.scenario)
+    if suite.tracker is not None:  # the methods are scan strategies feeding one tracker
+        return apply_overrides(
+            base, seed=seed, duration=duration, tracker=suite.tracker, turret_mode=method
+        )
+    return apply_overrides(
+        base, seed=seed, duration=duration, tracker=method, turret_mode=case.turret
+    )
+
+
+def _select(suite: Suite, methods: Sequence[str] | None) -> tuple[str, ...]:
+    if methods is None:
+        return suite.methods
+    unknown = [m for m in methods if m not in suite.methods]
+    if unknown:
+        raise ConfigError(
+            f"method {unknown[0]!r} is not in suite {suite.name!r}; "
+            f"choose from {', '.join(suite.methods)}"
+        )
+    return tuple(m for m in suite.methods if m in methods)
+
+
+def run_suite(
+    suite: Suite,
+    runs: int = 5,
+    *,
+    duration: float | None = None,
+    methods: Sequence[str] | None = None,
+    log_dir: Path | None = None,
+    progress: Progress | None = None,
+) -> list[RunMetrics]:
+    """Every (case, method, run) of the suite; ``duration`` shortens each flight.
+
+    ``log_dir`` receives seed 003's CSV logs for strategy suites.
+    """
+    if runs < 1:
+        raise ConfigError(f"runs must be at least 1, got {runs}")
+    chosen = _select(suite, methods)
+    memory = "memory_mb" in suite.metrics
+    out: list[RunMetrics] = []
+    for case in suite.cases:
+        for r in range(runs):
+            what = f"{case.label}, run {r + 1}/{runs}"
+            foregrounds: list[list[tuple[float, FloatArray]]] = [[] for _ in chosen]
+            if suite.lockstep:
+                cfgs = [case_config(case, m, suite, r, duration) for m in chosen]
+                done = run_lockstep(
+                    cfgs[0],
+                    [c.pipeline.tracker for c in cfgs],
+                    _progress(progress, what),
+                    init_on_clean_view=suite.init_on_clean_view,
+                    hooks=[_collector(f) for f in foregrounds] if memory else None,
+                )
+            else:
+                done = []
+                for m in chosen:
+                    logger = None
+                    if log_dir is not None:
+                        logger = StrategyLogger(log_dir / case.label / m / f"run{r}")
+                    cfg = case_config(case, m, suite, r, duration)
+                    done.append(
+                        run_simulation(
+                            cfg,
+                            _progress(progress, f"{what}, {m}"),
+                            init_on_clean_view=suite.init_on_clean_view,
+                            hook=logger.frame if logger is not None else None,
+                        )
+                    )
+                    if logger is not None:
+                        logger.close(done[-1].pipeline.controller)
+                    if done[-1].interrupted:
+                        break
+            if any(sim.interrupted for sim in done):
+                # Ctrl-C ended a run early: the tables need whole runs, so stop here
+                # (the logs of the runs already done stay written).
+                raise KeyboardInterrupt
+            for m, sim, fg in zip(chosen, done, foregrounds, strict=True):
+                values = run_metrics(suite, sim)
+                if memory:
+                    values["memory_mb"] = tracker_memory_mb(sim.config, fg)
+                out.append(RunMetrics(case.label, m, r, values))
+    return out
+
+
+def _progress(progress: Progress | None, what: str) -> Callable[[int, int], None] | None:
+    if progress is None:
+        return None
+    return lambda i, n: progress(what, i, n)
+
+
+def run_metrics(suite: Suite, sim: SimulationRun) -> dict[str, float]:
+    """The suite's metrics of one finished run (see the suite notes for definitions)."""
+    a = sim.log.arrays()
+    gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
+    est = np.column_stack([a["est_x"], a["est_y"], a["est_z"]])
+    err = est - gt
+    radius = sim.config.pipeline.evaluation.correct_radius_m
+    period = sim.config.sensor.integration_time_s
+    ok = correct(err, radius)
+    counted = longest_run(ok) >= suite.min_consecutive
+    # The RMSE window opens with the first frame whose foreground holds returns from
+    # the drone: the same frame for every method of a lockstep run, and none can
+    # track a drone still hidden in the background model (seed 000 windowed its
+    # indoor runs too).
+    seen = np.flatnonzero((a["n_target_points"] > 0) & (a["n_points"] > 0))
+    start = int(seen[0]) if len(seen) else len(err)
+    r = rmse(err[start:])
+    step_ms = float(np.mean(a["step_ms"])) if len(a["step_ms"]) else 0.0
+    out = {
+        "coverage_pct": 100.0 * float(ok.mean()) if counted and len(ok) else 0.0,
+        "max_tracking_distance_m": (
+            max_tracking_distance(err, a["range_m"], radius, a["meas_error_m"]) if counted else 0.0
+        ),
+        "rmse_m": r.value,
+        "rmse_3d_m": r.value,
+        "rmse_ci_low_m": r.ci95[0],
+        "rmse_ci_high_m": r.ci95[1],
+        "rmse_x_m": r.per_axis[0],
+        "rmse_y_m": r.per_axis[1],
+        "rmse_z_m": r.per_axis[2],
+        # A real-time node processing every frame: its share of one core, and the
+        # rate it keeps up with (at most the sensor's).
+        "cpu_pct": 100.0 * step_ms / (1e3 * period),
+        "update_hz": min(1.0 / period, 1e3 / step_ms) if step_ms > 0 else 1.0 / period,
+    }
+    out.update(_detection_metrics(a, err))
+    return {k: v for k, v in out.items() if k in suite.metrics}
+
+
+def _detection_metrics(a: dict[str, np.ndarray], err: FloatArray) -> dict[str, float]:
+    """Seed 003 Table 1: detections (frames whose foreground reached the EKF), the time
+    between them, and the EKF's mean x and v_x variances and mean 3-D error over the
+    frames it is tracking (seed 003's EKF runs when centroids arrive and is restarted
+    once lost, so its table leaves out the lost stretches)."""
+    detected = a["n_points"] > 0
+    gaps = np.diff(a["t"][detected])
+    live = a["tracked"]
+    dist = np.linalg.norm(err[live], axis=1)
+    pos_var = a["pos_var"][live]
+    vel_var = a["vel_var"][live]
+    nan = math.nan
+    return {
+        "n_detections": float(detected.sum()),
+        "gap_min_s": float(gaps.min()) if len(gaps) else nan,
+        "gap_max_s": float(gaps.max()) if len(gaps) else nan,
+        "gap_mean_s": float(gaps.mean()) if len(gaps) else nan,
+        "pos_var": float(np.nanmean(pos_var)) if np.isfinite(pos_var).any() else nan,
+        "vel_var": float(np.nanmean(vel_var)) if np.isfinite(vel_var).any() else nan,
+        "error_3d_m": float(dist.mean()) if len(dist) else nan,
+    }
+
+
+def _collector(into: list[tuple[float, FloatArray]]) -> FrameHook:
+    def collect(frame: Frame, truth: FrameTruth, result: StepResult) -> None:
+        into.append((result.t, result.foreground))
+
+    return collect
+
+
+def tracker_memory_mb(cfg: ScenarioConfig, foreground: Sequence[tuple[float, FloatArray]]) -> float:
+    """Peak memory [MB] a fresh tracker of the run's configuration allocates, state
+    included, while it processes the run's foreground again (traced by tracemalloc)."""
+    period = cfg.sensor.integration_time_s
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        tracker = build_tracker(cfg.pipeline.tracker, period, np.random.default_rng(0))
+        for t, points in foreground:
+            tracker.step(t, points, 1)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    return (peak - before) / 2**20

@@ -1,1 +1,0 @@
-"""Reading and writing files: recordings in, run folders out."""

@@ -1,0 +1,169 @@
+"""The numba kernels, compiled (or loaded from numba's cache) before a timed loop.
+
+numba compiles a kernel the first time it is called with new argument types and
+caches the machine code on disk (``cache=True``).  On a fresh install the first
+run would otherwise pay 10-40 s of compilation inside its first tracking frames,
+and report it as step time and as a slow real-time factor.  ``warm_up`` calls
+every kernel a run needs on a few synthetic points, with the argument types the
+pipeline uses, before the clock starts.  Once the cache holds them, a warm-up
+costs well under a second (loading), and nothing compiles again.
+
+The warm-up steps never touch a run's own objects or random streams: they build
+throwaway filters, maps and frames (``SimWorld.warm_up`` a throwaway turret and
+LiDAR), so a seeded run gives the same numbers with or without one.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "PIPELINE_WARM_UPS",
+    "REPLAY_WARM_UPS",
+    "CompileProgress",
+    "KernelWarmUp",
+    "compiled_signatures",
+    "dispatchers",
+    "warm_up",
+]
+
+# (steps done, steps in all, whether any kernel was compiled rather than loaded so far)
+CompileProgress = Callable[[int, int, bool], None]
+WarmUpStep = Callable[[], object]
+
+
+@dataclass(frozen=True, slots=True)
+class KernelWarmUp:
+    """What a warm-up did: its wall time [s] and the kernel signatures it compiled
+    (0 when numba's cache held them all)."""
+
+    seconds: float
+    compiled: int
+
+
+def dispatchers() -> Iterator[Any]:
+    """Every numba dispatcher defined in a loaded ``dronetrack`` module."""
+    from numba.core.registry import CPUDispatcher
+
+    for name, module in list(sys.modules.items()):
+        if name != "dronetrack" and not name.startswith("dronetrack."):
+            continue
+        for value in list(vars(module).values()):
+            if isinstance(value, CPUDispatcher) and value.py_func.__module__ == name:
+                yield value
+
+
+def compiled_signatures() -> dict[str, int]:
+    """Signatures each loaded kernel holds (compiled or loaded from the cache), by name."""
+    return {f"{d.py_func.__module__}.{d.__name__}": len(d.signatures) for d in dispatchers()}
+
+
+def _cache_misses() -> int:
+    return sum(sum(d.stats.cache_misses.values()) for d in dispatchers())
+
+
+def _poses(n: int, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """n pose samples 0.05 s apart, turning ``step`` rad about z and moving 0.1 m each."""
+    t = 0.05 * np.arange(n, dtype=np.float64)
+    T = np.tile(np.eye(4), (n, 1, 1))
+    angle = step * np.arange(n)
+    T[:, 0, 0] = T[:, 1, 1] = np.cos(angle)
+    T[:, 1, 0] = np.sin(angle)
+    T[:, 0, 1] = -T[:, 1, 0]
+    T[:, 0, 3] = 0.1 * np.arange(n)
+    return t, T
+
+
+def _frame(n_points: int = 12) -> Any:
+    from dronetrack.types import Frame
+
+    rng = np.random.default_rng(0)
+    pose_t, poses = _poses(3, 0.01)
+    return Frame(
+        stamp=0.0,
+        duration=0.1,
+        points=np.column_stack([np.full(n_points, 10.0), rng.normal(0.0, 1.0, (n_points, 2))]),
+        t=np.linspace(0.0, 0.1, n_points),
+        line=np.zeros(n_points, dtype=np.uint8),
+        intensity=np.zeros(n_points, dtype=np.float32),
+        pose_t=pose_t,
+        poses=poses,
+    )
+
+
+def _geometry() -> None:
+    """Pose checks, pose interpolation and the per-point transform."""
+    from dronetrack.geometry.transforms import apply_interpolated_poses, transform_at_times
+
+    pose_t, poses = _poses(3, 0.01)
+    t = np.array([0.0, 0.04, 0.09])
+    transform_at_times(pose_t, poses, t, np.ones((3, 3)))
+    apply_interpolated_poses(pose_t, poses, t, np.ones((3, 3)), np.ones((3, 3)))
+
+
+def _foreground() -> None:
+    """The background map (its hash table and dense grid) and the one-pass foreground."""
+    from dronetrack.preprocess.background import VoxelBackground
+    from dronetrack.preprocess.foreground import extract_foreground
+
+    frame = _frame()
+    lo, hi = np.array([-50.0, -50.0, -50.0]), np.array([50.0, 50.0, 50.0])
+    background = VoxelBackground(1.0, inflate=1, lookup_depth=1)
+    background.insert(frame.world_points()[:4])
+    background.build()
+    extract_foreground(frame, lo, hi, background)
+    extract_foreground(frame, lo, hi, None)
+    background.is_background(frame.points)
+
+
+def _particle_filters() -> None:
+    """Every motion model with every resampler: predict, update, estimate."""
+    from dronetrack.track.particle import NoiseParameters, ParticleFilter
+    from dronetrack.track.resample import RESAMPLERS
+
+    noise = NoiseParameters(0.5, 0.5, 0.1, 0.2, 0.1)
+    points = _frame().points
+    for model in ("delta", "cv", "ca"):
+        for resampling in RESAMPLERS:
+            pf = ParticleFilter(16, model, noise, np.random.default_rng(0), resampling)
+            pf.reset(points[0], 1.0, 1.0)
+            pf.predict()
+            pf.update(points)
+            pf.estimate()
+            pf.variance()
+
+
+def _replay() -> None:
+    """A recording's ground-truth point count and PCD's LZF decoder."""
+    from dronetrack.formats.lzf import lzf_compress_literal, lzf_decompress
+    from dronetrack.jobs.replay import target_point_count
+    from dronetrack.sources.recording import GroundTruth
+
+    frame = _frame()
+    truth = GroundTruth(np.array([0.0, 0.1]), np.full((2, 3), 10.0))
+    target_point_count(frame, frame.world_points(), truth, 1.0)
+    data = bytes(range(40))
+    lzf_decompress(np.frombuffer(lzf_compress_literal(data), dtype=np.uint8), len(data))
+
+
+# Smallest first: the first step tells within a second whether the cache is cold.
+PIPELINE_WARM_UPS: tuple[WarmUpStep, ...] = (_geometry, _foreground, _particle_filters)
+REPLAY_WARM_UPS: tuple[WarmUpStep, ...] = (*PIPELINE_WARM_UPS, _replay)
+
+
+def warm_up(steps: Sequence[WarmUpStep], progress: CompileProgress | None = None) -> KernelWarmUp:
+    """Run each warm-up step, reporting after each; how long it took and how many kernel
+    signatures had to be compiled."""
+    begin = time.perf_counter()
+    misses = _cache_misses()
+    for i, step in enumerate(steps):
+        step()
+        if progress is not None:
+            progress(i + 1, len(steps), _cache_misses() > misses)
+    return KernelWarmUp(time.perf_counter() - begin, _cache_misses() - misses)

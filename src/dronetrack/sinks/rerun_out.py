@@ -1,0 +1,206 @@
+"""``--rerun FILE.rrd``: a run as a rerun recording file.
+
+Needs the optional extra ``[rerun]`` (rerun-sdk).  Nothing is spawned or served:
+the recording goes straight to the file, which ``rerun FILE.rrd`` opens.
+
+Timelines: ``frame`` (sequence: 0, 1, … per logged frame) and ``time``
+(duration: ``frame.t``, seconds from the run's start).  With ``start != 0`` (a
+replayed recording) there is also ``timestamp``, the timestamp ``start + frame.t``.
+
+Entity paths (a user contract), all in metres, z up:
+
+- ``world``: ``ViewCoordinates.RIGHT_HAND_Z_UP``, static;
+- ``world/lidar/points``: the frame's returns (grey ``Points3D``);
+- ``world/lidar/foreground``: the points the tracker was given (red);
+- ``world/track/particles``: the particle filter's particles, every k-th so that
+  at most 2,000 remain (blue; empty without particles);
+- ``world/track/estimate``: the estimate, green while tracked, orange otherwise;
+- ``world/track/trail``: ``LineStrips3D`` through the last 50 estimates (a frame
+  without an estimate restarts it);
+- ``world/truth``: the ground truth (light blue);
+- ``world/frames/<child>``: for every edge of the frame's transform tree, the
+  child frame's pose in the world frame (composed along the tree from
+  ``world``), as ``Transform3D`` drawn with 0.3 m axes;
+- ``plots/error_m``: |estimate − truth| [m], on frames where both are known;
+- ``plots/n_foreground``: the number of foreground points.
+
+An entity with nothing to show this frame (no estimate, no truth, a trail of
+fewer than two points) is cleared, so the viewer never shows a stale marker.
+
+Each writer has its own ``RecordingStream`` with a fresh recording id: two
+writers in one process write two separate recordings, and neither becomes
+rerun's global recording.
+
+Privacy: writing a file this way opens no network connection and writes
+nothing in the home folder (checked with strace on rerun-sdk 0.41); the usage
+analytics that rerun collects belong to its viewer, and
+``rerun analytics disable`` turns them off.  ``RERUN=off`` in the environment
+makes the SDK drop everything silently, so the writer refuses to start then.
+"""
+
+from __future__ import annotations
+
+import importlib
+import uuid
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dronetrack.errors import ConfigError, MissingExtraError
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.sinks.view import ViewFrame
+from dronetrack.sinks.viewers import EstimateTrail, checked, subsample_particles, world_poses
+
+if TYPE_CHECKING:
+    import rerun as rr
+
+__all__ = ["ENTITY_PATHS", "RerunWriter", "require_rerun"]
+
+ENTITY_PATHS = (
+    "world",
+    "world/lidar/points",
+    "world/lidar/foreground",
+    "world/track/particles",
+    "world/track/estimate",
+    "world/track/trail",
+    "world/truth",
+    "plots/error_m",
+    "plots/n_foreground",
+)
+
+_HINT = "--rerun needs rerun-sdk: pip install 'dronetrack[rerun]'"
+_GREY = (150, 150, 150)
+_RED = (255, 70, 60)
+_BLUE = (80, 120, 255)
+_TRACKED = (30, 220, 50)
+_COASTING = (255, 140, 0)
+_TRUTH = (80, 200, 255)
+_POINT_RADIUS = 0.03  # [m]
+_FOREGROUND_RADIUS = 0.06  # [m]
+_MARKER_RADIUS = 0.2  # [m]
+_TRAIL_RADIUS = 0.03  # [m]
+_AXIS_LENGTH = 0.3  # [m]
+
+
+def require_rerun() -> None:
+    """Raise ``MissingExtraError`` with the install hint unless rerun-sdk imports."""
+    try:
+        importlib.import_module("rerun")
+    except ImportError as err:
+        raise MissingExtraError(_HINT) from err
+
+
+class RerunWriter:
+    """Writes ``ViewFrame``s to a ``.rrd`` file.
+
+    An existing file is overwritten and missing parent folders are created.  Use
+    it as a context manager or call ``close``, which flushes and writes the footer.
+    """
+
+    def __init__(self, path: Path, start: float = 0.0) -> None:
+        require_rerun()
+        import rerun as rr
+
+        self.path = Path(path)
+        self.start = float(start)
+        self._rec: rr.RecordingStream = rr.RecordingStream("dronetrack", recording_id=uuid.uuid4())
+        if not rr.is_enabled(self._rec):
+            raise ConfigError(
+                f"rerun-sdk is disabled (RERUN=off in the environment?), so {self.path} "
+                "would stay empty: unset RERUN"
+            )
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._rec.save(self.path)
+        self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        self._trail = EstimateTrail()
+        self._index = 0
+        self._closed = False
+
+    def log(self, frame: ViewFrame) -> None:
+        """Add one frame at the next ``frame`` index.
+
+        The frame is checked whole first (``InputError``), so a bad frame writes nothing.
+        """
+        if self._closed:
+            raise ValueError(f"{self.path} is closed")
+        frame = checked(frame)
+        poses = world_poses(frame.transforms)
+        self._set_time(frame.t)
+        self._log_clouds(frame)
+        self._log_track(frame)
+        self._log_frames(poses)
+        self._log_plots(frame)
+        self._index += 1
+
+    def close(self) -> None:
+        """Flush and finish the file (with its footer); closing twice does nothing."""
+        if self._closed:
+            return
+        self._closed = True
+        self._rec.flush()
+        self._rec.disconnect()
+
+    def __enter__(self) -> RerunWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _set_time(self, t: float) -> None:
+        self._rec.set_time("frame", sequence=self._index)
+        self._rec.set_time("time", duration=float(t))
+        if self.start != 0.0:
+            self._rec.set_time("timestamp", timestamp=self.start + float(t))
+
+    def _log_clouds(self, frame: ViewFrame) -> None:
+        import rerun as rr
+
+        clouds = (
+            ("world/lidar/points", frame.points, _GREY, _POINT_RADIUS),
+            ("world/lidar/foreground", frame.foreground, _RED, _FOREGROUND_RADIUS),
+            ("world/track/particles", subsample_particles(frame.particles), _BLUE, _POINT_RADIUS),
+        )
+        for path, points, colour, radius in clouds:
+            self._rec.log(path, rr.Points3D(points, colors=[colour], radii=[radius]))
+
+    def _log_track(self, frame: ViewFrame) -> None:
+        import rerun as rr
+
+        if frame.estimate is None:
+            self._rec.log("world/track/estimate", rr.Clear(recursive=False))
+        else:
+            colour = _TRACKED if frame.tracked else _COASTING
+            self._log_marker("world/track/estimate", frame.estimate, colour)
+        if frame.truth is None:
+            self._rec.log("world/truth", rr.Clear(recursive=False))
+        else:
+            self._log_marker("world/truth", frame.truth, _TRUTH)
+        trail = self._trail.update(frame.estimate)
+        if len(trail) < 2:
+            self._rec.log("world/track/trail", rr.Clear(recursive=False))
+        else:
+            strip = rr.LineStrips3D([trail], colors=[_TRACKED], radii=[_TRAIL_RADIUS])
+            self._rec.log("world/track/trail", strip)
+
+    def _log_marker(self, path: str, position: FloatArray, colour: tuple[int, int, int]) -> None:
+        import rerun as rr
+
+        marker = rr.Points3D(position.reshape(1, 3), colors=[colour], radii=[_MARKER_RADIUS])
+        self._rec.log(path, marker)
+
+    def _log_frames(self, poses: dict[str, FloatArray]) -> None:
+        import rerun as rr
+
+        for child, pose in poses.items():
+            transform = rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3])
+            path = f"world/frames/{rr.escape_entity_path_part(child)}"
+            self._rec.log(path, transform, rr.TransformAxes3D(_AXIS_LENGTH))
+
+    def _log_plots(self, frame: ViewFrame) -> None:
+        import rerun as rr
+
+        self._rec.log("plots/n_foreground", rr.Scalars(float(len(frame.foreground))))
+        if frame.estimate is not None and frame.truth is not None:
+            error = np.linalg.norm(frame.estimate - frame.truth)
+            self._rec.log("plots/error_m", rr.Scalars(float(error)))

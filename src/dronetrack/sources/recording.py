@@ -1,0 +1,215 @@
+"""What every recording reader gives the replay: frames, ground truth and a summary.
+
+A reader turns a recording (a ROS bag, an MCAP file, a folder of ``.pcd`` files,
+a ``.las``/``.laz`` file, seed 003's CSV logs) into the pipeline's ``Frame``
+objects.  Times inside are seconds relative to the recording's ``origin`` (an
+absolute time, e.g. Unix seconds), so float64 keeps microseconds.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from dronetrack.errors import InputError
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import Frame
+
+__all__ = [
+    "GroundTruth",
+    "PointFileRecording",
+    "Recording",
+    "RecordingInfo",
+    "ReplayOptions",
+    "TopicInfo",
+    "fixed_pose_frame",
+    "frame_period",
+    "identity_pose_warning",
+    "sensor_pose",
+]
+
+
+TIME_TOL_S = 1e-6
+DEFAULT_PERIOD_S = 0.1  # a frame period when nothing else gives one [s]
+
+
+@dataclass(frozen=True, slots=True)
+class GroundTruth:
+    """The target's true position sampled at times ``t`` (M,) [s]: ``position`` (M, 3) [m]."""
+
+    t: FloatArray
+    position: FloatArray
+    max_gap_s: float = 1.0  # no truth between samples further apart than this
+
+    def __post_init__(self) -> None:
+        m = len(self.t)
+        if self.position.shape != (m, 3) or m == 0:
+            raise InputError(f"ground truth must be (M, 3) with M >= 1, got {self.position.shape}")
+        if np.any(np.diff(self.t) < 0):
+            raise InputError("ground-truth times must not decrease")
+
+    def at(self, t: ArrayLike) -> FloatArray:
+        """Linearly interpolated positions (n, 3) at times ``t``; NaN outside the samples
+        or inside a gap longer than ``max_gap_s``."""
+        tq = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        out = np.full((len(tq), 3), np.nan)
+        if len(self.t) == 1:
+            near = np.abs(tq - self.t[0]) <= 0.5 * self.max_gap_s
+            out[near] = self.position[0]
+            return out
+        for k in range(3):
+            out[:, k] = np.interp(tq, self.t, self.position[:, k])
+        i = np.clip(np.searchsorted(self.t, tq, side="right"), 1, len(self.t) - 1)
+        gap = self.t[i] - self.t[i - 1]
+        # Times within TIME_TOL of the ends hold the end values (stamps' rounding).
+        outside = (tq < self.t[0] - TIME_TOL_S) | (tq > self.t[-1] + TIME_TOL_S)
+        bad = outside | (gap > self.max_gap_s)
+        out[bad] = np.nan
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class TopicInfo:
+    """One topic (or stream) of a recording."""
+
+    topic: str
+    msgtype: str
+    count: int
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingInfo:
+    """What ``dronetrack info`` prints."""
+
+    path: Path
+    kind: str  # "ros1", "ros2-sqlite3", "ros2-mcap", "mcap", "pcd", "las", "field-logs"
+    start: float  # absolute time of the first message [s] (Unix seconds for bags)
+    duration_s: float
+    topics: tuple[TopicInfo, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayOptions:
+    """How to read a recording; None means "choose automatically" or "not given"."""
+
+    lidar_topic: str | None = None
+    gt_topic: str | None = None
+    pose_frame: str | None = None  # the fixed frame of the /tf tree to track in
+    sensor_pose: FloatArray | None = None  # (4, 4) world_T_sensor when there is no /tf
+    gt_origin: tuple[float, float, float] | None = None  # NavSatFix ENU origin (lat°, lon°, alt m)
+    gt_heading_deg: float = 0.0  # ENU rotated about z by this, to align with the world frame
+    period_s: float | None = None  # frame period when the recording does not say
+    timestamps: Path | None = None  # a .pcd folder's timestamps file
+
+
+class Recording(Protocol):
+    """A recording opened for replay.
+
+    ``frames`` yields frames in time order with points in the sensor frame and
+    world_T_sensor poses; a message that cannot be decoded is skipped, logged
+    and counted in ``skipped`` (by reason), never silently dropped.
+    """
+
+    path: Path
+    origin: float  # absolute time [s] of t = 0
+    period: float  # frame period [s]
+    ground_truth: GroundTruth | None
+    config_text: str | None  # a dronetrack scenario (TOML) the recording carries, if any
+    skipped: Counter[str]
+    # Set when no pose source was found and the sensor is taken as fixed at the origin.
+    pose_warning: str | None
+
+    def frames(self) -> Iterator[Frame]:
+        """The LiDAR frames, in time order."""
+        ...
+
+    def info(self) -> RecordingInfo:
+        """Topics, types, counts and duration."""
+        ...
+
+
+class PointFileRecording:
+    """What the readers of point files (PCD, LAS, CSV logs) share: they carry no ground
+    truth and no configuration, and count what they skip."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.ground_truth: GroundTruth | None = None
+        self.config_text: str | None = None
+        self.skipped: Counter[str] = Counter()
+        self.pose_warning: str | None = None
+
+
+def fixed_pose_frame(
+    stamp: float,
+    duration: float,
+    points: FloatArray,
+    t: FloatArray | None = None,
+    intensity: ArrayLike | None = None,
+    line: ArrayLike | None = None,
+    pose: FloatArray | None = None,
+    pose_t: FloatArray | None = None,
+) -> Frame:
+    """A frame from its arrays.  ``pose`` (4, 4) world_T_sensor of a sensor that does
+    not move, identity by default; or, with ``pose_t`` (K,), poses (K, 4, 4) sampled
+    then.  Every point is at ``stamp`` unless per-point times ``t`` are given."""
+    n = len(points)
+    if pose_t is None:
+        pose_t = np.array([stamp])
+        poses = (np.eye(4) if pose is None else np.asarray(pose, dtype=np.float64))[None]
+    else:
+        assert pose is not None
+        poses = np.asarray(pose, dtype=np.float64)
+    return Frame(
+        stamp=stamp,
+        duration=duration,
+        points=np.asarray(points, dtype=np.float64).reshape(n, 3),
+        t=np.full(n, stamp) if t is None else np.asarray(t, dtype=np.float64),
+        line=np.zeros(n, np.uint8) if line is None else np.asarray(line, dtype=np.uint8),
+        intensity=(
+            np.zeros(n, np.float32) if intensity is None else np.asarray(intensity, np.float32)
+        ),
+        pose_t=pose_t,
+        poses=poses,
+    )
+
+
+def identity_pose_warning(path: Path, frame_id: str | None = None) -> str:
+    """What replay says when nothing gives the sensor's pose: it assumes the identity."""
+    where = f"no /tf for its LiDAR frame {frame_id!r}" if frame_id else "no sensor pose"
+    return (
+        f"{path.name} has {where}, and no --sensor-pose was given: the sensor is taken as "
+        "fixed at the world origin, looking along x (the identity pose); give "
+        "--sensor-pose x,y,z,roll,pitch,yaw (m, deg) if it was elsewhere"
+    )
+
+
+def sensor_pose(options: ReplayOptions) -> FloatArray | None:
+    """options.sensor_pose checked to be (4, 4) world_T_sensor, or None (identity)."""
+    if options.sensor_pose is None:
+        return None
+    pose = np.asarray(options.sensor_pose, dtype=np.float64)
+    if pose.shape != (4, 4):
+        raise InputError(f"sensor_pose must be (4, 4), got {pose.shape}")
+    return pose
+
+
+def frame_period(options: ReplayOptions, t: FloatArray | None) -> float:
+    """options.period_s, else the median of the positive steps of the frame times ``t``
+    (repeated or out-of-order stamps say nothing of the rate), else ``DEFAULT_PERIOD_S``."""
+    if options.period_s is not None:
+        if not options.period_s > 0:
+            raise InputError(f"period_s must be > 0, got {options.period_s}")
+        return float(options.period_s)
+    if t is not None and len(t) > 1:
+        steps = np.diff(np.asarray(t, dtype=np.float64))
+        steps = steps[steps > 0]
+        if len(steps):
+            return float(np.median(steps))
+    return DEFAULT_PERIOD_S
