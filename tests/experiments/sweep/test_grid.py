@@ -105,6 +105,6 @@ def test_a_recording_path_is_relative_to_the_grid_file(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("name", "n"), [("grid_eq12.toml", 900), ("grid_small.toml", 12)])
 def test_the_example_grids_are_valid(name: str, n: int) -> None:
-    spec = load_grid(Path(__file__).parents[2] / "examples" / name)
+    spec = load_grid(Path(__file__).parents[3] / "examples" / name)
     check_keys(spec, get_scenario(spec.scenario or "default"))
     assert len(expand(spec)) == n

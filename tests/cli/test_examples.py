@@ -15,7 +15,7 @@ from dronetrack.experiments.sweep.grid import expand, load_grid
 from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.trajectories import load_csv_trajectory
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def _metrics(folder: Path) -> dict[str, object]:
