@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from dronetrack.config.pipeline import BackgroundConfig, PipelineConfig, TrackerConfig
+from dronetrack.config.rig import make_turret
 from dronetrack.geometry.transforms import make_pose
 from dronetrack.jobs.factory import build_pipeline
 from dronetrack.pipeline import Pipeline
-from dronetrack.sim.turret import make_turret
 from dronetrack.types import Frame
 
 TURRET = make_turret("widowx")

@@ -18,29 +18,30 @@ latency, so a closed loop is deterministic whatever the machine's speed.
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections import Counter
-from dataclasses import dataclass, field, replace
-from typing import Literal
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
 
 from dronetrack.control.controller import Controller
 from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
+from dronetrack.seams import Actuator, Sink, Source
+from dronetrack.track.clock import FilterClock
 from dronetrack.track.tracker import Tracker, TrackEstimate
-from dronetrack.types import Frame, TurretCommand
+from dronetrack.types import Frame, Phase, StepResult, TurretCommand
 
-__all__ = ["OutlierSettings", "Pipeline", "StepResult"]
+__all__ = ["OutlierSettings", "Pipeline", "RunStats", "Stage", "StepResult", "run"]
 
 log = logging.getLogger(__name__)
-MAX_GAP_S = 5.0  # a longer jump in time restarts the filter instead of predicting across it
-Phase = Literal["scan", "track"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,24 +52,6 @@ class OutlierSettings:
     min_neighbors: int = 3
     mean_k: int | None = None  # statistical filter off when None
     std_mul: float = 1.0
-
-
-@dataclass(frozen=True, slots=True)
-class StepResult:
-    """What the pipeline made of one frame."""
-
-    t: float  # frame end [s]
-    phase: Phase
-    estimate: TrackEstimate | None  # None while scanning
-    n_points: int  # points left after background subtraction and outlier removal
-    n_returns: int  # points in the frame
-    command: TurretCommand | None
-    step_ms: float  # wall time spent in step()
-    flags: tuple[str, ...] = ()
-    foreground: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
-    periods: int = 0  # filter periods this frame advanced (0: repeated or older)
-    # (N, 3) every point of the frame in the world frame; empty if it could not be placed
-    world: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
 
 
 class Pipeline:
@@ -96,7 +79,7 @@ class Pipeline:
         self.latency_s = latency_s
         self.hull = hull
         self.counts: Counter[str] = Counter()
-        self._clock: float | None = None  # the filter's time: the end of the last period it ran
+        self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
 
     @property
     def scanning(self) -> bool:
@@ -106,7 +89,7 @@ class Pipeline:
         """Process one frame."""
         start = time.perf_counter()
         flags: list[str] = []
-        steps = self._periods_since_last(frame.end, flags)
+        steps = self.clock.advance(frame.end, flags)
         fg = self._foreground(frame, flags)
         t_cmd = frame.end + self.latency_s
         if self.scanning:
@@ -137,37 +120,6 @@ class Pipeline:
         if flags:
             log.debug("frame ending %.3f s: %s", frame.end, ", ".join(flags))
         return result
-
-    def _periods_since_last(self, end: float, flags: list[str]) -> int:
-        """Filter periods to run for a frame ending at ``end``.
-
-        The filter keeps its own clock, advanced by whole periods, so frames that
-        arrive at other intervals neither drift nor lose time.  A repeated or
-        older frame runs none; a gap runs one per missed period.  A jump of more
-        than MAX_GAP_S either way restarts the filter on the new time line.
-        """
-        if not np.isfinite(end):
-            flags.append("bad_time")
-            return 0
-        period = self.tracker.period
-        if self._clock is None:
-            self._clock = end
-            return 1
-        elapsed = end - self._clock
-        if elapsed > MAX_GAP_S or elapsed < -MAX_GAP_S:
-            flags.append("time_jump")
-            self._clock = end
-            return 1
-        # Whole periods up to this frame's end (half a period of slack for jitter).
-        steps = math.floor(elapsed / period + 0.5)
-        if steps <= 0:
-            # The clock sums whole periods, so "the same time" allows rounding.
-            flags.append("repeated" if abs(elapsed) <= 1e-6 * period else "out_of_order")
-            return 0
-        self._clock += steps * period
-        if steps > 1:
-            flags.append("gap")
-        return steps
 
     def _foreground(self, frame: Frame, flags: list[str]) -> Foreground:
         if len(frame) == 0:
@@ -228,3 +180,70 @@ class Pipeline:
 
 def _no_foreground() -> Foreground:
     return Foreground(np.empty((0, 3)), np.empty(0, dtype=np.int64), 0, 0, 0)
+
+
+class Stage(Protocol):
+    """What ``run`` steps: a ``Pipeline``, or anything else that turns frames into results."""
+
+    def step(self, frame: Frame) -> StepResult: ...
+
+
+@dataclass(frozen=True, slots=True)
+class RunStats:
+    """How a run went: frames done, the source time they span, the wall time they took."""
+
+    frames: int
+    start: float  # the first frame's start [s] on the source's clock; NaN if none
+    end: float  # the last frame's end [s]; NaN if none
+    wall_s: float
+    interrupted: bool  # Ctrl-C ended the run before the source did
+
+    @property
+    def span_s(self) -> float:
+        """Source time covered, first frame's start to last frame's end [s]."""
+        return self.end - self.start if self.frames else 0.0
+
+
+def run(
+    source: Source,
+    pipeline: Stage,
+    actuator: Actuator | None = None,
+    sinks: Sequence[Sink] = (),
+    *,
+    followers: Sequence[tuple[Stage, Sequence[Sink]]] = (),
+    progress: Callable[[int, int], None] | None = None,
+    total: int | None = None,
+) -> RunStats:
+    """The loop every command runs: for each frame of ``source``, step ``pipeline``, send
+    its command to ``actuator``, then hand the frame and the result to each sink.
+
+    ``followers`` are more stages fed the same frames, each with its own sinks; their
+    commands go nowhere, so they see exactly the frames the leading pipeline's turret
+    produced (a lockstep comparison).  ``progress`` is told (frames done, ``total``)
+    after each frame.  A Ctrl-C handled by ``dronetrack.interrupt`` ends the loop after
+    the frame in hand, so no sink holds half a frame.
+    """
+    begin = time.perf_counter()
+    n = 0
+    start = end = float("nan")
+    with stoppable():
+        for sample in source:
+            frame = sample.frame
+            result = pipeline.step(frame)
+            if actuator is not None and result.command is not None:
+                actuator.command(result.command)
+            for sink in sinks:
+                sink.write(sample, result)
+            for stage, stage_sinks in followers:
+                other = stage.step(frame)
+                for sink in stage_sinks:
+                    sink.write(sample, other)
+            n += 1
+            start = frame.stamp if n == 1 else start
+            end = frame.end
+            if progress is not None:
+                progress(n, max(n, total or 0))
+            if stop_requested():
+                break
+        interrupted = stop_requested()
+    return RunStats(n, start, end, time.perf_counter() - begin, interrupted)

@@ -6,8 +6,8 @@ are radians.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,7 +15,12 @@ from numpy.typing import NDArray
 from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray, interpolate_poses, transform_at_times
 
-__all__ = ["Frame", "TurretCommand", "TurretState"]
+if TYPE_CHECKING:
+    from dronetrack.track.tracker import TrackEstimate
+
+__all__ = ["Frame", "Phase", "Sample", "StepResult", "Truth", "TurretCommand", "TurretState"]
+
+Phase = Literal["scan", "track"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,3 +99,49 @@ class TurretState:
     tilt: float
     pan_rate: float = 0.0
     tilt_rate: float = 0.0
+
+
+class Truth(Protocol):
+    """What a source knows of the target during a frame (the simulator, or a
+    recording's ground truth); the pipeline never sees it, only the sinks do."""
+
+    @property
+    def target_position(self) -> FloatArray:
+        """(3,) world position at the frame's end [m]; NaN where unknown."""
+        ...
+
+    def target_returns(self, frame: Frame, world: FloatArray) -> int:
+        """How many of the frame's returns hit the target, given the returns in the world
+        frame (``world`` (N, 3), empty if the pipeline could not place them); -1 unknown."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class Sample:
+    """One frame as a source delivers it, with what the source knows besides the points.
+
+    turret: the turret's measured joint state at the frame's end, if the source knows it
+        (a recording knows only the sensor pose, which is in the frame).
+    """
+
+    frame: Frame
+    truth: Truth | None = None
+    turret: TurretState | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class StepResult:
+    """What the pipeline made of one frame."""
+
+    t: float  # frame end [s]
+    phase: Phase
+    estimate: TrackEstimate | None  # None while scanning
+    n_points: int  # points left after background subtraction and outlier removal
+    n_returns: int  # points in the frame
+    command: TurretCommand | None
+    step_ms: float  # wall time spent in step()
+    flags: tuple[str, ...] = ()
+    foreground: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
+    periods: int = 0  # filter periods this frame advanced (0: repeated or older)
+    # (N, 3) every point of the frame in the world frame; empty if it could not be placed
+    world: FloatArray = field(default_factory=lambda: np.empty((0, 3)))

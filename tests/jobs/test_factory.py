@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from dronetrack.config.pipeline import PipelineConfig, TrackerConfig
+from dronetrack.config.rig import make_turret
 from dronetrack.jobs.factory import (
     CA_SIGMA_ACC,
     DEFAULT_S_DIAG,
@@ -14,7 +15,6 @@ from dronetrack.jobs.factory import (
     noise_parameters,
     resolve_tracker,
 )
-from dronetrack.sim.turret import make_turret
 from dronetrack.track.tracker import ParticleTracker
 
 TURRET = make_turret("widowx")

@@ -24,13 +24,14 @@ import numpy as np
 import pytest
 
 from dronetrack.config.run import ScenarioConfig, apply_overrides
-from dronetrack.jobs.simulate import SimulationRun, resolve_run, run_simulation
+from dronetrack.jobs.run import RunResult
+from dronetrack.jobs.simulate import resolve_run, run_simulation
 from dronetrack.sim.drones import DRONE_NAMES, make_drone
 from dronetrack.sim.scenarios import SCENARIOS
 
 
 @cache
-def _run(name: str, turret: str | None = None) -> SimulationRun:
+def _run(name: str, turret: str | None = None) -> RunResult:
     return run_simulation(apply_overrides(SCENARIOS[name], seed=0, turret_mode=turret))
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dronetrack.config.rig import make_turret
 from dronetrack.config.run import (
     ObserverConfig,
     SensorConfig,
@@ -30,7 +31,6 @@ from dronetrack.sim.scene import Scene, make_scene
 from dronetrack.sim.sensors import make_sensor
 from dronetrack.sim.shapes import box, cylinder, ground
 from dronetrack.sim.trajectories import PiecewiseAcceleration, Trajectory, fly_waypoints
-from dronetrack.sim.turret import make_turret
 from dronetrack.sim.world import Observer, OdometryDrift, SimWorld
 from dronetrack.types import TurretCommand
 

@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
+from dronetrack.config.rig import make_turret
 from dronetrack.control.aiming import aim_angles
 from dronetrack.errors import ConfigError
 from dronetrack.sim.drones import make_drone
@@ -19,7 +20,6 @@ from dronetrack.sim.scene import Scene, make_scene
 from dronetrack.sim.sensors import make_sensor
 from dronetrack.sim.shapes import box
 from dronetrack.sim.trajectories import fly_waypoints
-from dronetrack.sim.turret import make_turret
 from dronetrack.sim.world import SimWorld
 
 AVIA = make_sensor("avia", noise=False)

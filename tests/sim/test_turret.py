@@ -9,10 +9,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from dronetrack.config.rig import make_turret
 from dronetrack.control.aiming import aim_angles
 from dronetrack.errors import ConfigError, InputError
 from dronetrack.geometry.mount import MountGeometry, sensor_poses
-from dronetrack.sim.turret import TurretPlant, make_turret
+from dronetrack.sim.turret import TurretPlant
 from dronetrack.types import TurretCommand
 
 WIDOWX = make_turret("widowx")

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from dronetrack.config.rig import make_turret
 from dronetrack.control.aiming import aim_angles
 from dronetrack.sim.build import build_world
 from dronetrack.sim.drones import make_drone
@@ -15,7 +16,6 @@ from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.scene import make_scene
 from dronetrack.sim.sensors import make_sensor
 from dronetrack.sim.trajectories import Waypoint, fly_waypoints
-from dronetrack.sim.turret import make_turret
 from dronetrack.sim.world import SimWorld
 from dronetrack.types import TurretCommand
 

@@ -20,16 +20,16 @@ import pytest
 
 from dronetrack.errors import ConfigError, InputError, MissingExtraError
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.sinks.view import NamedTransform, ViewFrame
-from dronetrack.sinks.viewers import (
+from dronetrack.sinks.view import (
     EstimateTrail,
+    NamedTransform,
+    ViewFrame,
     checked,
-    close_viewers,
-    open_viewers,
     subsample_particles,
     world_poses,
     xyz,
 )
+from dronetrack.sinks.viewers import close_viewers, open_viewers
 
 START = 1_700_000_000.0  # a replay's clock [s since the epoch]
 N_FRAMES = 5

@@ -5,22 +5,23 @@ from __future__ import annotations
 
 import logging
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from dronetrack.config.rig import turret_spec
 from dronetrack.config.run import apply_overrides, dump_scenario
 from dronetrack.errors import ConfigError, RecordingError
 from dronetrack.jobs.simulate import resolve_run, run_simulation
-from dronetrack.sim.build import turret_spec
 from dronetrack.sim.scenarios import get_scenario
 from dronetrack.sinks.bag_writer import RecordingWriter
 from dronetrack.sources.bag import BagRecording
 from dronetrack.sources.recording import ReplayOptions
 from dronetrack.sources.recordings import open_recording, recording_info
-from dronetrack.types import Frame
+from dronetrack.types import Frame, Sample, StepResult
 
 VARIANTS = [
     ("ros1", True, "a.bag"),
@@ -30,6 +31,16 @@ VARIANTS = [
     ("ros2-mcap", True, "e.mcap"),
     ("ros2-mcap", False, "f_folder"),
 ]
+
+
+class EachFrame:
+    """A run loop's sink that calls ``fn(frame, truth, result)`` for every frame."""
+
+    def __init__(self, fn: Callable[[Frame, Any, StepResult], None]) -> None:
+        self.fn = fn
+
+    def write(self, sample: Sample, result: StepResult) -> None:
+        self.fn(sample.frame, sample.truth, result)
 
 
 def _short_config() -> Any:
@@ -60,7 +71,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         for w in writers:
             w.frame(frame, truth.target_position, truth.target_attitude)
 
-    run_simulation(cfg, on_frame=keep)
+    run_simulation(cfg, sinks=[EachFrame(keep)])
     for w in writers:
         w.close()
     return {"folder": folder, "frames": frames, "truths": np.array(truths), "cfg": cfg}
@@ -359,7 +370,7 @@ def test_a_moving_observer_is_recorded_as_odometry_in_tf(tmp_path: Path) -> None
         turret = (truth.turret.pan, truth.turret.tilt)
         writer.frame(frame, truth.target_position, truth.target_attitude, turret)
 
-    run_simulation(cfg, on_frame=keep)
+    run_simulation(cfg, sinks=[EachFrame(keep)])
     writer.close()
     rec = open_recording(path)
     assert isinstance(rec, BagRecording)

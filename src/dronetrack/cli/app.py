@@ -18,7 +18,7 @@ from dronetrack.cli.output import (
 from dronetrack.errors import DronetrackError
 
 if TYPE_CHECKING:
-    from dronetrack.jobs.simulate import RunFolder, SimulationRun
+    from dronetrack.jobs.run import RunFolder, RunResult
     from dronetrack.sinks.view import ViewerSink
 
 
@@ -86,7 +86,7 @@ def run_outputs(
         raise
 
 
-def report_run(folder: RunFolder, run: SimulationRun, metrics: dict[str, Any]) -> None:
+def report_run(folder: RunFolder, run: RunResult, metrics: dict[str, Any]) -> None:
     """After a run's folder is written: the kernels' compile time if it compiled, then
     one ``interrupted`` line (exit 130) if Ctrl-C ended it, else the metrics table."""
     print_kernel_note(run.kernels)

@@ -153,9 +153,10 @@ def track(
     does; the metrics that need ground truth appear only when there is some.
     """
 
+    from dronetrack.actuators.command_log import write_commands_csv
     from dronetrack.config.run import load_scenario_file
-    from dronetrack.jobs.replay import recording_config, run_replay, write_commands_csv
-    from dronetrack.jobs.simulate import RunFolder
+    from dronetrack.jobs.replay import recording_config, run_replay
+    from dronetrack.jobs.run import RunFolder
     from dronetrack.sim.scenarios import SCENARIOS
     from dronetrack.sinks.run_folder import default_run_dir
     from dronetrack.sources.recording import ReplayOptions
@@ -279,9 +280,9 @@ def record(
     so `dronetrack track FILE` replays it with the same settings.  Prints the
     metrics of the run, then what it wrote.
     """
+    from dronetrack.config.rig import turret_spec
     from dronetrack.config.run import dump_scenario
     from dronetrack.jobs.simulate import resolve_run, run_simulation
-    from dronetrack.sim.build import turret_spec
     from dronetrack.sinks.bag_writer import RecordingWriter, record_format
 
     container = record_format(out, fmt.value if fmt is not None else None)
@@ -315,12 +316,7 @@ def record(
             run = run_simulation(
                 resolved,
                 progress=lambda i, n: bar.update(task, completed=i, total=n),
-                on_frame=lambda frame, truth, _: writer.frame(
-                    frame,
-                    truth.target_position,
-                    truth.target_attitude,
-                    (truth.turret.pan, truth.turret.tilt),
-                ),
+                sinks=[writer],
                 compiling=compile_reporter(bar, task),
             )
     finally:

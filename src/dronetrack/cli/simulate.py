@@ -202,8 +202,11 @@ def simulate(
     frames.csv, metrics.json and plots to the output folder, and prints the metrics.
     """
 
-    from dronetrack.jobs.simulate import RunFolder, run_simulation, simulation_viewer_hook
+    from dronetrack.config.rig import turret_spec
+    from dronetrack.jobs.run import RunFolder
+    from dronetrack.jobs.simulate import run_simulation
     from dronetrack.sinks.run_folder import default_run_dir
+    from dronetrack.sinks.view import ViewerFeed
 
     cfg = scenario_from_options(
         scenario,
@@ -219,12 +222,14 @@ def simulate(
         turret_mode=turret.value if turret else None,
     )
     folder = RunFolder(out if out is not None else default_run_dir())
+    # the turret's links for the viewers; on a moving observer, the sensor's pose alone
+    mount = None if cfg.observer is not None else turret_spec(cfg.turret).mount
     with run_outputs(folder, foxglove, rerun) as viewers, progress_bar() as bar:
         task = bar.add_task(f"simulating {cfg.name}", total=None)
         run = run_simulation(
             cfg,
             progress=lambda i, n: bar.update(task, completed=i, total=n),
-            on_frame=simulation_viewer_hook(viewers, cfg) if viewers else None,
+            sinks=[ViewerFeed(viewers, mount)] if viewers else (),
             compiling=compile_reporter(bar, task),
             log_sink=folder.log_sink,
         )

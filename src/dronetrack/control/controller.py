@@ -6,8 +6,8 @@
   look at ``home``.  Once the target is lost, hold on the last position for
   ``search_hold_s``, then sweep around the last bearing until it is found again.
 - Fixed: look at ``home`` and never move (the ablation of seed 000 Table II).
-- Truth: the estimate is ignored; whoever runs the loop aims the turret at the
-  ground truth (seed 000 Table III, so every tracker sees the same frames).
+- External: the pipeline scans the background, then leaves the turret to someone
+  else (an operator, or the simulator's truth aimer for seed 000's Table III).
 
 Every command is clipped to the turret's joint limits.
 """
@@ -28,7 +28,7 @@ from dronetrack.types import TurretCommand
 
 __all__ = ["Controller", "TurretController"]
 
-Mode = Literal["tracking", "fixed", "truth"]
+Mode = Literal["tracking", "fixed", "external"]
 
 
 class Controller(Protocol):
@@ -36,7 +36,7 @@ class Controller(Protocol):
 
     @property
     def mode(self) -> str:
-        """How the turret is driven (``tracking``, ``fixed``, ``truth``, a scan strategy)."""
+        """How the turret is driven (``tracking``, ``fixed``, ``external``, a scan strategy)."""
         ...
 
     @property
@@ -105,7 +105,7 @@ class TurretController:
 
         ``points`` (this frame's foreground) is not needed to aim at the estimate.
         """
-        if self.mode == "truth":
+        if self.mode == "external":
             return None
         if self.mode == "fixed":
             if self._fixed_sent:

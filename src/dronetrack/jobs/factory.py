@@ -133,7 +133,8 @@ def _controller(
         mount=mount,
         pan_limits=pan_limits,
         tilt_limits=tilt_limits,
-        mode=cast(TurretMode, cfg.mode),
+        # ``truth`` (simulation only): the simulator's truth aimer steers while tracking
+        mode=cast(TurretMode, "external" if cfg.mode == "truth" else cfg.mode),
         home=np.asarray(cfg.home_m),
         lead_s=cfg.lead_s,
         search_hold_s=cfg.search_hold_s,

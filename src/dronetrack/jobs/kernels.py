@@ -142,7 +142,7 @@ def _particle_filters() -> None:
 def _replay() -> None:
     """A recording's ground-truth point count and PCD's LZF decoder."""
     from dronetrack.formats.lzf import lzf_compress_literal, lzf_decompress
-    from dronetrack.jobs.replay import target_point_count
+    from dronetrack.sources.playback import target_point_count
     from dronetrack.sources.recording import GroundTruth
 
     frame = _frame()

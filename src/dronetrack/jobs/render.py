@@ -16,10 +16,13 @@ import numpy as np
 
 from dronetrack.config.run import ScenarioConfig, dump_scenario
 from dronetrack.control.aiming import aim_angles
+from dronetrack.pipeline import run
+from dronetrack.seams import Sink
 from dronetrack.sim.build import build_world, resolve_scenario
+from dronetrack.sim.rig import SimSource, TruthAimer
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.world import FrameTruth, SimWorld
-from dronetrack.types import Frame, TurretCommand
+from dronetrack.types import Frame, Sample, StepResult
 
 __all__ = ["Rendering", "render_scenario", "write_rendering"]
 
@@ -46,20 +49,35 @@ def render_scenario(
     world: SimWorld = build_world(config)
     # Whole frames covering the duration (a partial last frame counts as one).
     n_frames = max(1, math.ceil(config.duration_s / config.sensor.integration_time_s - 1e-9))
+    frames = FrameCollector()
+    sinks: list[Sink] = [frames]
     if turret == "truth":
         world.place_turret(*aim_angles(world.target_position(0.0), world.mount))
-    frames: list[Frame] = []
-    truths: list[FrameTruth] = []
-    for i in range(n_frames):
-        if turret == "truth" and i > 0:
-            pan, tilt = aim_angles(world.target_position(world.time), world.mount)
-            world.command(TurretCommand(world.time, pan, tilt))
-        frame, truth = world.step()
-        frames.append(frame)
-        truths.append(truth)
-        if progress is not None:
-            progress(i + 1, n_frames)
-    return Rendering(config, world.lidar.scene, frames, truths)
+        # before each next frame, the goal is the target where that frame starts
+        sinks.insert(0, TruthAimer(world, latency_s=0.0))
+    run(SimSource(world, n_frames), NoTracking(), None, sinks, progress=progress, total=n_frames)
+    return Rendering(config, world.lidar.scene, frames.frames, frames.truths)
+
+
+class NoTracking:
+    """The stage of a rendering: every frame passes untouched, as a tracking frame with no
+    estimate (so a truth aimer follows the target from the first frame)."""
+
+    def step(self, frame: Frame) -> StepResult:
+        return StepResult(frame.end, "track", None, 0, len(frame), None, 0.0)
+
+
+class FrameCollector:
+    """Keeps every frame and its truth."""
+
+    def __init__(self) -> None:
+        self.frames: list[Frame] = []
+        self.truths: list[FrameTruth] = []
+
+    def write(self, sample: Sample, result: StepResult) -> None:
+        assert isinstance(sample.truth, FrameTruth)
+        self.frames.append(sample.frame)
+        self.truths.append(sample.truth)
 
 
 FRAME_COLUMNS = (

@@ -11,48 +11,34 @@ is logged with it and the returns near it are counted as the target's.
 
 from __future__ import annotations
 
-import math
-import time
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numba as nb
 import numpy as np
 
+from dronetrack.actuators.command_log import CommandLog
+from dronetrack.config.rig import resolve_turret, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig, validate_scenario
 from dronetrack.errors import ConfigError, RecordingError
 from dronetrack.eval.log import TrackLog
-from dronetrack.geometry.mount import pointing_angles
-from dronetrack.geometry.transforms import FloatArray
-from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.jobs.factory import scan_duration
 from dronetrack.jobs.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
-from dronetrack.jobs.simulate import (
-    LogSink,
-    Progress,
-    SimulationRun,
-    log_result,
-    resolve_run,
-    run_seeds,
-    turret_pipeline,
-)
-from dronetrack.pipeline import StepResult
-from dronetrack.sim.build import turret_spec
-from dronetrack.sim.drones import make_drone
-from dronetrack.sinks.view import NamedTransform, ViewerSink, view_frame
-from dronetrack.sources.recording import GroundTruth, Recording
-from dronetrack.types import Frame, TurretCommand
+from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
+from dronetrack.pipeline import run
+from dronetrack.seams import Sink
+from dronetrack.sinks.track_log import TrackLogSink
+from dronetrack.sinks.view import ViewerFeed, ViewerSink
+from dronetrack.sources.playback import RecordingSource
+from dronetrack.sources.recording import Recording
+from dronetrack.types import TurretCommand
 
-__all__ = [
-    "ReplayRun",
-    "recording_config",
-    "run_replay",
-    "target_point_count",
-    "write_commands_csv",
-]
+Progress = Callable[[int, int], None]
+LogSink = Callable[[TrackLog], None]
+
+__all__ = ["ReplayRun", "recording_config", "run_replay"]
 
 # A return within the drone's half-diagonal plus this margin of the true position
 # counts as the target's (the sensor's range noise and the truth's own error).
@@ -63,7 +49,7 @@ TARGET_MARGIN_M = 0.15
 class ReplayRun:
     """A finished replay: the run (as ``simulate`` gives it) and what was skipped."""
 
-    run: SimulationRun
+    run: RunResult
     commands: list[TurretCommand]
     skipped: dict[str, int]
     has_truth: bool
@@ -118,37 +104,6 @@ def recording_config(
     return cfg.model_copy(update={"pipeline": pipeline, "name": name})
 
 
-def target_point_count(frame: Frame, world: FloatArray, truth: GroundTruth, radius: float) -> int:
-    """Returns of the frame within ``radius`` of the true position at each return's time;
-    ``world`` (N, 3) are the frame's points in the world frame.
-
-    The truth is taken as moving linearly between its values at the frame's start
-    and end (exact when its samples are the frame ends, as in our recordings).
-    """
-    if len(frame) == 0:
-        return 0
-    g0, g1 = truth.at([frame.stamp, frame.end])
-    return int(_count_near(world, frame.t, frame.stamp, frame.duration, g0, g1, radius))
-
-
-@nb.njit(cache=True)
-def _count_near(
-    W: FloatArray, t: FloatArray, t0: float, T: float, g0: FloatArray, g1: FloatArray, r: float
-) -> int:
-    """Points of W (N, 3) within r of g(t_i) = g0 + u_i (g1 − g0), u_i = (t_i − t0) / T ∈ [0, 1]."""
-    n = 0
-    r2 = r * r
-    for i in range(W.shape[0]):
-        u = min(max((t[i] - t0) / T, 0.0), 1.0)
-        d2 = 0.0
-        for k in range(3):
-            d = W[i, k] - (g0[k] + u * (g1[k] - g0[k]))
-            d2 += d * d
-        if d2 <= r2:
-            n += 1
-    return n
-
-
 def run_replay(
     recording: Recording,
     cfg: ScenarioConfig,
@@ -172,78 +127,30 @@ def run_replay(
         )
     # The filter's period (and eq. (11)'s σ values) follow the recording's frame rate.
     sensor = cfg.sensor.model_copy(update={"integration_time_s": period})
-    cfg = resolve_run(cfg.model_copy(update={"sensor": sensor}))
+    cfg = resolve_pipeline(
+        cfg.model_copy(update={"sensor": sensor, "turret": resolve_turret(cfg.turret)})
+    )
     _, filter_seed = run_seeds(cfg.seed)
     pipeline = turret_pipeline(
         cfg, period, turret_spec(cfg.turret), np.random.default_rng(filter_seed)
     )
-    truth = recording.ground_truth
-    radius = 0.5 * make_drone(cfg.drone.model).s_diag + TARGET_MARGIN_M
-    log = TrackLog()
-    commands: list[TurretCommand] = []
-    total = int(getattr(recording, "n_frames", 0))
+    radius = 0.5 * target_spec(cfg.drone.model).s_diag + TARGET_MARGIN_M
+    log = TrackLogSink(on_row=log_sink)
+    commands = CommandLog()
+    feed: list[Sink] = [ViewerFeed(viewers)] if viewers else []
     kernels = warm_up(REPLAY_WARM_UPS, compiling)
-    start = time.perf_counter()
-    n = 0
-    first = last = math.nan
-    with stoppable():
-        for frame in recording.frames():
-            result = pipeline.step(frame)
-            n += 1
-            first = frame.stamp if n == 1 else first
-            last = frame.end
-            if result.command is not None:
-                commands.append(result.command)
-            gt = truth.at(frame.end)[0] if truth is not None else None
-            if result.phase == "track":
-                _record(log, frame, result, gt, truth, radius)
-                if log_sink is not None:
-                    log_sink(log)
-            if viewers:
-                view = view_frame(
-                    frame, result, gt, [NamedTransform("world", "lidar", frame.poses[-1])]
-                )
-                for sink in viewers:
-                    sink.log(view)
-            if progress is not None:
-                progress(n, max(total, n))
-            if stop_requested():
-                break
-    interrupted = stop_requested()
-    if n == 0:
+    source = RecordingSource(recording, radius)
+    stats = run(source, pipeline, commands, [log, *feed], progress=progress, total=len(source))
+    if stats.frames == 0:
         raise RecordingError(f"{recording.path}: no LiDAR frame could be read")
-    if len(log) == 0 and not interrupted:
+    if len(log.log) == 0 and not stats.interrupted:
         scan_s = scan_duration(cfg.pipeline)
         raise RecordingError(
-            f"{recording.path}: the recording lasts {last - first:.3g} s ({n} frames), no "
-            f"longer than the background scan of {scan_s:g} s, so no frame was left to track; "
+            f"{recording.path}: the recording lasts {stats.span_s:.3g} s ({stats.frames} frames), "
+            f"no longer than the background scan of {scan_s:g} s, so no frame was left to track; "
             "give a shorter --background-from, or --background FILE"
         )
-    wall = time.perf_counter() - start
-    run = SimulationRun(cfg, log, pipeline, wall, last - first, kernels, interrupted)
+    run_ = RunResult(cfg, log.log, pipeline, stats.wall_s, stats.span_s, kernels, stats.interrupted)
     warnings = (recording.pose_warning,) if recording.pose_warning else ()
-    return ReplayRun(run, commands, dict(recording.skipped), truth is not None, warnings)
-
-
-def _record(
-    log: TrackLog,
-    frame: Frame,
-    result: StepResult,
-    gt: FloatArray | None,
-    truth: GroundTruth | None,
-    radius: float,
-) -> None:
-    n_target = -1  # unknown: no truth, or the frame could not be placed in the world
-    known = gt is not None and bool(np.all(np.isfinite(gt)))
-    if truth is not None and known and len(result.world) == len(frame):
-        n_target = target_point_count(frame, result.world, truth, radius)
-    pan, tilt = pointing_angles(frame.poses[-1])
-    log_result(log, frame, result, gt, n_target, float(pan), float(tilt))
-
-
-def write_commands_csv(commands: Sequence[TurretCommand], path: Path) -> None:
-    """The turret commands the pipeline issued (logged, not executed): t, mode, pan, tilt."""
-    with path.open("w") as fh:
-        fh.write("t,mode,pan_rad,tilt_rad\n")
-        for c in commands:
-            fh.write(f"{c.stamp:.6f},{c.mode},{c.pan:.6f},{c.tilt:.6f}\n")
+    has_truth = recording.ground_truth is not None
+    return ReplayRun(run_, commands.commands, dict(recording.skipped), has_truth, warnings)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from dronetrack.config.rig import TARGETS
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray, unit
 from dronetrack.sim.primitives import Primitives
@@ -108,6 +109,12 @@ def _multirotor(
     return Primitives.concat(parts)
 
 
+def _model(name: str, body: Primitives, faces_sensor: bool = False) -> DroneModel:
+    """The target preset ``name`` (size and dynamics, ``config.rig``) with this body."""
+    spec = TARGETS[name]
+    return DroneModel(name, spec.s_diag, spec.v_max, spec.a_max, body, faces_sensor)
+
+
 def _phantom4() -> DroneModel:
     # 350 mm diagonal, 24 cm propellers, white glossy shell with landing legs.  A
     # glossy curved shell sends much of the light away from the sensor: its
@@ -116,7 +123,7 @@ def _phantom4() -> DroneModel:
     # matching seed 000's last returns at 135-147 m and its 130 m tracking range.
     body = _multirotor(
         4,
-        0.35,
+        TARGETS["phantom4"].s_diag,
         (0.20, 0.14, 0.09),
         0.035,
         0.016,
@@ -129,16 +136,14 @@ def _phantom4() -> DroneModel:
         rho_legs=0.22,
     )
     camera = box((0.06, 0.0, -0.07), (0.05, 0.05, 0.05), 0.06)
-    return DroneModel(
-        "phantom4", 0.35, v_max=20.0, a_max=15.0, body=Primitives.concat([body, camera])
-    )
+    return _model("phantom4", body=Primitives.concat([body, camera]))
 
 
 def _crazyflie2() -> DroneModel:
     # 92 mm motor-to-motor (s_diag 12 cm in seed 000), PCB and battery, 45 mm propellers.
     body = _multirotor(
         4,
-        0.12,
+        TARGETS["crazyflie2"].s_diag,
         (0.05, 0.05, 0.012),
         0.006,
         0.0035,
@@ -148,14 +153,14 @@ def _crazyflie2() -> DroneModel:
         rho_motor=0.20,
         rho_prop=0.03,
     )
-    return DroneModel("crazyflie2", 0.12, v_max=2.0, a_max=2.0, body=body)
+    return _model("crazyflie2", body=body)
 
 
 def _f550() -> DroneModel:
     # DJI F550 hexacopter: 550 mm wheelbase, plastic arms, 10" propellers.
     body = _multirotor(
         6,
-        0.55,
+        TARGETS["f550"].s_diag,
         (0.18, 0.18, 0.06),
         0.04,
         0.014,
@@ -167,14 +172,14 @@ def _f550() -> DroneModel:
         legs=(0.15, 0.25),
         rho_legs=0.3,
     )
-    return DroneModel("f550", 0.55, v_max=15.0, a_max=10.0, body=body)
+    return _model("f550", body=body)
 
 
 def _spyder_x4() -> DroneModel:
     # Sky Hero Spyder X4: 0.85 m carbon quadrotor, 15" propellers.
     body = _multirotor(
         4,
-        0.85,
+        TARGETS["spyder-x4"].s_diag,
         (0.24, 0.20, 0.10),
         0.03,
         0.02,
@@ -186,13 +191,13 @@ def _spyder_x4() -> DroneModel:
         legs=(0.20, 0.35),
         rho_legs=0.1,
     )
-    return DroneModel("spyder-x4", 0.85, v_max=20.0, a_max=10.0, body=body)
+    return _model("spyder-x4", body=body)
 
 
 def _sign() -> DroneModel:
     # The board a walker holds up in seed 003's walks: 0.6 × 0.45 m, facing ±x.
     board = box((0.0, 0.0, 0.0), (0.01, 0.60, 0.45), 0.5)
-    return DroneModel("sign", 0.6, v_max=2.0, a_max=2.0, body=board, faces_sensor=True)
+    return _model("sign", body=board, faces_sensor=True)
 
 
 _BUILDERS = {
@@ -203,6 +208,7 @@ _BUILDERS = {
     "sign": _sign,
 }
 DRONE_NAMES = tuple(_BUILDERS)
+assert set(DRONE_NAMES) == set(TARGETS), "a body for every target preset"
 
 
 def make_drone(name: str, reflectivity_scale: float = 1.0) -> DroneModel:

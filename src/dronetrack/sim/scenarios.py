@@ -16,6 +16,7 @@ from dronetrack.config.pipeline import (
     PipelineConfig,
     TrackerConfig,
 )
+from dronetrack.config.rig import make_turret
 from dronetrack.config.run import (
     DroneConfig,
     ObserverConfig,
@@ -28,7 +29,6 @@ from dronetrack.config.run import (
     load_scenario_file,
 )
 from dronetrack.errors import ScenarioError
-from dronetrack.sim.turret import make_turret
 
 __all__ = ["SCENARIOS", "get_scenario"]
 

@@ -22,87 +22,13 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
+from dronetrack.config.rig import AxisSpec, TurretSpec
 from dronetrack.errors import ConfigError, InputError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TurretCommand, TurretState
 
-__all__ = ["TURRET_NAMES", "AxisSpec", "TurretPlant", "TurretSpec", "make_turret"]
-
-
-@dataclass(frozen=True, slots=True)
-class AxisSpec:
-    """One joint: rate [rad/s] and acceleration [rad/s²] limits, resolution and range [rad],
-    and the latency [s] between a command's stamp and the joint acting on it."""
-
-    rate: float
-    accel: float
-    resolution: float
-    lower: float
-    upper: float
-    latency: float
-
-    def __post_init__(self) -> None:
-        if self.rate <= 0 or self.accel <= 0 or self.resolution < 0 or self.latency < 0:
-            raise ConfigError(
-                "turret rate and acceleration must be positive, resolution and latency ≥ 0"
-            )
-        if not self.lower < self.upper:
-            raise ConfigError(
-                f"turret axis limits must satisfy lower < upper, got {self.lower}, {self.upper}"
-            )
-
-
-@dataclass(frozen=True, slots=True)
-class TurretSpec:
-    """A pan-tilt unit: its two axes and its default mount geometry."""
-
-    name: str
-    pan: AxisSpec
-    tilt: AxisSpec
-    mount: MountGeometry
-    profile_time_s: float = 0.0  # > 0: time-based profile, each goal is one move of this duration
-
-
-def _deg(x: float) -> float:
-    return math.radians(x)
-
-
-def _widowx() -> TurretSpec:
-    # Trossen WidowX Dual XM430 (wxxmd): 180°/s (Velocity_Limit 131 × 0.229 rpm),
-    # 0.088° (4096 ticks/rev), pan ±180°, tilt ±68°; α_max 360°/s² and L = 20 ms [A].
-    # Mount: tilt link → sensor 0.025 m forward, 0.086 m up (LiVOX_MAV_track TF tree);
-    # pan → tilt axis 0.05 m up [A].
-    pan = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-180.0), _deg(180.0), 0.020)
-    tilt = AxisSpec(_deg(180.0), _deg(360.0), _deg(0.088), _deg(-68.0), _deg(68.0), 0.020)
-    mount = MountGeometry(
-        base=(0.0, 0.0, 1.0), pan_to_tilt=(0.0, 0.0, 0.05), tilt_to_sensor=(0.025, 0.0, 0.086)
-    )
-    return TurretSpec("widowx", pan, tilt, mount)
-
-
-def _ptu_e46() -> TurretSpec:
-    # FLIR PTU-E46: "speeds higher than 300°/s" (seed 003), 0.0129° per step
-    # (the D46's 0.0514° at a 4× finer step mode; seed 003 quotes "about 0.129°"),
-    # pan ±159°, tilt 31° up / 47° down (D46 family); α_max 300°/s² and L = 20 ms [A].
-    pan = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-159.0), _deg(159.0), 0.020)
-    tilt = AxisSpec(_deg(300.0), _deg(300.0), _deg(0.0129), _deg(-31.0), _deg(47.0), 0.020)
-    mount = MountGeometry(
-        base=(0.0, 0.0, 1.0), pan_to_tilt=(0.0, 0.0, 0.07), tilt_to_sensor=(0.0, 0.0, 0.12)
-    )
-    return TurretSpec("ptu-e46", pan, tilt, mount)
-
-
-_BUILDERS = {"widowx": _widowx, "ptu-e46": _ptu_e46}
-TURRET_NAMES = tuple(_BUILDERS)
-
-
-def make_turret(name: str) -> TurretSpec:
-    """A turret preset by name: ``widowx`` or ``ptu-e46``."""
-    key = name.strip().lower()
-    if key not in _BUILDERS:
-        raise ConfigError(f"unknown turret {name!r}; choose one of {', '.join(TURRET_NAMES)}")
-    return _BUILDERS[key]()
+__all__ = ["TurretPlant"]
 
 
 @dataclass(slots=True)

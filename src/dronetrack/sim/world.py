@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
+from dronetrack.config.rig import TurretSpec
 from dronetrack.errors import InputError
 from dronetrack.geometry.mount import MountGeometry, sensor_poses
 from dronetrack.geometry.transforms import FloatArray, make_pose, rot_z
@@ -35,7 +36,7 @@ from dronetrack.sim.lidar import LidarSimulator
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.sensors import SensorModel
 from dronetrack.sim.trajectories import Trajectory
-from dronetrack.sim.turret import TurretPlant, TurretSpec
+from dronetrack.sim.turret import TurretPlant
 from dronetrack.types import Frame, TurretCommand, TurretState
 
 __all__ = ["FrameTruth", "Observer", "OdometryDrift", "SimWorld"]
@@ -160,6 +161,10 @@ class FrameTruth:
     @property
     def n_target_points(self) -> int:
         return int(np.count_nonzero(self.hit_target))
+
+    def target_returns(self, frame: Frame, world: FloatArray) -> int:
+        """The frame's returns the ray caster marked as hitting the target (``types.Truth``)."""
+        return self.n_target_points
 
 
 class SimWorld:

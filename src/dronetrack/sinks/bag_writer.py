@@ -35,7 +35,7 @@ from typing import Any, Literal, cast, get_args
 import numpy as np
 from rosbags.typesys import get_types_from_msg
 
-from dronetrack.errors import ConfigError
+from dronetrack.errors import ConfigError, InputError
 from dronetrack.formats.livox import (
     LIVOX_POINT,
     LivoxCloud,
@@ -58,7 +58,7 @@ from dronetrack.geometry.transforms import (
     matrix_to_quaternion,
 )
 from dronetrack.sources.bag import CONFIG_TOPIC, POINTCLOUD2, POSESTAMPED, STRING_TYPE, TF_TYPE
-from dronetrack.types import Frame
+from dronetrack.types import Frame, Sample, StepResult
 
 __all__ = [
     "DEFAULT_START_NS",
@@ -251,6 +251,18 @@ class RecordingWriter:
         self._write_turret(frame, turret)
         self._write_points(frame)
         self._write_truth(frame.end, target, attitude)
+
+    def write(self, sample: Sample, result: StepResult) -> None:
+        """The run loop's sink: every frame, with the simulator's truth (the target's
+        position and attitude) and the turret's angles."""
+        truth, turret = sample.truth, sample.turret
+        attitude = getattr(truth, "target_attitude", None)
+        if truth is None or attitude is None:
+            raise InputError(
+                "a recording is written from a simulated run: its frames need the truth"
+            )
+        angles = (0.0, 0.0) if turret is None else (turret.pan, turret.tilt)
+        self.frame(sample.frame, truth.target_position, attitude, angles)
 
     def _write_turret(self, frame: Frame, turret: tuple[float, float]) -> None:
         """The /tf samples in [frame start, frame end); the next frame writes its end."""

@@ -36,8 +36,14 @@ import numpy as np
 
 from dronetrack.errors import InputError, MissingExtraError
 from dronetrack.geometry.transforms import FloatArray, matrix_to_quaternion
-from dronetrack.sinks.view import NamedTransform, ViewFrame
-from dronetrack.sinks.viewers import WORLD_FRAME, EstimateTrail, checked, subsample_particles
+from dronetrack.sinks.view import (
+    WORLD_FRAME,
+    EstimateTrail,
+    NamedTransform,
+    ViewFrame,
+    checked,
+    subsample_particles,
+)
 
 if TYPE_CHECKING:
     from foxglove.messages import (

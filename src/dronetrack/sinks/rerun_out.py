@@ -49,8 +49,13 @@ import numpy as np
 
 from dronetrack.errors import ConfigError, MissingExtraError
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.sinks.view import ViewFrame
-from dronetrack.sinks.viewers import EstimateTrail, checked, subsample_particles, world_poses
+from dronetrack.sinks.view import (
+    EstimateTrail,
+    ViewFrame,
+    checked,
+    subsample_particles,
+    world_poses,
+)
 
 if TYPE_CHECKING:
     import rerun as rr

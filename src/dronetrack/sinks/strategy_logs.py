@@ -17,9 +17,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from dronetrack.pipeline import StepResult
-from dronetrack.sim.world import FrameTruth
-from dronetrack.types import Frame
+from dronetrack.types import Sample, StepResult
 
 __all__ = ["StrategyLogger"]
 
@@ -32,7 +30,8 @@ _HEADERS = {
 
 
 class StrategyLogger:
-    """Streams a run's logs to ``folder``; use ``frame`` as the run's hook, then ``close``."""
+    """Streams a run's tracking frames' logs to ``folder`` (a run loop's sink), then
+    ``close`` adds the controller's state transitions."""
 
     def __init__(self, folder: Path) -> None:
         folder.mkdir(parents=True, exist_ok=True)
@@ -46,8 +45,10 @@ class StrategyLogger:
             self._writers[name].writerow(header)
         self._seq = 0
 
-    def frame(self, frame: Frame, truth: FrameTruth, result: StepResult) -> None:
-        """Log one tracking frame."""
+    def write(self, sample: Sample, result: StepResult) -> None:
+        """Log one tracking frame (the background scan's are not logged)."""
+        if result.phase != "track":
+            return
         t = f"{result.t:.6f}"
         pts = result.foreground
         if len(pts):

@@ -1,4 +1,6 @@
-"""One frame as a viewer shows it, and the interface of the viewer writers.
+"""One frame as a viewer shows it, the interface of the viewer writers, and what the
+writers show the same way (the particle subsample, the estimate trail and the world
+pose of every frame of the transform tree).
 
 ``simulate`` and ``track`` fill a ``ViewFrame`` per frame and hand it to every
 open ``ViewerSink`` (``--foxglove FILE.mcap``, ``--rerun FILE.rrd``).
@@ -7,17 +9,39 @@ Everything is in the world frame [m], times in seconds from the run's start.
 
 from __future__ import annotations
 
+import dataclasses
+import math
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 
+from dronetrack.errors import InputError
+from dronetrack.geometry.mount import MountGeometry, turret_links
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.pipeline import StepResult
-from dronetrack.types import Frame
+from dronetrack.types import Frame, Sample, StepResult
 
-__all__ = ["NamedTransform", "ViewFrame", "ViewerSink", "view_frame"]
+__all__ = [
+    "MAX_PARTICLES",
+    "TRAIL_LENGTH",
+    "WORLD_FRAME",
+    "EstimateTrail",
+    "NamedTransform",
+    "ViewFrame",
+    "ViewerFeed",
+    "ViewerSink",
+    "checked",
+    "subsample_particles",
+    "view_frame",
+    "world_poses",
+    "xyz",
+]
+
+WORLD_FRAME = "world"
+MAX_PARTICLES = 2000  # at most this many particles are drawn per frame
+TRAIL_LENGTH = 50  # past estimates in the trail
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,3 +97,123 @@ def view_frame(
         particles=None if est is None else est.particles,
         transforms=tuple(transforms),
     )
+
+
+class ViewerFeed:
+    """The run loop's sink for the viewer files: every frame (the background scan's
+    too), with the turret's links when the source reports its joint angles and
+    ``mount`` is given, else the sensor's pose alone."""
+
+    def __init__(self, viewers: Sequence[ViewerSink], mount: MountGeometry | None = None) -> None:
+        self.viewers = tuple(viewers)
+        self.mount = mount
+
+    def write(self, sample: Sample, result: StepResult) -> None:
+        frame, turret = sample.frame, sample.turret
+        if self.mount is not None and turret is not None:
+            links = [
+                NamedTransform(*link) for link in turret_links(turret.pan, turret.tilt, self.mount)
+            ]
+        else:
+            links = [NamedTransform("world", "lidar", frame.poses[-1])]
+        truth = None if sample.truth is None else sample.truth.target_position
+        view = view_frame(frame, result, truth, links)
+        for viewer in self.viewers:
+            viewer.log(view)
+
+
+def xyz(points: FloatArray | None, what: str) -> FloatArray:
+    """``points`` as a (N, 3) float64 array; None and any empty array give (0, 3)."""
+    if points is None:
+        return np.zeros((0, 3))
+    a = np.asarray(points, dtype=np.float64)
+    if a.size == 0:
+        return np.zeros((0, 3))
+    if a.ndim == 1 and a.shape[0] == 3:
+        return a.reshape(1, 3)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise InputError(f"{what} must have shape (N, 3), got {a.shape}")
+    return a
+
+
+def _point(a: FloatArray | None, what: str) -> FloatArray | None:
+    if a is None:
+        return None
+    p = xyz(a, what)
+    if len(p) != 1:
+        raise InputError(f"{what} must have shape (3,), got {np.shape(a)}")
+    out: FloatArray = p[0]
+    return out
+
+
+def _matrix(tf: NamedTransform) -> NamedTransform:
+    m = np.asarray(tf.matrix, dtype=np.float64)
+    if m.shape != (4, 4):
+        raise InputError(f"transform {tf.parent}->{tf.child} is {m.shape}, not (4, 4)")
+    return NamedTransform(tf.parent, tf.child, m)
+
+
+def checked(frame: ViewFrame) -> ViewFrame:
+    """``frame`` with every array as float64 of the documented shape; ``InputError`` if not.
+
+    Writers check a frame whole before they write any of it.  Points and
+    particles come as (N, 3) (empty: (0, 3)), estimate and truth as (3,).
+    """
+    return dataclasses.replace(
+        frame,
+        points=xyz(frame.points, "points"),
+        foreground=xyz(frame.foreground, "foreground"),
+        estimate=_point(frame.estimate, "estimate"),
+        truth=_point(frame.truth, "truth"),
+        particles=None if frame.particles is None else xyz(frame.particles, "particles"),
+        transforms=tuple(_matrix(tf) for tf in frame.transforms),
+    )
+
+
+def subsample_particles(particles: FloatArray | None, limit: int = MAX_PARTICLES) -> FloatArray:
+    """Every k-th particle, k the smallest stride that keeps at most ``limit``."""
+    p = xyz(particles, "particles")
+    stride = max(1, math.ceil(len(p) / limit))
+    out: FloatArray = p[::stride]
+    return out
+
+
+class EstimateTrail:
+    """The last ``length`` estimates; a frame without an estimate ends the trail."""
+
+    def __init__(self, length: int = TRAIL_LENGTH) -> None:
+        self._points: deque[FloatArray] = deque(maxlen=length)
+
+    def update(self, estimate: FloatArray | None) -> FloatArray:
+        """Add this frame's estimate (or restart on None); the trail as (K, 3)."""
+        if estimate is None:
+            self._points.clear()
+        else:
+            self._points.append(np.array(estimate, dtype=np.float64).reshape(3))
+        if not self._points:
+            return np.zeros((0, 3))
+        return np.stack(list(self._points))
+
+
+def world_poses(
+    transforms: Sequence[NamedTransform], root: str = WORLD_FRAME
+) -> dict[str, FloatArray]:
+    """root_T_child (4, 4) of every child in ``transforms``, composed along the tree.
+
+    The edges may come in any order; an edge whose parent never connects to
+    ``root`` raises ``InputError``.
+    """
+    poses: dict[str, FloatArray] = {root: np.eye(4)}
+    pending = list(transforms)
+    while pending:
+        left: list[NamedTransform] = []
+        for tf in pending:
+            if tf.parent not in poses:
+                left.append(tf)
+            else:
+                poses[tf.child] = poses[tf.parent] @ _matrix(tf).matrix
+        if len(left) == len(pending):
+            names = ", ".join(f"{tf.parent}->{tf.child}" for tf in left)
+            raise InputError(f"transforms not connected to {root!r}: {names}")
+        pending = left
+    return {name: pose for name, pose in poses.items() if name != root}

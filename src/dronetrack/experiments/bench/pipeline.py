@@ -75,10 +75,10 @@ class AviaFrames:
 def ground_facing_avia(trajectory: Trajectory, t0: float = 0.0) -> SimWorld:
     """An Avia on a WidowX tilted 40° down at open ground, so every pulse returns
     (24,000 points a frame), with a Phantom 4 flying ``trajectory``."""
+    from dronetrack.config.rig import make_turret
     from dronetrack.sim.drones import make_drone
     from dronetrack.sim.scene import make_scene
     from dronetrack.sim.sensors import make_sensor
-    from dronetrack.sim.turret import make_turret
     from dronetrack.sim.world import SimWorld
 
     turret = make_turret("widowx")
@@ -139,7 +139,7 @@ def pipeline_step_ms(particles: int, repeats: int, frames: AviaFrames | None = N
     the probe frame one filter period after the previous one.  Raises RuntimeError
     if the workload is not what it claims (no foreground, the drone not tracked).
     """
-    from dronetrack.sim.turret import make_turret
+    from dronetrack.config.rig import make_turret
 
     frames = worst_case_frames() if frames is None else frames
     turret = make_turret("widowx")

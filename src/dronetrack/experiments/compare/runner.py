@@ -21,12 +21,11 @@ from dronetrack.eval.metrics import correct, longest_run, max_tracking_distance,
 from dronetrack.experiments.compare.suites import Case, Suite
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_tracker
-from dronetrack.jobs.simulate import FrameHook, SimulationRun, run_lockstep, run_simulation
-from dronetrack.pipeline import StepResult
+from dronetrack.jobs.run import RunResult
+from dronetrack.jobs.simulate import run_lockstep, run_simulation
 from dronetrack.sim.scenarios import get_scenario
-from dronetrack.sim.world import FrameTruth
 from dronetrack.sinks.strategy_logs import StrategyLogger
-from dronetrack.types import Frame
+from dronetrack.types import Sample, StepResult
 
 __all__ = ["RunMetrics", "case_config", "run_metrics", "run_suite"]
 
@@ -99,7 +98,7 @@ def run_suite(
                     [c.pipeline.tracker for c in cfgs],
                     _progress(progress, what),
                     init_on_clean_view=suite.init_on_clean_view,
-                    hooks=[_collector(f) for f in foregrounds] if memory else None,
+                    sinks=[[ForegroundCollector(f)] for f in foregrounds] if memory else None,
                 )
             else:
                 done = []
@@ -113,7 +112,7 @@ def run_suite(
                             cfg,
                             _progress(progress, f"{what}, {m}"),
                             init_on_clean_view=suite.init_on_clean_view,
-                            hook=logger.frame if logger is not None else None,
+                            sinks=[logger] if logger is not None else (),
                         )
                     )
                     if logger is not None:
@@ -138,7 +137,7 @@ def _progress(progress: Progress | None, what: str) -> Callable[[int, int], None
     return lambda i, n: progress(what, i, n)
 
 
-def run_metrics(suite: Suite, sim: SimulationRun) -> dict[str, float]:
+def run_metrics(suite: Suite, sim: RunResult) -> dict[str, float]:
     """The suite's metrics of one finished run (see the suite notes for definitions)."""
     a = sim.log.arrays()
     gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
@@ -200,11 +199,15 @@ def _detection_metrics(a: dict[str, np.ndarray], err: FloatArray) -> dict[str, f
     }
 
 
-def _collector(into: list[tuple[float, FloatArray]]) -> FrameHook:
-    def collect(frame: Frame, truth: FrameTruth, result: StepResult) -> None:
-        into.append((result.t, result.foreground))
+class ForegroundCollector:
+    """A run loop's sink that keeps every tracking frame's (time, foreground)."""
 
-    return collect
+    def __init__(self, into: list[tuple[float, FloatArray]]) -> None:
+        self.into = into
+
+    def write(self, sample: Sample, result: StepResult) -> None:
+        if result.phase == "track":
+            self.into.append((result.t, result.foreground))
 
 
 def tracker_memory_mb(cfg: ScenarioConfig, foreground: Sequence[tuple[float, FloatArray]]) -> float:

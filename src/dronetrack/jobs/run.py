@@ -1,0 +1,158 @@
+"""What every job shares, simulator or not: the resolved configuration, the pipeline a
+rig's turret gets, the seeds, a finished run and its output folder.
+
+Nothing here imports the simulator, so ``track`` of a recording never loads it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dronetrack.config.rig import TurretSpec, target_spec
+from dronetrack.config.run import ScenarioConfig, dump_scenario
+from dronetrack.eval.log import TrackLog
+from dronetrack.formats.background import read_background_settings
+from dronetrack.jobs.factory import build_pipeline, noise_parameters, resolve_tracker
+from dronetrack.jobs.kernels import KernelWarmUp
+from dronetrack.pipeline import Pipeline
+from dronetrack.sinks.run_folder import FramesCsvWriter, check_run_dir, prepare_run_dir
+
+__all__ = [
+    "NO_WARM_UP",
+    "RunFolder",
+    "RunResult",
+    "resolve_pipeline",
+    "run_seeds",
+    "turret_pipeline",
+    "write_run",
+]
+
+NO_WARM_UP = KernelWarmUp(0.0, 0)
+
+
+def resolve_pipeline(cfg: ScenarioConfig) -> ScenarioConfig:
+    """The configuration with the pipeline's derived values written out: the drone's
+    diagonal and the σ values of eq. (11), and a background file's own settings and
+    absolute path."""
+    pipeline = cfg.pipeline
+    s_diag = target_spec(cfg.drone.model).s_diag
+    tracker = resolve_tracker(pipeline.tracker, cfg.sensor.integration_time_s, s_diag)
+    background = pipeline.background
+    if background.file is not None:
+        path = Path(background.file).expanduser().resolve()
+        stored = read_background_settings(path)
+        background = background.model_copy(
+            update={
+                "file": str(path),
+                "resolution_m": stored.resolution,
+                "inflate_voxels": stored.inflate,
+                "lookup_depth": stored.lookup_depth,
+                "min_hits": stored.min_hits,
+            }
+        )
+    pipeline = pipeline.model_copy(update={"tracker": tracker, "background": background})
+    return cfg.model_copy(update={"pipeline": pipeline})
+
+
+def run_seeds(seed: int) -> tuple[np.random.SeedSequence, np.random.SeedSequence]:
+    """The simulator's and the filters' seeds of a run with ``seed``: a replay of a
+    recorded run draws its filter from the same one."""
+    sim, filters = np.random.SeedSequence(seed).spawn(2)
+    return sim, filters
+
+
+def turret_pipeline(
+    cfg: ScenarioConfig, period: float, turret: TurretSpec, rng: np.random.Generator
+) -> Pipeline:
+    """The pipeline ``cfg`` describes, for frames of ``period`` s from this turret."""
+    return build_pipeline(
+        cfg.pipeline,
+        period,
+        turret.mount,
+        (turret.pan.lower, turret.pan.upper),
+        (turret.tilt.lower, turret.tilt.upper),
+        rng,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class RunResult:
+    """A finished run: closed-loop, or a replay."""
+
+    config: ScenarioConfig  # resolved
+    log: TrackLog
+    pipeline: Pipeline
+    wall_s: float
+    simulated_s: float  # source time the frames covered [s]
+    kernels: KernelWarmUp = NO_WARM_UP  # the warm-up before the timed loop
+    interrupted: bool = False  # Ctrl-C ended it early: the log holds the frames done
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.simulated_s / self.wall_s if self.wall_s > 0 else math.inf
+
+    def metrics(self) -> dict[str, Any]:
+        out = self.log.summary(self.config.pipeline.evaluation.correct_radius_m)
+        out["realtime_factor"] = self.realtime_factor
+        out["wall_s"] = self.wall_s
+        if self.interrupted:
+            out["interrupted"] = True
+        return out
+
+
+class RunFolder:
+    """A run's output folder, written as the run goes: ``frames.csv`` row by row from
+    the first tracking frame (flushed, so an interrupted or crashed run keeps its
+    frames), then at the end config.toml, metrics.json, the plots and the scanned
+    background.  The folder is checked at once and created at the first row, so a
+    run refused before it tracks anything leaves nothing behind.
+
+    ``log_sink`` is the ``on_row`` of the run's ``TrackLogSink``: it streams frames.csv.
+    """
+
+    def __init__(self, out_dir: Path) -> None:
+        self.out_dir = check_run_dir(out_dir)
+        self._frames: FramesCsvWriter | None = None
+
+    def log_sink(self, log: TrackLog) -> None:
+        if self._frames is None:
+            self._frames = FramesCsvWriter(prepare_run_dir(self.out_dir) / "frames.csv")
+        self._frames.write(log)
+
+    def close(self) -> None:
+        if self._frames is not None:
+            self._frames.close()
+
+    def finish(self, run: RunResult, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Write the rest of the run (see ``write_run``); return its metrics."""
+        from dronetrack.formats.background import save_background
+        from dronetrack.sinks.run_folder import write_metrics, write_plots
+
+        self.log_sink(run.log)
+        self.close()
+        out_dir = self.out_dir
+        background = run.pipeline.background
+        config = run.config
+        if background is not None and background.ready and config.pipeline.background.file is None:
+            save_background(background, out_dir / "background.npz")
+        (out_dir / "config.toml").write_text(dump_scenario(config))
+        metrics = run.metrics() if extra is None else extra
+        write_metrics(metrics, out_dir / "metrics.json")
+        noise = noise_parameters(config.pipeline.tracker, config.sensor.integration_time_s)
+        radius = config.pipeline.evaluation.correct_radius_m
+        write_plots(
+            run.log, out_dir, noise.threshold, config.name, radius, config.pipeline.tracker.kind
+        )
+        return metrics
+
+
+def write_run(run: RunResult, out_dir: Path, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Write config.toml, frames.csv, metrics.json, the plots and the scanned background
+    (``background.npz``, to load with ``[pipeline.background] file``); return the metrics
+    (``extra`` replaces the run's own)."""
+    return RunFolder(out_dir).finish(run, extra)
