@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from dronetrack.allocator import tune_allocator
+from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.experiments.bench import (
     TARGETS,
     heavy_repeats,
@@ -41,7 +42,6 @@ from dronetrack.experiments.bench import (
     worst_case_frames,
 )
 from dronetrack.jobs.simulate import run_simulation
-from dronetrack.sim.scenarios import SCENARIOS
 
 TARGETS_MS = {int(t.path[1]): t.limit for t in TARGETS if t.path[0] == "pf_step_ms"}
 

@@ -85,7 +85,7 @@ def test_ctrl_c_outside_a_loop_is_one_line(
 ) -> None:
     """Ctrl-C while loading or compiling raises KeyboardInterrupt at once; numba's
     compiler can wrap it in a SystemError: both end as one line and exit 130."""
-    import dronetrack.sim.scenarios as scenarios
+    import dronetrack.config.scenarios as scenarios
 
     def interrupted(name: str) -> None:
         raise KeyboardInterrupt
@@ -107,7 +107,7 @@ def test_ctrl_c_outside_a_loop_is_one_line(
 def test_a_system_error_of_another_cause_is_not_taken_for_an_interrupt(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import dronetrack.sim.scenarios as scenarios
+    import dronetrack.config.scenarios as scenarios
 
     def broken(name: str) -> None:
         raise SystemError("a real bug")

@@ -11,8 +11,8 @@ import pytest
 
 from dronetrack.cli.main import run
 from dronetrack.config.run import load_scenario_file
+from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.experiments.sweep.grid import expand, load_grid
-from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.trajectories import load_csv_trajectory
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

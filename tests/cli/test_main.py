@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dronetrack.cli.main import run
-from dronetrack.sim.scenarios import SCENARIOS
+from dronetrack.config.scenarios import SCENARIOS
 
 
 def test_scenarios_lists_one_name_per_line(capsys: pytest.CaptureFixture[str]) -> None:

@@ -69,8 +69,8 @@ def test_pf_systematic_runs_seed002s_filter_through_the_command_line_path() -> N
     """Built the way the CLI builds it (overrides re-validate every field), pf-systematic
     is 2,000 particles with systematic resampling, and the resolved config says so."""
     from dronetrack.config.run import apply_overrides
+    from dronetrack.config.scenarios import SCENARIOS
     from dronetrack.jobs.simulate import resolve_run
-    from dronetrack.sim.scenarios import SCENARIOS
 
     cfg = resolve_run(apply_overrides(SCENARIOS["seed002-relative"], tracker="pf-systematic"))
     tc = cfg.pipeline.tracker

@@ -25,7 +25,7 @@ CHECK = textwrap.dedent(
     from dronetrack.jobs import kernels
     from dronetrack.sources.recordings import open_recording
     from dronetrack.jobs.replay import recording_config, run_replay
-    from dronetrack.sim.scenarios import get_scenario
+    from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.simulate import run_simulation
 
     out = Path(sys.argv[1])
@@ -114,8 +114,8 @@ def test_warm_up_reports_what_it_compiled() -> None:
 
 def test_warm_up_leaves_a_seeded_world_as_it_was() -> None:
     """Two worlds of one seed, one warmed up: their frames are identical."""
+    from dronetrack.config.scenarios import get_scenario
     from dronetrack.sim.build import build_world
-    from dronetrack.sim.scenarios import get_scenario
 
     cfg = get_scenario("seed002-relative")  # an observer: its poses, and its drift stream
     cfg = cfg.model_copy(

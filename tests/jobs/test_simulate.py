@@ -24,10 +24,10 @@ import numpy as np
 import pytest
 
 from dronetrack.config.run import ScenarioConfig, apply_overrides
+from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.jobs.run import RunResult
 from dronetrack.jobs.simulate import resolve_run, run_simulation
 from dronetrack.sim.drones import DRONE_NAMES, make_drone
-from dronetrack.sim.scenarios import SCENARIOS
 
 
 @cache

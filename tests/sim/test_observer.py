@@ -19,6 +19,7 @@ from dronetrack.config.run import (
     dump_scenario,
     load_scenario_file,
 )
+from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.geometry.mount import sensor_poses
 from dronetrack.jobs.simulate import run_simulation
 from dronetrack.sim.build import build_world, resolve_scenario
@@ -26,7 +27,6 @@ from dronetrack.sim.drones import make_drone
 from dronetrack.sim.flights import make_flight
 from dronetrack.sim.physics import extinction_coefficient
 from dronetrack.sim.primitives import Primitives
-from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.scene import Scene, make_scene
 from dronetrack.sim.sensors import make_sensor
 from dronetrack.sim.shapes import box, cylinder, ground

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from dronetrack.config.rig import make_turret
+from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.control.aiming import aim_angles
 from dronetrack.sim.build import build_world
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.physics import extinction_coefficient
-from dronetrack.sim.scenarios import SCENARIOS
 from dronetrack.sim.scene import make_scene
 from dronetrack.sim.sensors import make_sensor
 from dronetrack.sim.trajectories import Waypoint, fly_waypoints

@@ -14,9 +14,9 @@ import pytest
 
 from dronetrack.config.rig import turret_spec
 from dronetrack.config.run import apply_overrides, dump_scenario
+from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError, RecordingError
 from dronetrack.jobs.simulate import resolve_run, run_simulation
-from dronetrack.sim.scenarios import get_scenario
 from dronetrack.sinks.bag_writer import RecordingWriter
 from dronetrack.sources.bag import BagRecording
 from dronetrack.sources.recording import ReplayOptions

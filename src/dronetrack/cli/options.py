@@ -135,8 +135,8 @@ def scenario_from_options(
     """The scenario a command's SCENARIO argument or --config names (not both), with the
     command line's overrides (see ``apply_overrides``)."""
     from dronetrack.config.run import apply_overrides, load_scenario_file
+    from dronetrack.config.scenarios import SCENARIOS, get_scenario
     from dronetrack.errors import ConfigError
-    from dronetrack.sim.scenarios import SCENARIOS, get_scenario
 
     if config is not None and scenario is not None:
         raise ConfigError("give a SCENARIO or --config, not both")

@@ -155,9 +155,9 @@ def track(
 
     from dronetrack.actuators.command_log import write_commands_csv
     from dronetrack.config.run import load_scenario_file
+    from dronetrack.config.scenarios import SCENARIOS
     from dronetrack.jobs.replay import recording_config, run_replay
     from dronetrack.jobs.run import RunFolder
-    from dronetrack.sim.scenarios import SCENARIOS
     from dronetrack.sinks.run_folder import default_run_dir
     from dronetrack.sources.recording import ReplayOptions
     from dronetrack.sources.recordings import open_recording

@@ -47,7 +47,7 @@ def scenarios(
     ] = False,
 ) -> None:
     """List the named scenarios, one per line."""
-    from dronetrack.sim.scenarios import SCENARIOS
+    from dronetrack.config.scenarios import SCENARIOS
 
     width = max(len(n) for n in SCENARIOS)
     for name, cfg in SCENARIOS.items():
@@ -146,8 +146,8 @@ def render(
     """
 
     from dronetrack.config.run import apply_overrides
+    from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.render import render_scenario, write_rendering
-    from dronetrack.sim.scenarios import get_scenario
     from dronetrack.sinks.run_folder import check_run_dir
 
     cfg = apply_overrides(

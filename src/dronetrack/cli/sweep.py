@@ -100,7 +100,7 @@ def _base_config(spec: Any) -> Any:
 
         rec = Path(spec.recording)
         return recording_config(open_recording(rec), None)
-    from dronetrack.sim.scenarios import get_scenario
+    from dronetrack.config.scenarios import get_scenario
 
     return get_scenario(spec.scenario or "default")
 

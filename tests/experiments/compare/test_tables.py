@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from dronetrack.config.scenarios import get_scenario
 from dronetrack.experiments.compare.suites import SUITES, get_suite
 from dronetrack.experiments.compare.tables import (
     Row,
@@ -21,7 +22,6 @@ from dronetrack.experiments.compare.tables import (
     ranking_lines,
     table_markdown,
 )
-from dronetrack.sim.scenarios import get_scenario
 
 NAN = math.nan
 INDOOR = get_suite("seed000-indoor")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError, ScenarioError
 from dronetrack.experiments.sweep.grid import (
     GridSpec,
@@ -15,7 +16,6 @@ from dronetrack.experiments.sweep.grid import (
     load_grid,
     run_config,
 )
-from dronetrack.sim.scenarios import get_scenario
 
 
 def _write(tmp_path: Path, text: str) -> Path:

@@ -34,9 +34,9 @@ def sim_frame_ms(
     """Wall time [ms] of ``n_frames`` simulator steps of ``scenario`` (with the sensor
     model ``sensor`` instead of its own, if given) after ``warmup`` untimed ones;
     the turret is aimed at the true target before every frame (not timed)."""
+    from dronetrack.config.scenarios import SCENARIOS
     from dronetrack.control.aiming import aim_angles
     from dronetrack.sim.build import build_world
-    from dronetrack.sim.scenarios import SCENARIOS
     from dronetrack.types import TurretCommand
 
     cfg = SCENARIOS[scenario]

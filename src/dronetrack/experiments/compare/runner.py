@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from dronetrack.config.run import ScenarioConfig, apply_overrides
+from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError
 from dronetrack.eval.metrics import correct, longest_run, max_tracking_distance, rmse
 from dronetrack.experiments.compare.suites import Case, Suite
@@ -23,7 +24,6 @@ from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_tracker
 from dronetrack.jobs.run import RunResult
 from dronetrack.jobs.simulate import run_lockstep, run_simulation
-from dronetrack.sim.scenarios import get_scenario
 from dronetrack.sinks.strategy_logs import StrategyLogger
 from dronetrack.types import Sample, StepResult
 

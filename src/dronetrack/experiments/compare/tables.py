@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from dronetrack.config.scenarios import get_scenario
 from dronetrack.experiments.compare.runner import RunMetrics
 from dronetrack.experiments.compare.suites import Suite
-from dronetrack.sim.scenarios import get_scenario
 
 __all__ = [
     "TABLE_COLUMNS",

@@ -75,8 +75,8 @@ def _execute(run: RunSpec) -> tuple[dict[str, Any], Any]:
         rec = open_recording(Path(run.source["recording"]))
         replay = run_replay(rec, run_config(recording_config(rec, None), run))
         return replay.metrics(), replay.run.config
+    from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.simulate import run_simulation
-    from dronetrack.sim.scenarios import get_scenario
 
     sim = run_simulation(run_config(get_scenario(run.source["scenario"]), run))
     return sim.metrics(), sim.config

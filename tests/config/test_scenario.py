@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from dronetrack.config.run import dump_scenario, load_scenario_file
+from dronetrack.config.scenarios import SCENARIOS, get_scenario
 from dronetrack.errors import ScenarioError, SensorError
 from dronetrack.sim.build import build_world, resolve_scenario
-from dronetrack.sim.scenarios import SCENARIOS, get_scenario
 
 
 @pytest.mark.parametrize("name", list(SCENARIOS))
