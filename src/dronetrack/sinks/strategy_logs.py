@@ -1,13 +1,5 @@
-"""Seed 003's CSV logs of a run, one folder per run:
-
-- ``filtered_points.csv``: ``t,x,y,z,seq``, the points that passed the filters
-  (world frame) and the frame's sequence number;
-- ``centroids.csv``: ``t,x,y,z``, the centroid each frame's EKF update used;
-- ``states.csv``: ``t,from_state,to_state,strategy``, the scan controller's
-  state transitions;
-- ``ekf.csv``: ``t,x,y,z,vx,vy,vz,P11,P22,P33,P44,P55,P66``, the filter state and
-  the diagonal of its covariance after every frame.
-"""
+"""Seed 003's CSV logs of a run as a sink, one folder per run (the files and their
+columns: ``formats/seed003_logs.py``)."""
 
 from __future__ import annotations
 
@@ -17,16 +9,12 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from dronetrack.formats.seed003_logs import LOG_COLUMNS
 from dronetrack.types import Sample, StepResult
 
 __all__ = ["StrategyLogger"]
 
-_HEADERS = {
-    "filtered_points.csv": ("t", "x", "y", "z", "seq"),
-    "centroids.csv": ("t", "x", "y", "z"),
-    "states.csv": ("t", "from_state", "to_state", "strategy"),
-    "ekf.csv": ("t", "x", "y", "z", "vx", "vy", "vz", *(f"P{i}{i}" for i in range(1, 7))),
-}
+_HEADERS = LOG_COLUMNS
 
 
 class StrategyLogger:

@@ -1,4 +1,5 @@
-"""Seed 003's CSV logs of a run (the folder ``io/strategy_logs.py`` writes) as a recording.
+"""Seed 003's CSV logs of a run as a recording (the folder ``sinks/strategy_logs.py``
+writes; its files and columns: ``formats/seed003_logs.py``).
 
 The folder holds ``filtered_points.csv`` (``t,x,y,z,seq``: the points that passed
 the filters, in the world frame [m], and the frame's sequence number), and
@@ -33,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import RecordingError
+from dronetrack.formats.seed003_logs import LOG_COLUMNS, POINTS_FILE
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sources.recording import (
     PointFileRecording,
@@ -48,8 +50,7 @@ __all__ = ["POINTS_FILE", "FieldLogRecording", "read_points_csv"]
 
 log = logging.getLogger(__name__)
 
-POINTS_FILE = "filtered_points.csv"
-_COLUMNS = ("t", "x", "y", "z", "seq")
+_COLUMNS = LOG_COLUMNS[POINTS_FILE]
 
 
 def _parse_row(row: list[str], columns: list[int]) -> list[float] | None:
