@@ -93,7 +93,7 @@ def test_track_options_without_ground_truth(tmp_path: Path) -> None:
 
 
 def test_track_without_ground_truth_has_no_accuracy_metrics(tmp_path: Path) -> None:
-    from recordings.test_bags import _write_pc2_bag
+    from sources.test_bag import _write_pc2_bag
 
     xyz = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)]
     rng = np.random.default_rng(3)
