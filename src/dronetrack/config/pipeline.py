@@ -151,6 +151,9 @@ class EvaluationConfig(StrictModel):
     # An estimate is correct within this distance of the truth (seed 000: 4 m, the GPS
     # accuracy outdoors).
     correct_radius_m: float = Field(4.0, gt=0)
+    # A run whose longest stretch of correct frames is shorter than this scores 0
+    # coverage and 0 tracking distance (seed 000's Tables II and III use 5).
+    min_consecutive: int = Field(0, ge=0)
 
 
 class ControllerConfig(StrictModel):

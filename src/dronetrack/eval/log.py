@@ -10,11 +10,12 @@ from numpy.typing import NDArray
 
 from dronetrack.eval.metrics import (
     CORRECT_RADIUS_M,
-    coverage_pct,
     detection_gaps,
-    max_tracking_distance,
+    first_lock,
+    first_visible,
     points_by_distance,
     rmse,
+    scored_tracking,
     timing,
 )
 from dronetrack.geometry.transforms import FloatArray
@@ -137,10 +138,13 @@ class TrackLog:
             "flags": np.array(self.flags, dtype=object),
         }
 
-    def summary(self, radius: float = CORRECT_RADIUS_M) -> dict[str, Any]:
+    def summary(self, radius: float = CORRECT_RADIUS_M, min_consecutive: int = 0) -> dict[str, Any]:
         """The run's metrics (metrics.json); those needing ground truth only when it exists.
 
-        ``radius``: an estimate within this distance of the truth is correct.
+        ``radius``: an estimate within this distance of the truth is correct;
+        ``min_consecutive``: a run with a shorter longest stretch of correct frames scores
+        0 coverage and 0 distance (see ``scored_tracking``).  ``dronetrack compare``'s
+        table reads the same definitions (``experiments/compare/runner.py``).
         """
         a = self.arrays()
         out: dict[str, Any] = {"frames": len(self)}
@@ -156,14 +160,12 @@ class TrackLog:
         est = np.column_stack([a["est_x"], a["est_y"], a["est_z"]])
         err = est - gt
         out["correct_radius_m"] = radius
-        out["coverage_pct"] = coverage_pct(err, radius)
-        out["max_tracking_distance_m"] = max_tracking_distance(
-            err, a["range_m"], radius, a["meas_error_m"]
+        out["coverage_pct"], out["max_tracking_distance_m"] = scored_tracking(
+            err, a["range_m"], radius, a["meas_error_m"], min_consecutive
         )
-        # RMSE over the frames from the first lock on (tracked or not), as the
+        # rmse_m (eq. 13): over the frames from the first lock on (tracked or not), as the
         # reference windows its accuracy runs after the filter has locked.
-        start = int(np.argmax(tracked)) if tracked.any() else len(err)
-        r = rmse(err[start:])
+        r = rmse(err[first_lock(tracked) :])
         out.update(
             {
                 "rmse_m": r.value,
@@ -174,8 +176,14 @@ class TrackLog:
         )
         r_tracked = rmse(err[tracked])
         out["rmse_tracked_m"] = r_tracked.value
+        # Frames whose foreground reached the tracker (seed 003's detections).
+        out["n_detections"] = int(np.count_nonzero(a["n_points"] > 0))
         counts = a["n_target_points"]
         if np.all(counts >= 0):
+            # rmse_from_visible_m: from the first frame whose foreground holds returns
+            # from the drone (seed 000's Table IV windows)
+            visible = rmse(err[first_visible(a["n_points"], counts) :])
+            out["rmse_from_visible_m"] = visible.value
             detected = counts > 0
             gaps = detection_gaps(a["t"], detected)
             out["target_points_total"] = int(counts.sum())

@@ -181,3 +181,32 @@ def longest_run(mask: NDArray[np.bool_]) -> int:
     # Run boundaries: indices where the value changes, padded with False at both ends.
     edges = np.flatnonzero(np.diff(np.r_[False, m, False].astype(np.int8)))
     return int(np.max(edges[1::2] - edges[0::2]))
+
+
+def scored_tracking(
+    errors: FloatArray,
+    range_m: FloatArray,
+    radius: float,
+    meas_error: FloatArray,
+    min_consecutive: int = 0,
+) -> tuple[float, float]:
+    """``coverage_pct`` and ``max_tracking_distance_m`` of a run, as seed 000 scores them:
+    a run whose longest stretch of correct frames is shorter than ``min_consecutive``
+    scores 0 on both (its Tables II and III use 5; 0 counts every run)."""
+    ok = correct(errors, radius)
+    if len(ok) == 0 or longest_run(ok) < min_consecutive:
+        return 0.0, 0.0
+    return coverage_pct(errors, radius), max_tracking_distance(errors, range_m, radius, meas_error)
+
+
+def first_lock(tracked: NDArray[np.bool_]) -> int:
+    """Index of the first frame the tracker calls tracked; the length if none."""
+    return int(np.argmax(tracked)) if np.any(tracked) else len(tracked)
+
+
+def first_visible(n_points: NDArray[np.int64], n_target_points: NDArray[np.int64]) -> int:
+    """Index of the first frame whose foreground holds returns from the drone (the same
+    frame for every tracker of a lockstep run, as none can track a drone still hidden in
+    the background model); the length if none."""
+    seen = np.flatnonzero((n_target_points > 0) & (n_points > 0))
+    return int(seen[0]) if len(seen) else len(n_points)

@@ -97,7 +97,8 @@ class RunResult:
         return self.simulated_s / self.wall_s if self.wall_s > 0 else math.inf
 
     def metrics(self) -> dict[str, Any]:
-        out = self.log.summary(self.config.pipeline.evaluation.correct_radius_m)
+        evaluation = self.config.pipeline.evaluation
+        out = self.log.summary(evaluation.correct_radius_m, evaluation.min_consecutive)
         out["realtime_factor"] = self.realtime_factor
         out["wall_s"] = self.wall_s
         if self.interrupted:

@@ -7,7 +7,7 @@ measurement z = H x + v with v ~ N(0, R)):
     update:   d = z − H x⁻              (innovation)
               S = H P⁻ Hᵀ + R           (innovation covariance)
               K = P⁻ Hᵀ S⁻¹             (gain, by a linear solve)
-              x⁺ = x⁻ + K d,            P⁺ = (I − K H) P⁻   (then symmetrised)
+              x⁺ = x⁻ + K d,            P⁺ = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ   (Joseph form)
               ε = z − H x⁺              (residual)
 
 Motion models: constant velocity (CV, [p, v]), constant acceleration (CA,
@@ -90,8 +90,10 @@ def kf_update(
     K = np.linalg.solve(S.T, PHt.T).T.astype(np.float64, copy=False)
     # x⁺ = x⁻ + K d
     x_post = x + K @ d
-    # P⁺ = (I − K H) P⁻
-    P_post = symmetrise((np.eye(len(x)) - K @ H) @ P)
+    # P⁺ = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ  (the Joseph form: symmetric and positive
+    # semi-definite whatever the rounding, where (I − K H) P⁻ can lose both)
+    I_KH = np.eye(len(x)) - K @ H
+    P_post = symmetrise(I_KH @ P @ I_KH.T + K @ R @ K.T)
     # ε = z − H x⁺
     eps = z - H @ x_post
     return KalmanUpdate(x_post, P_post, d, S, K, eps)

@@ -18,7 +18,7 @@ import numpy as np
 from dronetrack.config.run import ScenarioConfig, apply_overrides
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError
-from dronetrack.eval.metrics import correct, longest_run, max_tracking_distance, rmse
+from dronetrack.eval.metrics import first_lock, first_visible, rmse, scored_tracking
 from dronetrack.experiments.compare.suites import Case, Suite
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_tracker
@@ -47,7 +47,7 @@ def case_config(
 ) -> ScenarioConfig:
     """The scenario a method runs in a case: the named scenario with the suite's turret
     mode (or scan strategy), the method's tracker, the run's seed."""
-    base = get_scenario(case.scenario)
+    base = _scored(get_scenario(case.scenario), suite.min_consecutive)
     if suite.tracker is not None:  # the methods are scan strategies feeding one tracker
         return apply_overrides(
             base, seed=seed, duration=duration, tracker=suite.tracker, turret_mode=method
@@ -55,6 +55,14 @@ def case_config(
     return apply_overrides(
         base, seed=seed, duration=duration, tracker=method, turret_mode=case.turret
     )
+
+
+def _scored(cfg: ScenarioConfig, min_consecutive: int) -> ScenarioConfig:
+    """``cfg`` with the suite's scoring rule in its evaluation section, so a method's run
+    scores the same in ``simulate`` of its configuration as in the table."""
+    evaluation = cfg.pipeline.evaluation.model_copy(update={"min_consecutive": min_consecutive})
+    pipeline = cfg.pipeline.model_copy(update={"evaluation": evaluation})
+    return cfg.model_copy(update={"pipeline": pipeline})
 
 
 def _select(suite: Suite, methods: Sequence[str] | None) -> tuple[str, ...]:
@@ -143,24 +151,26 @@ def run_metrics(suite: Suite, sim: RunResult) -> dict[str, float]:
     gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
     est = np.column_stack([a["est_x"], a["est_y"], a["est_z"]])
     err = est - gt
-    radius = sim.config.pipeline.evaluation.correct_radius_m
+    evaluation = sim.config.pipeline.evaluation
     period = sim.config.sensor.integration_time_s
-    ok = correct(err, radius)
-    counted = longest_run(ok) >= suite.min_consecutive
-    # The RMSE window opens with the first frame whose foreground holds returns from
-    # the drone: the same frame for every method of a lockstep run, and none can
-    # track a drone still hidden in the background model (seed 000 windowed its
-    # indoor runs too).
-    seen = np.flatnonzero((a["n_target_points"] > 0) & (a["n_points"] > 0))
-    start = int(seen[0]) if len(seen) else len(err)
-    r = rmse(err[start:])
+    coverage, distance = scored_tracking(
+        err,
+        a["range_m"],
+        evaluation.correct_radius_m,
+        a["meas_error_m"],
+        evaluation.min_consecutive,
+    )
+    # rmse_m (eq. 13) from the first lock, as metrics.json; Table IV's window opens
+    # with the first frame whose foreground holds returns from the drone: the same
+    # frame for every method of a lockstep run, and none can track a drone still
+    # hidden in the background model (seed 000 windowed its indoor runs too).
+    r = rmse(err[first_visible(a["n_points"], a["n_target_points"]) :])
     step_ms = float(np.mean(a["step_ms"])) if len(a["step_ms"]) else 0.0
     out = {
-        "coverage_pct": 100.0 * float(ok.mean()) if counted and len(ok) else 0.0,
-        "max_tracking_distance_m": (
-            max_tracking_distance(err, a["range_m"], radius, a["meas_error_m"]) if counted else 0.0
-        ),
-        "rmse_m": r.value,
+        "coverage_pct": coverage,
+        "max_tracking_distance_m": distance,
+        "rmse_m": rmse(err[first_lock(a["tracked"]) :]).value,
+        "rmse_from_visible_m": r.value,
         "rmse_3d_m": r.value,
         "rmse_ci_low_m": r.ci95[0],
         "rmse_ci_high_m": r.ci95[1],

@@ -91,7 +91,7 @@ _INDOOR = (
     ("fast", "indoor-fast"),
     ("lost and found", "indoor-lost-and-found"),
 )
-_RMSE_CI = ("rmse_m", "rmse_ci_low_m", "rmse_ci_high_m")
+_RMSE_CI = ("rmse_from_visible_m", "rmse_ci_low_m", "rmse_ci_high_m")
 # Seed 000 Table IV: RMSE [m] and its 95 % chi-square interval over five runs.
 _TABLE4 = _grid(
     {
@@ -220,14 +220,17 @@ _LIST = [
         title="Seed 000 Table IV: RMSE with its 95 % interval on the Crazyflie patterns",
         methods=("ekf-catalano", "ekf-dogru", "pf-cv", "pf-delta"),
         cases=tuple(Case(lab, scen, "truth") for lab, scen in _INDOOR),
-        metrics=_RMSE_CI,
+        # the seed's window, then rmse_m from the first lock (as metrics.json), no paper figure
+        metrics=(*_RMSE_CI, "rmse_m"),
         paper=_TABLE4,
         init_on_clean_view=True,
         note=(
-            "RMSE of every frame from the first one whose foreground holds returns from the "
-            "drone (indoors the drone takes off hidden in the background model) to the end, "
-            "tracked or not (eq. 13), per run and then averaged; the interval ends are each "
-            "run's chi-square 95 % interval, averaged (the seed pooled its five runs)."
+            "rmse_from_visible_m: RMSE of every frame from the first one whose foreground "
+            "holds returns from the drone (indoors the drone takes off hidden in the background "
+            "model) to the end, tracked or not (eq. 13), per run and then averaged; the interval "
+            "ends are each run's chi-square 95 % interval of it, averaged (the seed pooled its "
+            "five runs).  rmse_m is eq. 13 from the filter's first lock, as simulate's "
+            "metrics.json reports it."
         ),
         setup_note=(
             "The simulated returns carry no motion-capture marker offsets, so the centroid "

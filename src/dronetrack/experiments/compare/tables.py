@@ -37,6 +37,7 @@ TABLE_COLUMNS = ("scenario", "method", "metric", "mean", "std", "paper")
 # Metrics where a smaller value is better (for the rankings).
 LOWER_IS_BETTER = {
     "rmse_m",
+    "rmse_from_visible_m",
     "rmse_3d_m",
     "rmse_x_m",
     "rmse_y_m",
