@@ -33,8 +33,8 @@ from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
-from dronetrack.track.tracker import Tracker, TrackEstimate
-from dronetrack.types import Frame, TurretCommand
+from dronetrack.track.base import Tracker
+from dronetrack.types import Frame, TrackEstimate, TurretCommand
 
 __all__ = ["OutlierSettings", "Pipeline", "StepResult"]
 

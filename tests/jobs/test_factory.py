@@ -15,7 +15,7 @@ from dronetrack.jobs.factory import (
     resolve_tracker,
 )
 from dronetrack.sim.turret import make_turret
-from dronetrack.track.tracker import ParticleTracker
+from dronetrack.track.particle import ParticleTracker
 
 TURRET = make_turret("widowx")
 

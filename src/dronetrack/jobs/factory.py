@@ -19,23 +19,22 @@ from dronetrack.control.controller import Mode as TurretMode
 from dronetrack.control.strategies import MODES as STRATEGIES
 from dronetrack.control.strategies import Mode as StrategyMode
 from dronetrack.control.strategies import ScanStrategyController
+from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR, CandidateDetector
 from dronetrack.formats.background import load_background
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.pipeline import OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
-from dronetrack.track.cluster_kalman import (
-    SEED002_DETECTOR,
-    SEED003_DETECTOR,
-    AdaptiveEKF,
-    CandidateDetector,
-    CentroidEKF,
-    ConstantAccelerationKF,
+from dronetrack.track.base import Tracker
+from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
+from dronetrack.track.particle import (
+    MotionModel,
+    NoiseParameters,
+    ParticleTracker,
+    eq11_parameters,
 )
-from dronetrack.track.particle import MotionModel, NoiseParameters, eq11_parameters
 from dronetrack.track.sphere_kalman import CatalanoEKF, DogruEKF
-from dronetrack.track.tracker import ParticleTracker, Tracker
 
 __all__ = [
     "TRACKER_NAMES",
