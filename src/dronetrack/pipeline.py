@@ -35,9 +35,9 @@ from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.seams import Actuator, Sink, Source
+from dronetrack.track.base import Tracker
 from dronetrack.track.clock import FilterClock
-from dronetrack.track.tracker import Tracker, TrackEstimate
-from dronetrack.types import Frame, Phase, StepResult, TurretCommand
+from dronetrack.types import Frame, Phase, StepResult, TrackEstimate, TurretCommand
 
 __all__ = ["OutlierSettings", "Pipeline", "RunStats", "Stage", "StepResult", "run"]
 

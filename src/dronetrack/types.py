@@ -1,4 +1,5 @@
-"""The data passed between the stages: LiDAR frames and turret commands.
+"""The data passed between the stages: LiDAR frames, detections, track estimates and
+turret commands.
 
 Times are float64 seconds from the start of a run; lengths are metres; angles
 are radians.
@@ -7,7 +8,7 @@ are radians.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,10 +16,17 @@ from numpy.typing import NDArray
 from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray, interpolate_poses, transform_at_times
 
-if TYPE_CHECKING:
-    from dronetrack.track.tracker import TrackEstimate
-
-__all__ = ["Frame", "Phase", "Sample", "StepResult", "Truth", "TurretCommand", "TurretState"]
+__all__ = [
+    "Detections",
+    "Frame",
+    "Phase",
+    "Sample",
+    "StepResult",
+    "TrackEstimate",
+    "Truth",
+    "TurretCommand",
+    "TurretState",
+]
 
 Phase = Literal["scan", "track"]
 
@@ -75,6 +83,78 @@ class Frame:
         if len(self) == 0:
             return np.empty((0, 3))
         return transform_at_times(self.pose_t, self.poses, self.t, self.points)
+
+
+def _frozen(a: NDArray[Any], dtype: type[np.generic], shape: tuple[int, ...]) -> NDArray[Any]:
+    """A read-only copy of ``a`` as ``dtype``; InputError unless its shape is ``shape``."""
+    out = np.array(a, dtype=dtype)
+    if out.shape != shape:
+        raise InputError(f"detections: expected shape {shape}, got {out.shape}")
+    out.flags.writeable = False
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class Detections:
+    """The candidate targets the detector found in one frame's foreground, K of them.
+
+    centroids: (K, 3) mean p̄ of each candidate's points, world frame [m].
+    counts: (K,) points in each candidate.
+    extents: (K, 3) lengths along the principal axes, the axis of largest variance first [m].
+    covariances: (K, 3, 3) population covariance (1/n) Σᵢ (pᵢ − p̄)(pᵢ − p̄)ᵀ [m²].
+    planarity: (K,) (λ₂ − λ₃) / λ₁ of the covariance eigenvalues λ₁ ≥ λ₂ ≥ λ₃ (0 if λ₁ = 0).
+
+    Candidates are in the detector's order (DBSCAN's labels); the arrays are read-only.
+    The detector does not choose among them: the tracker does, with ``largest()`` or its
+    own gate.
+    """
+
+    centroids: FloatArray
+    counts: NDArray[np.int64]
+    extents: FloatArray
+    covariances: FloatArray
+    planarity: FloatArray
+
+    def __post_init__(self) -> None:
+        k = len(self.centroids)
+        for name, shape, dtype in (
+            ("centroids", (k, 3), np.float64),
+            ("counts", (k,), np.int64),
+            ("extents", (k, 3), np.float64),
+            ("covariances", (k, 3, 3), np.float64),
+            ("planarity", (k,), np.float64),
+        ):
+            object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
+
+    @classmethod
+    def empty(cls) -> Detections:
+        """No candidates."""
+        counts = np.empty(0, dtype=np.int64)
+        return cls(np.empty((0, 3)), counts, np.empty((0, 3)), np.empty((0, 3, 3)), np.empty(0))
+
+    def __len__(self) -> int:
+        return len(self.centroids)
+
+    def largest(self) -> int:
+        """Index of the candidate with the most points (the first of equals)."""
+        if len(self) == 0:
+            raise InputError("no detections to choose the largest of")
+        return int(np.argmax(self.counts))
+
+
+@dataclass(frozen=True, slots=True)
+class TrackEstimate:
+    """A tracker's belief after a frame."""
+
+    t: float  # [s]
+    position: FloatArray  # (3,) world [m]
+    velocity: FloatArray  # (3,) world [m/s]
+    tracked: bool
+    spread: float  # σ_particles for a particle filter, √max position variance for a Kalman one [m]
+    particles: FloatArray | None = None  # (N, 3) positions, for display
+    # diag of the position and velocity covariance (6,) [m², (m/s)²]
+    variance: FloatArray | None = None
+    measurement: FloatArray | None = None  # (3,) z of this frame's update or (re)start [m]
 
 
 @dataclass(frozen=True, slots=True)

@@ -8,11 +8,13 @@ from __future__ import annotations
 import re
 import zipfile
 from pathlib import Path
+from typing import get_args
 
 import numpy as np
 import pytest
 
 from dronetrack.cli.main import run
+from dronetrack.config.pipeline import TrackerKind
 
 LATIN1_DEGREE = b"\xb0"  # "°" in Latin-1: not UTF-8
 
@@ -234,3 +236,16 @@ def test_both_durations_say_whether_a_scan_comes_first(
     render = _help(["render"], capsys)
     assert "after the background scan" in re.sub(r"\s+", " ", simulate)
     assert "no background scan comes first" in re.sub(r"\s+", " ", render)
+
+
+@pytest.mark.parametrize("command", [["simulate"], ["record"], ["track", "flight.bag"]])
+def test_tracker_names_are_the_configs_list(
+    command: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--tracker takes exactly config.pipeline.TrackerKind: an unknown name is one line
+    that lists them all (and a known one reaches the command, which is tested elsewhere)."""
+    line = _one_error([*command, "--tracker", "pf-nosuch", "--out", str(tmp_path / "o")], capsys)
+    assert "--tracker" in line
+    offered = line.split("is not one of", 1)[1]
+    assert tuple(re.findall(r"'([^']+)'", offered)) == get_args(TrackerKind)
+    assert not (tmp_path / "o").exists()

@@ -11,7 +11,7 @@ from dronetrack.control.aiming import aim_angles
 from dronetrack.control.controller import TurretController
 from dronetrack.control.scan import raster, triangle
 from dronetrack.geometry.mount import MountGeometry
-from dronetrack.track.tracker import TrackEstimate
+from dronetrack.types import TrackEstimate
 
 MOUNT = MountGeometry((0.0, 0.0, 1.0), (0.0, 0.0, 0.05), (0.025, 0.0, 0.086))
 LIMITS = ((-math.pi, math.pi), (math.radians(-68), math.radians(68)))

@@ -23,7 +23,7 @@ from dronetrack.control.plans import (
 from dronetrack.control.strategies import MODES, ScanStrategyController, Transition
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
-from dronetrack.track.tracker import TrackEstimate
+from dronetrack.types import TrackEstimate
 
 MOUNT = MountGeometry((0.0, 0.0, 1.0), (0.0, 0.0, 0.07), (0.0, 0.0, 0.12))  # ptu-e46
 PAN_LIMITS = (math.radians(-159.0), math.radians(159.0))

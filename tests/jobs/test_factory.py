@@ -2,35 +2,125 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+from typing import get_args
+
 import numpy as np
 import pytest
 
-from dronetrack.config.pipeline import PipelineConfig, TrackerConfig
+from dronetrack.config.pipeline import (
+    ControllerConfig,
+    ControllerMode,
+    DetectorConfig,
+    KalmanConfig,
+    PipelineConfig,
+    TrackerConfig,
+    TrackerKind,
+)
 from dronetrack.config.rig import make_turret
+from dronetrack.control.controller import TurretController
+from dronetrack.control.strategies import MODES as STRATEGIES
+from dronetrack.control.strategies import ScanStrategyController
+from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR
+from dronetrack.errors import ConfigError
 from dronetrack.jobs.factory import (
     CA_SIGMA_ACC,
+    CONTROLLERS,
     DEFAULT_S_DIAG,
+    TRACKER_NAMES,
+    TRACKERS,
+    _check_registry,
     build_pipeline,
     build_tracker,
     noise_parameters,
     resolve_tracker,
 )
-from dronetrack.track.tracker import ParticleTracker
+from dronetrack.pipeline import Pipeline
+from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
+from dronetrack.track.particle import ParticleTracker
+from dronetrack.track.resample import RESAMPLERS
+from dronetrack.track.sphere_kalman import CatalanoEKF, DogruEKF
 
 TURRET = make_turret("widowx")
 
 
-def _tracker(cfg: TrackerConfig) -> ParticleTracker:
-    pipe = build_pipeline(
-        PipelineConfig(tracker=cfg),
+def _pipeline(cfg: PipelineConfig) -> Pipeline:
+    return build_pipeline(
+        cfg,
         0.1,
         TURRET.mount,
         (TURRET.pan.lower, TURRET.pan.upper),
         (TURRET.tilt.lower, TURRET.tilt.upper),
         np.random.default_rng(0),
     )
+
+
+def _tracker(cfg: TrackerConfig) -> ParticleTracker:
+    pipe = _pipeline(PipelineConfig(tracker=cfg))
     assert isinstance(pipe.tracker, ParticleTracker)
     return pipe.tracker
+
+
+def test_the_registries_hold_each_configurable_name_once() -> None:
+    assert tuple(TRACKERS) == get_args(TrackerKind) == TRACKER_NAMES
+    assert tuple(CONTROLLERS) == get_args(ControllerMode)
+    # The import-time check refuses a registry with a name missing, extra or repeated.
+    for keys in (TRACKER_NAMES[:-1], (*TRACKER_NAMES, "pf-new"), TRACKER_NAMES[::-1]):
+        with pytest.raises(ConfigError, match="tracker registry"):
+            _check_registry("tracker", keys, TRACKER_NAMES)
+
+
+EXPECTED_TRACKERS = {
+    "pf-delta": ParticleTracker,
+    "pf-cv": ParticleTracker,
+    "pf-ca": ParticleTracker,
+    "pf-systematic": ParticleTracker,
+    "ekf-dogru": DogruEKF,
+    "ekf-catalano": CatalanoEKF,
+    "ekf-catalano-mod": CatalanoEKF,
+    "ekf-cv": CentroidEKF,
+    "kf-ca": ConstantAccelerationKF,
+    "aekf-ca": AdaptiveEKF,
+}
+
+
+@pytest.mark.parametrize("kind", TRACKER_NAMES)
+def test_each_kind_builds_its_tracker(kind: str) -> None:
+    home = np.array([1.0, 2.0, 3.0])
+    cfg = TrackerConfig(kind=kind, particles=100)  # type: ignore[arg-type]
+    tracker = build_tracker(cfg, 0.1, np.random.default_rng(0), home=home)
+    assert type(tracker) is EXPECTED_TRACKERS[kind]
+    assert tracker.period == 0.1
+    if isinstance(tracker, ParticleTracker):
+        want = "systematic" if kind == "pf-systematic" else "multinomial"
+        assert tracker.filter._resample is RESAMPLERS[want]
+    else:
+        np.testing.assert_array_equal(tracker.home, home)
+    # Seed 000's search radii for Catalano et al.'s EKF: 0.2 m, and 1.5 m modified;
+    # a configured radius replaces either.
+    if isinstance(tracker, CatalanoEKF):
+        assert tracker.fixed_radius == {"ekf-catalano": 0.2, "ekf-catalano-mod": 1.5}[kind]
+        given = cfg.model_copy(update={"kalman": KalmanConfig(search_radius_m=0.7)})
+        radius = build_tracker(given, 0.1, np.random.default_rng(0)).fixed_radius  # type: ignore[attr-defined]
+        assert radius == 0.7
+    # The detector behind a cluster tracker is its seed's preset; an ROI is centred on home.
+    if isinstance(tracker, CentroidEKF | ConstantAccelerationKF):
+        preset = SEED003_DETECTOR if kind == "ekf-cv" else SEED002_DETECTOR
+        assert tracker.detector == preset
+        roi = cfg.model_copy(update={"detector": DetectorConfig(roi_radius_m=30.0, eps_m=0.3)})
+        built = build_tracker(roi, 0.1, np.random.default_rng(0), home=home)
+        assert built.detector == replace(  # type: ignore[attr-defined]
+            preset, roi_radius=30.0, roi_center_xy=(1.0, 2.0), eps=0.3
+        )
+    assert isinstance(tracker, AdaptiveEKF) == (kind == "aekf-ca")
+
+
+@pytest.mark.parametrize("mode", get_args(ControllerMode))
+def test_each_mode_builds_its_controller(mode: str) -> None:
+    pipe = _pipeline(PipelineConfig(controller=ControllerConfig(mode=mode)))  # type: ignore[arg-type]
+    kind = ScanStrategyController if mode in STRATEGIES else TurretController
+    assert type(pipe.controller) is kind
+    assert pipe.controller.mode == mode
 
 
 @pytest.mark.parametrize(

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter
 
+from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.errors import ConfigError, InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.cluster_kalman import (
     SEED003_P0,
     AdaptiveEKF,
-    CandidateDetector,
     CentroidEKF,
     ConstantAccelerationKF,
 )
@@ -24,9 +24,9 @@ from dronetrack.track.kalman import (
     ctrv_predict,
     position_selector,
 )
-from dronetrack.track.particle import eq11_parameters
+from dronetrack.track.particle import ParticleTracker, eq11_parameters
 from dronetrack.track.sphere_kalman import CatalanoEKF, DogruEKF
-from dronetrack.track.tracker import ParticleTracker, TrackEstimate
+from dronetrack.types import TrackEstimate
 
 T = 0.1
 NONE = np.zeros((0, 3))

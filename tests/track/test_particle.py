@@ -15,6 +15,7 @@ from dronetrack.track.nearest import nearest_distances
 from dronetrack.track.particle import (
     NoiseParameters,
     ParticleFilter,
+    ParticleTracker,
     cylinder_particles,
     eq11_parameters,
     gate_margin,
@@ -257,8 +258,6 @@ def test_bad_filter_settings() -> None:
 
 
 def test_the_tracker_can_be_reset_to_a_new_cylinder() -> None:
-    from dronetrack.track.tracker import ParticleTracker
-
     tracker = ParticleTracker(
         3000,
         "delta",

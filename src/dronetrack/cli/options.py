@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
+from dronetrack.config.pipeline import TrackerKind
+
 if TYPE_CHECKING:
     from dronetrack.config.run import ScenarioConfig
 
@@ -27,7 +29,6 @@ __all__ = [
     "RunDirOption",
     "SeedOption",
     "SensorOption",
-    "TrackerName",
     "TrackerOption",
     "TrajectoryOption",
     "TurretMode",
@@ -84,22 +85,10 @@ class ControlMode(StrEnum):
     adaptive = "adaptive"
 
 
-class TrackerName(StrEnum):
-    pf_delta = "pf-delta"
-    pf_cv = "pf-cv"
-    pf_ca = "pf-ca"
-    pf_systematic = "pf-systematic"
-    ekf_dogru = "ekf-dogru"
-    ekf_catalano = "ekf-catalano"
-    ekf_catalano_mod = "ekf-catalano-mod"
-    ekf_cv = "ekf-cv"
-    kf_ca = "kf-ca"
-    aekf_ca = "aekf-ca"
-
-
 MAX_PARTICLES = 2_000_000  # the configuration's upper bound ([pipeline.tracker] particles)
+# The choices are config.pipeline.TrackerKind, the one list of tracker names.
 TrackerOption = Annotated[
-    TrackerName | None,
+    TrackerKind | None,
     typer.Option("--tracker", help="The tracking method (see the README's method table)."),
 ]
 TurretOption = Annotated[

@@ -33,7 +33,6 @@ from dronetrack.cli.options import (
     RunDirOption,
     SeedOption,
     SensorOption,
-    TrackerName,
     TrackerOption,
     TrajectoryOption,
     TurretOption,
@@ -47,6 +46,7 @@ from dronetrack.cli.output import (
     print_metrics,
     progress_bar,
 )
+from dronetrack.config.pipeline import TrackerKind
 from dronetrack.errors import ConfigError
 from dronetrack.sinks.run_folder import check_run_dir
 from dronetrack.sources.recording import RecordingInfo, TopicInfo
@@ -115,7 +115,7 @@ def track(
         ),
     ] = None,
     tracker: Annotated[
-        TrackerName | None, typer.Option("--tracker", help="The tracking method.")
+        TrackerKind | None, typer.Option("--tracker", help="The tracking method.")
     ] = None,
     config: Annotated[
         Path | None,
@@ -179,7 +179,7 @@ def track(
     cfg = recording_config(
         source,
         base,
-        tracker=tracker.value if tracker else None,
+        tracker=tracker,
         background_file=background,
         background_from=background_from,
     )
@@ -295,7 +295,7 @@ def record(
         visibility=visibility,
         drone=drone,
         sensor=sensor,
-        tracker=tracker.value if tracker else None,
+        tracker=tracker,
         particles=particles,
         turret_mode=turret.value if turret else None,
     )

@@ -217,7 +217,7 @@ def simulate(
         visibility=visibility,
         drone=drone,
         sensor=sensor,
-        tracker=tracker.value if tracker else None,
+        tracker=tracker,
         particles=particles,
         turret_mode=turret.value if turret else None,
     )

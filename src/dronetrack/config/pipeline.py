@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 __all__ = [
     "BackgroundConfig",
     "ControllerConfig",
+    "ControllerMode",
     "CropConfig",
     "DetectorConfig",
     "EvaluationConfig",
@@ -26,10 +27,13 @@ __all__ = [
     "PipelineConfig",
     "StrictModel",
     "TrackerConfig",
+    "TrackerKind",
 ]
 
 Vec3 = tuple[float, float, float]
 Pair = tuple[float, float]
+# The one list of tracker names: the command line's --tracker choices, [pipeline.tracker]
+# kind, and the keys of jobs.factory.TRACKERS.
 TrackerKind = Literal[
     "pf-delta",
     "pf-cv",
@@ -41,6 +45,11 @@ TrackerKind = Literal[
     "ekf-cv",
     "kf-ca",
     "aekf-ca",
+]
+# How the turret is driven: tracking / fixed / truth, or one of seed 003's scan
+# strategies for a pan-only PTU; the keys of jobs.factory.CONTROLLERS.
+ControllerMode = Literal[
+    "tracking", "fixed", "truth", "sweep", "swing", "slowdown", "stop", "adaptive"
 ]
 
 
@@ -111,7 +120,8 @@ class KalmanConfig(StrictModel):
 
 
 class DetectorConfig(StrictModel):
-    """Clustering in front of ekf-cv, kf-ca and aekf-ca (seed 002's Algorithm 1)."""
+    """Clustering in front of ekf-cv, kf-ca and aekf-ca (seed 002's Algorithm 1, see
+    detect/candidates.py); a value left out takes the seed's preset."""
 
     voxel_m: float | None = Field(None, ge=0)  # 0: no voxel grid
     eps_m: float | None = Field(None, gt=0)  # DBSCAN ε
@@ -160,10 +170,7 @@ class ControllerConfig(StrictModel):
     """Turret control: track the estimate, search when lost, or hold still; or (``truth``,
     simulation only) follow the true target so that every tracker sees the same frames."""
 
-    # tracking / fixed / truth, or one of seed 003's scan strategies for a pan-only PTU
-    mode: Literal[
-        "tracking", "fixed", "truth", "sweep", "swing", "slowdown", "stop", "adaptive"
-    ] = "tracking"
+    mode: ControllerMode = "tracking"
     home_m: Vec3 = (60.0, 0.0, 15.0)  # where the sensor looks before a lock, and in fixed mode
     lead_s: float = Field(0.0, ge=0)  # aim at p + v·lead (0: at the estimate, as the reference)
     search_hold_s: float = Field(2.0, ge=0)  # hold after losing the target, then scan

@@ -23,8 +23,7 @@ from dronetrack.control.aiming import aim_angles
 from dronetrack.control.scan import raster, triangle
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.track.tracker import TrackEstimate
-from dronetrack.types import TurretCommand
+from dronetrack.types import TrackEstimate, TurretCommand
 
 __all__ = ["Controller", "TurretController"]
 

@@ -56,8 +56,7 @@ from dronetrack.control.plans import (
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray, wrap_angle
-from dronetrack.track.tracker import TrackEstimate
-from dronetrack.types import TurretCommand
+from dronetrack.types import TrackEstimate, TurretCommand
 
 __all__ = ["MODES", "Mode", "ScanStrategyController", "State", "Transition"]
 

@@ -1,44 +1,58 @@
 """Build the pipeline's components from a validated configuration.
 
 The algorithms take plain SI/radian keyword arguments; this is the one place
-that maps configuration sections (degrees, optional values) onto them.
+that maps configuration sections (degrees, optional values) onto them.  Two
+registries choose the components by name: ``TRACKERS`` (tracker kind → builder,
+its keys exactly ``config.pipeline.TrackerKind``) and ``CONTROLLERS`` (controller
+mode → builder, its keys exactly ``config.pipeline.ControllerMode``).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
-from typing import Any, cast, get_args
+from typing import Any, Literal, get_args
 
 import numpy as np
 
-from dronetrack.config.pipeline import ControllerConfig, PipelineConfig, TrackerConfig, TrackerKind
+from dronetrack.config.pipeline import (
+    ControllerConfig,
+    ControllerMode,
+    PipelineConfig,
+    TrackerConfig,
+    TrackerKind,
+)
 from dronetrack.control.controller import Controller, TurretController
 from dronetrack.control.controller import Mode as TurretMode
-from dronetrack.control.strategies import MODES as STRATEGIES
 from dronetrack.control.strategies import Mode as StrategyMode
 from dronetrack.control.strategies import ScanStrategyController
+from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR, CandidateDetector
+from dronetrack.errors import ConfigError
 from dronetrack.formats.background import load_background
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.pipeline import OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
-from dronetrack.track.cluster_kalman import (
-    SEED002_DETECTOR,
-    SEED003_DETECTOR,
-    AdaptiveEKF,
-    CandidateDetector,
-    CentroidEKF,
-    ConstantAccelerationKF,
+from dronetrack.track.base import Tracker
+from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
+from dronetrack.track.particle import (
+    MotionModel,
+    NoiseParameters,
+    ParticleTracker,
+    eq11_parameters,
 )
-from dronetrack.track.particle import MotionModel, NoiseParameters, eq11_parameters
 from dronetrack.track.sphere_kalman import CatalanoEKF, DogruEKF
-from dronetrack.track.tracker import ParticleTracker, Tracker
 
 __all__ = [
+    "CONTROLLERS",
+    "TRACKERS",
     "TRACKER_NAMES",
+    "ControllerBuilder",
+    "TrackerBuilder",
     "build_pipeline",
     "build_tracker",
     "noise_parameters",
@@ -46,20 +60,12 @@ __all__ = [
     "scan_duration",
 ]
 
-_MODELS: dict[str, MotionModel] = {
-    "pf-delta": "delta",
-    "pf-cv": "cv",
-    "pf-ca": "ca",
-    "pf-systematic": "cv",
-}
 TRACKER_NAMES: tuple[str, ...] = get_args(TrackerKind)
 # Seed 002's particle-filter baseline: 2,000 particles, systematic resampling.  The
 # paper names no motion model; constant velocity, as a random-walk acceleration
 # extrapolates without bound through the long gaps of its flight.
 SEED002_PF_PARTICLES = 2000
 DEFAULT_PARTICLES = 5000  # mav_track_outside.yaml
-# Seed 000's fixed search radii for Catalano et al.'s EKF: theirs, and 1.5 m ("mod.").
-CATALANO_RADIUS = {"ekf-catalano": 0.2, "ekf-catalano-mod": 1.5}
 
 
 # Eq. (11) sets σ_acc = 0, which makes the constant-acceleration model the
@@ -110,31 +116,27 @@ def resolve_tracker(
     )
 
 
-def _controller(
+# (cfg, pipeline config for the background scan, mount, pan limits, tilt limits) [rad]
+ControllerBuilder = Callable[
+    [ControllerConfig, PipelineConfig, MountGeometry, tuple[float, float], tuple[float, float]],
+    Controller,
+]
+
+
+def _turret_controller(
+    mode: TurretMode,
     cfg: ControllerConfig,
     scan: PipelineConfig,
     mount: MountGeometry,
     pan_limits: tuple[float, float],
     tilt_limits: tuple[float, float],
 ) -> Controller:
-    if cfg.mode in STRATEGIES:
-        rad = math.radians
-        return ScanStrategyController(
-            mount,
-            pan_limits,
-            tilt_limits,
-            cast(StrategyMode, cfg.mode),
-            sweep_limits=(rad(cfg.sweep_pan_deg[0]), rad(cfg.sweep_pan_deg[1])),
-            sweep_rate=rad(cfg.sweep_rate_deg_s),
-            tilt=rad(cfg.sweep_tilt_deg),
-        )
     bg = scan.background
     return TurretController(
         mount=mount,
         pan_limits=pan_limits,
         tilt_limits=tilt_limits,
-        # ``truth`` (simulation only): the simulator's truth aimer steers while tracking
-        mode=cast(TurretMode, "external" if cfg.mode == "truth" else cfg.mode),
+        mode=mode,
         home=np.asarray(cfg.home_m),
         lead_s=cfg.lead_s,
         search_hold_s=cfg.search_hold_s,
@@ -145,6 +147,37 @@ def _controller(
         scan_tilt=(math.radians(bg.scan_tilt_deg[0]), math.radians(bg.scan_tilt_deg[1])),
         scan_period_s=bg.scan_period_s,
     )
+
+
+def _strategy_controller(
+    mode: StrategyMode,
+    cfg: ControllerConfig,
+    scan: PipelineConfig,
+    mount: MountGeometry,
+    pan_limits: tuple[float, float],
+    tilt_limits: tuple[float, float],
+) -> Controller:
+    rad = math.radians
+    return ScanStrategyController(
+        mount,
+        pan_limits,
+        tilt_limits,
+        mode,
+        sweep_limits=(rad(cfg.sweep_pan_deg[0]), rad(cfg.sweep_pan_deg[1])),
+        sweep_rate=rad(cfg.sweep_rate_deg_s),
+        tilt=rad(cfg.sweep_tilt_deg),
+    )
+
+
+CONTROLLERS: dict[ControllerMode, ControllerBuilder] = {
+    "tracking": partial(_turret_controller, "tracking"),
+    "fixed": partial(_turret_controller, "fixed"),
+    # Simulation only: the simulator's truth aimer steers the turret at the true target
+    # while tracking (sim/rig.py); the controller scans the background, then leaves it.
+    "truth": partial(_turret_controller, "external"),
+    # Seed 003's scan strategies for a pan-only turret (control.strategies.Mode).
+    **{mode: partial(_strategy_controller, mode) for mode in get_args(StrategyMode)},
+}
 
 
 def build_pipeline(
@@ -181,7 +214,9 @@ def build_pipeline(
     )
     return Pipeline(
         tracker=tracker,
-        controller=_controller(cfg.controller, cfg, mount, pan_limits, tilt_limits),
+        controller=CONTROLLERS[cfg.controller.mode](
+            cfg.controller, cfg, mount, pan_limits, tilt_limits
+        ),
         crop_min=np.asarray(cfg.crop.min_m),
         crop_max=np.asarray(cfg.crop.max_m),
         background=background,
@@ -215,6 +250,122 @@ def _detector(cfg: TrackerConfig, base: CandidateDetector, home: FloatArray) -> 
     )
 
 
+# (cfg, period T [s], random generator, home: the turret base (3,) world [m])
+TrackerBuilder = Callable[[TrackerConfig, float, np.random.Generator, FloatArray], Tracker]
+
+
+def _particle_filter(
+    model: MotionModel,
+    resampling: Literal["multinomial", "systematic"] | None,
+    cfg: TrackerConfig,
+    period: float,
+    rng: np.random.Generator,
+    home: FloatArray,
+) -> Tracker:
+    """Seed 000's particle filter with ``model``; ``resampling`` None: the config's."""
+    return ParticleTracker(
+        n=particle_count(cfg),
+        model=model,
+        noise=noise_parameters(cfg, period),
+        rng=rng,
+        cylinder_center=np.asarray(cfg.cylinder_center_m),
+        cylinder_radius=cfg.cylinder_radius_m,
+        cylinder_height=cfg.cylinder_height_m,
+        resampling=cfg.resampling if resampling is None else resampling,
+        weight_floor=cfg.weight_floor,
+    )
+
+
+def _dogru(
+    cfg: TrackerConfig, period: float, rng: np.random.Generator, home: FloatArray
+) -> Tracker:
+    k = cfg.kalman
+    return DogruEKF(
+        period=period,
+        home=home,
+        **_kwargs(
+            sigma_acc=k.sigma_acc,
+            sigma_lidar=k.sigma_lidar,
+            min_search_radius=k.search_radius_m,
+            tracked_threshold=k.tracked_variance_m2,
+        ),
+    )
+
+
+def _catalano(
+    radius: float, cfg: TrackerConfig, period: float, rng: np.random.Generator, home: FloatArray
+) -> Tracker:
+    """Catalano et al.'s EKF with the fixed search ``radius`` [m] unless the config gives one."""
+    k = cfg.kalman
+    return CatalanoEKF(
+        period=period,
+        home=home,
+        **_kwargs(
+            search_radius=k.search_radius_m or radius,
+            sigma_acc=k.sigma_acc,
+            sigma_lidar=k.sigma_lidar,
+            tracked_threshold=k.tracked_variance_m2,
+        ),
+    )
+
+
+def _centroid_ekf(
+    cfg: TrackerConfig, period: float, rng: np.random.Generator, home: FloatArray
+) -> Tracker:
+    return CentroidEKF(
+        period=period,
+        home=home,
+        detector=_detector(cfg, SEED003_DETECTOR, home),
+        **_kwargs(lost_after_s=cfg.kalman.lost_after_s),
+    )
+
+
+def _ca_kalman(
+    adaptive: bool, cfg: TrackerConfig, period: float, rng: np.random.Generator, home: FloatArray
+) -> Tracker:
+    """Seed 002's constant-acceleration filter: adaptive (AEKF) or with fixed Q and R."""
+    k = cfg.kalman
+    cls = AdaptiveEKF if adaptive else ConstantAccelerationKF
+    extra = _kwargs(alpha=k.alpha, beta=k.beta) if adaptive else {}
+    return cls(
+        period=period,
+        home=home,
+        detector=_detector(cfg, SEED002_DETECTOR, home),
+        **_kwargs(
+            sigma_acc=k.sigma_acc, sigma_lidar=k.sigma_lidar, gate=k.gate, t_occ=k.lost_after_s
+        ),
+        **extra,
+    )
+
+
+TRACKERS: dict[TrackerKind, TrackerBuilder] = {
+    "pf-delta": partial(_particle_filter, "delta", None),
+    "pf-cv": partial(_particle_filter, "cv", None),
+    "pf-ca": partial(_particle_filter, "ca", None),
+    # Seed 002's baseline: constant velocity (see SEED002_PF_PARTICLES), systematic resampling.
+    "pf-systematic": partial(_particle_filter, "cv", "systematic"),
+    "ekf-dogru": _dogru,
+    # Seed 000's fixed search radii for Catalano et al.'s EKF: theirs, and 1.5 m ("mod.").
+    "ekf-catalano": partial(_catalano, 0.2),
+    "ekf-catalano-mod": partial(_catalano, 1.5),
+    "ekf-cv": _centroid_ekf,
+    "kf-ca": partial(_ca_kalman, False),
+    "aekf-ca": partial(_ca_kalman, True),
+}
+
+
+def _check_registry(what: str, registry: Iterable[str], names: tuple[str, ...]) -> None:
+    """A registry's keys are exactly the names of its ``Literal``, in the same order."""
+    if tuple(registry) != names:
+        raise ConfigError(
+            f"the {what} registry lists {', '.join(registry)}; the names are {', '.join(names)}"
+        )
+
+
+_check_registry("tracker", TRACKERS, TRACKER_NAMES)
+_check_registry("controller", CONTROLLERS, get_args(ControllerMode))
+
+
 def build_tracker(
     cfg: TrackerConfig,
     period: float,
@@ -223,59 +374,8 @@ def build_tracker(
 ) -> Tracker:
     """The tracker ``cfg.kind`` names; ``home`` (the turret base) is where a Kalman
     filter reports itself before its first fix, and the centre of a detector's ROI."""
-    kind = cfg.kind
     base = np.zeros(3) if home is None else np.asarray(home, dtype=np.float64)
-    if kind in _MODELS:
-        pf_sys = kind == "pf-systematic"
-        return ParticleTracker(
-            n=particle_count(cfg),
-            model=_MODELS[kind],
-            noise=noise_parameters(cfg, period),
-            rng=rng,
-            cylinder_center=np.asarray(cfg.cylinder_center_m),
-            cylinder_radius=cfg.cylinder_radius_m,
-            cylinder_height=cfg.cylinder_height_m,
-            resampling="systematic" if pf_sys else cfg.resampling,
-            weight_floor=cfg.weight_floor,
-        )
-    k = cfg.kalman
-    common = _kwargs(period=period, home=base)
-    if kind == "ekf-dogru":
-        return DogruEKF(
-            **common,
-            **_kwargs(
-                sigma_acc=k.sigma_acc,
-                sigma_lidar=k.sigma_lidar,
-                min_search_radius=k.search_radius_m,
-                tracked_threshold=k.tracked_variance_m2,
-            ),
-        )
-    if kind in CATALANO_RADIUS:
-        return CatalanoEKF(
-            **common,
-            **_kwargs(
-                search_radius=k.search_radius_m or CATALANO_RADIUS[kind],
-                sigma_acc=k.sigma_acc,
-                sigma_lidar=k.sigma_lidar,
-                tracked_threshold=k.tracked_variance_m2,
-            ),
-        )
-    if kind == "ekf-cv":
-        return CentroidEKF(
-            **common,
-            detector=_detector(cfg, SEED003_DETECTOR, base),
-            **_kwargs(lost_after_s=k.lost_after_s),
-        )
-    cls = AdaptiveEKF if kind == "aekf-ca" else ConstantAccelerationKF
-    extra = _kwargs(alpha=k.alpha, beta=k.beta) if kind == "aekf-ca" else {}
-    return cls(
-        **common,
-        detector=_detector(cfg, SEED002_DETECTOR, base),
-        **_kwargs(
-            sigma_acc=k.sigma_acc, sigma_lidar=k.sigma_lidar, gate=k.gate, t_occ=k.lost_after_s
-        ),
-        **extra,
-    )
+    return TRACKERS[cfg.kind](cfg, period, rng, base)
 
 
 def scan_duration(cfg: PipelineConfig) -> float:

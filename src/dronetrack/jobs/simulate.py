@@ -25,11 +25,12 @@ from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import scan_duration
 from dronetrack.jobs.kernels import PIPELINE_WARM_UPS, CompileProgress, warm_up
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
-from dronetrack.pipeline import Pipeline, Stage, run
+from dronetrack.pipeline import Stage, run
 from dronetrack.seams import Sink
 from dronetrack.sim.build import build_world, resolve_scenario
 from dronetrack.sim.rig import SimSource, SimTurret, TruthAimer
 from dronetrack.sinks.track_log import TrackLogSink
+from dronetrack.track.base import PositionStart
 from dronetrack.types import Sample, StepResult
 
 __all__ = ["CleanViewStart", "resolve_run", "run_lockstep", "run_simulation"]
@@ -149,8 +150,8 @@ def run_lockstep(
         own: list[Sink] = [log]
         if k == 0 and mode == "truth":
             own.insert(0, TruthAimer(world, lead.latency_s))
-        if init_on_clean_view and hasattr(pipe.tracker, "initialize"):
-            own.append(CleanViewStart(pipe, configs[k].drone.model, period))
+        if init_on_clean_view and isinstance(pipe.tracker, PositionStart):
+            own.append(CleanViewStart(pipe.tracker, configs[k].drone.model, period))
         own.extend(sinks[k] if sinks is not None else ())
         logs.append(log)
         stages.append((pipe, own))
@@ -176,8 +177,8 @@ class CleanViewStart:
     baselines: every point lies within the drone's diagonal (plus a frame's motion) of
     its true position."""
 
-    def __init__(self, pipeline: Pipeline, drone: str, period: float) -> None:
-        self.pipeline = pipeline
+    def __init__(self, tracker: PositionStart, drone: str, period: float) -> None:
+        self.tracker = tracker
         self.s_diag = target_spec(drone).s_diag
         self.period = period
         self.waiting = True
@@ -187,7 +188,7 @@ class CleanViewStart:
             return
         velocity = getattr(sample.truth, "target_velocity", np.zeros(3))
         if _clean_view(result.foreground, sample.truth.target_position, velocity, self):
-            self.pipeline.tracker.initialize(result.foreground.mean(axis=0))  # type: ignore[attr-defined]
+            self.tracker.initialize(result.foreground.mean(axis=0))
             self.waiting = False
 
 

@@ -9,23 +9,71 @@ A file is recognised by its first bytes:
 - a PCD header (``VERSION`` or ``FIELDS`` after any ``#`` comments): PCD.
 
 A folder: a rosbag2 folder (``metadata.yaml``), split ROS 1 bags (``*.bag``), seed
-003's CSV logs (``filtered_points.csv``) or ``.pcd`` files.  The readers are
-``io.bag``, ``io.pcd_folder``, ``io.las`` and ``io.field_logs``, each imported only
+003's CSV logs (``filtered_points.csv``) or ``.pcd`` files.  ``READERS`` maps each
+kind to its reader (``sources.bag`` for ROS 1, MCAP and ``.db3`` bags,
+``sources.pcd_folder``, ``sources.las``, ``sources.field_logs``), each imported only
 when its kind of recording is opened.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Literal
 
 from dronetrack.errors import RecordingError
 from dronetrack.formats.magic import EXPECTED, check_mcap_end, sniff_file
 from dronetrack.sources.recording import Recording, RecordingInfo, ReplayOptions
 
-__all__ = ["open_recording", "recording_info", "recording_kind"]
+__all__ = ["READERS", "RecordingKind", "open_recording", "recording_info", "recording_kind"]
+
+RecordingKind = Literal["bag", "pcd", "las", "field-logs"]
+Reader = Callable[[Path, ReplayOptions], Recording]
 
 
-def recording_kind(path: Path) -> str:
+def _bag(path: Path, options: ReplayOptions) -> Recording:
+    from dronetrack.sources.bag import BagRecording
+
+    return BagRecording(path, options)
+
+
+def _pcd(path: Path, options: ReplayOptions) -> Recording:
+    from dronetrack.sources.pcd_folder import PcdRecording
+
+    return PcdRecording(path, options)
+
+
+def _las(path: Path, options: ReplayOptions) -> Recording:
+    from dronetrack.sources.las import LasRecording
+
+    return LasRecording(path, options)
+
+
+def _field_logs(path: Path, options: ReplayOptions) -> Recording:
+    from dronetrack.sources.field_logs import FieldLogRecording
+
+    return FieldLogRecording(path, options)
+
+
+READERS: dict[RecordingKind, Reader] = {
+    "bag": _bag,  # a ROS 1 bag (or split bags), MCAP, a .db3 file or a rosbag2 folder
+    "pcd": _pcd,  # a .pcd file or a folder of them
+    "las": _las,  # a .las or .laz file
+    "field-logs": _field_logs,  # seed 003's CSV logs
+}
+
+
+# formats.magic.sniff_file's answer for a single file → the kind of recording
+_FILE_KINDS: dict[str, RecordingKind] = {
+    "ros1": "bag",
+    "mcap": "bag",
+    "sqlite3": "bag",
+    "pcd": "pcd",
+    "las": "las",
+}
+
+
+def recording_kind(path: Path) -> RecordingKind:
     """ "bag", "pcd", "las" or "field-logs"; RecordingError when it is none of them."""
     if not path.exists():
         raise RecordingError(f"no such recording: {path}")
@@ -42,11 +90,9 @@ def recording_kind(path: Path) -> str:
         )
     if path.stat().st_size == 0:
         raise RecordingError(f"{path} is empty; expected {EXPECTED}")
-    kind = sniff_file(path)
-    if kind in ("ros1", "mcap", "sqlite3"):
-        return "bag"
-    if kind is not None:
-        return kind
+    sniffed = sniff_file(path)
+    if sniffed in _FILE_KINDS:
+        return _FILE_KINDS[sniffed]
     with path.open("rb") as fh:
         start = fh.read(12)
     raise RecordingError(
@@ -73,20 +119,4 @@ def recording_info(path: Path) -> RecordingInfo:
 
 def open_recording(path: Path, options: ReplayOptions | None = None) -> Recording:
     """The reader for ``path``."""
-    options = options or ReplayOptions()
-    kind = recording_kind(path)
-    if kind == "bag":
-        from dronetrack.sources.bag import BagRecording
-
-        return BagRecording(path, options)
-    if kind == "pcd":
-        from dronetrack.sources.pcd_folder import PcdRecording
-
-        return PcdRecording(path, options)
-    if kind == "las":
-        from dronetrack.sources.las import LasRecording
-
-        return LasRecording(path, options)
-    from dronetrack.sources.field_logs import FieldLogRecording
-
-    return FieldLogRecording(path, options)
+    return READERS[recording_kind(path)](path, options or ReplayOptions())

@@ -1,26 +1,18 @@
 """Kalman-family trackers fed by detected clusters (maths in ``track.kalman``).
 
-CandidateDetector turns a frame's foreground points into candidate clusters; the
-filters measure their centroids.  CentroidEKF ("ekf-cv"): seed 003;
-ConstantAccelerationKF ("kf-ca"), AdaptiveEKF ("aekf-ca"): seed 002.  The shared
-contract (home point, ``initialize``, the estimate) is ``track.kalman_base``'s.
+The injected detector (``detect.candidates.CandidateDetector``) turns a frame's
+foreground points into ``Detections``; the filters measure their centroids.
+CentroidEKF ("ekf-cv"): seed 003; ConstantAccelerationKF ("kf-ca"), AdaptiveEKF
+("aekf-ca"): seed 002.  The shared contract (home point, ``initialize``, the
+estimate) is ``track.kalman_base``'s.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dronetrack.detect.clusters import (
-    Cluster,
-    cluster_features,
-    cylinder_mask,
-    dbscan,
-    voxel_centroids,
-)
+from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR, CandidateDetector
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.kalman import (
@@ -36,62 +28,7 @@ from dronetrack.track.kalman import (
 )
 from dronetrack.track.kalman_base import _KalmanTracker, _positive
 
-__all__ = [
-    "SEED002_DETECTOR",
-    "SEED003_DETECTOR",
-    "AdaptiveEKF",
-    "CandidateDetector",
-    "CentroidEKF",
-    "ConstantAccelerationKF",
-]
-
-
-@dataclass(frozen=True, slots=True)
-class CandidateDetector:
-    """Seed 002's Algorithm 1 plus a size check: voxel-grid centroids (skipped when
-    ``voxel_size`` = 0), the cylindrical ROI √((x − cₓ)² + (y − c_y)²) < ``roi_radius``,
-    ``z_min`` < z < ``z_max``, DBSCAN, then the clusters whose largest principal
-    extent is at most ``max_extent`` [m].  Defaults: 0.1 m voxels (seed 002 §4.1;
-    Algorithm 1 says 0.05), no ROI (the pipeline's crop box already bounds the
-    foreground), ε = 0.5 m with 3 points (Algorithm 1), a 2 m drone-size limit."""
-
-    voxel_size: float = 0.1
-    roi_center_xy: tuple[float, float] = (0.0, 0.0)
-    roi_radius: float = math.inf
-    z_min: float = -math.inf
-    z_max: float = math.inf
-    eps: float = 0.5
-    min_points: int = 3
-    max_extent: float = 2.0
-
-    def __post_init__(self) -> None:
-        _positive(
-            roi_radius=self.roi_radius,
-            eps=self.eps,
-            min_points=self.min_points,
-            max_extent=self.max_extent,
-        )
-        if self.voxel_size < 0.0 or not self.z_min < self.z_max:
-            raise ConfigError(
-                f"need voxel_size ≥ 0 and z_min < z_max, got {self.voxel_size}, "
-                f"{self.z_min}, {self.z_max}"
-            )
-
-    def __call__(self, points: FloatArray) -> list[Cluster]:
-        pts = voxel_centroids(points, self.voxel_size) if self.voxel_size > 0 else points
-        pts = pts[cylinder_mask(pts, self.roi_center_xy, self.roi_radius, self.z_min, self.z_max)]
-        clusters = cluster_features(pts, dbscan(pts, self.eps, self.min_points))
-        return [c for c in clusters if c.extent[0] <= self.max_extent]
-
-
-SEED002_DETECTOR = CandidateDetector()
-# Seed 003 gives no clustering parameters: ε = 0.5 m as seed 002, and single points
-# count, as its controller reacts to a single return; no voxels, ROI or size limit.
-SEED003_DETECTOR = CandidateDetector(voxel_size=0.0, min_points=1, max_extent=math.inf)
-
-
-def _largest(clusters: list[Cluster]) -> FloatArray:
-    return max(clusters, key=lambda c: c.n).centroid
+__all__ = ["AdaptiveEKF", "CentroidEKF", "ConstantAccelerationKF"]
 
 
 class _TimedKalman(_KalmanTracker):
@@ -179,12 +116,12 @@ class CentroidEKF(_TimedKalman):
         if self.initialised:
             for _ in range(steps):
                 self.x, self.P = kf_predict(self.x, self.P, self.F, self.Q)
-        if found and not self.tracked:
-            self._z = _largest(found)
+        if len(found) and not self.tracked:
+            self._z = found.centroids[found.largest()]
             self._start(self._z)
-        elif found:
-            distance = [float(np.sum((c.centroid - self.x[0:3]) ** 2)) for c in found]
-            self._z = found[int(np.argmin(distance))].centroid
+        elif len(found):
+            distance = [float(np.sum((c - self.x[0:3]) ** 2)) for c in found.centroids]
+            self._z = found.centroids[int(np.argmin(distance))]
             u = kf_update(self.x, self.P, self._z, self.H, self.R)
             self.x, self.P = u.x, u.P
         self._check_lost(t)
@@ -253,16 +190,16 @@ class ConstantAccelerationKF(_TimedKalman):
         if self.initialised and not (self.lost and self.reinitialises):
             for _ in range(steps):
                 self.x, self.P = kf_predict(self.x, self.P, self.F, self.Q)
-        if found and (not self.initialised or (self.lost and self.reinitialises)):
-            self._z = _largest(found)
+        if len(found) and (not self.initialised or (self.lost and self.reinitialises)):
+            self._z = found.centroids[found.largest()]
             self._start(self._z)
-        elif found:
+        elif len(found):
             # eq. (9): D_M = dᵀ S⁻¹ d, S = H P⁻ Hᵀ + R; the nearest is accepted if D_M < τ
             S = symmetrise(self.H @ self.P @ self.H.T) + self.R
-            self.distances = [mahalanobis_sq(c.centroid - self.x[0:3], S) for c in found]
+            self.distances = [mahalanobis_sq(c - self.x[0:3], S) for c in found.centroids]
             best = int(np.argmin(self.distances))
             if self.distances[best] < self.gate:
-                self._z = found[best].centroid
+                self._z = found.centroids[best]
                 u = kf_update(self.x, self.P, self._z, self.H, self.R)
                 if self.adaptive:
                     self.Q = adapt_process_noise(self.Q, u.K, u.d, self.alpha)

@@ -9,7 +9,7 @@ position and velocity covariance, and the ``measurement`` z that set the positio
 this frame (an update or a (re-)initialisation), None if none did.
 
 The filters: ``track.sphere_kalman`` (DogruEKF, CatalanoEKF) and ``track.cluster_kalman``
-(CandidateDetector, CentroidEKF, ConstantAccelerationKF, AdaptiveEKF).
+(CentroidEKF, ConstantAccelerationKF, AdaptiveEKF, on ``detect.candidates``' detections).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from dronetrack.errors import ConfigError, InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.kalman import position_selector
-from dronetrack.track.tracker import TrackEstimate
+from dronetrack.types import TrackEstimate
 
 
 def _vector3(value: ArrayLike, name: str) -> FloatArray:

@@ -1,4 +1,4 @@
-"""Seed 000's particle filter (Gazdag et al., §II-C), as pure functions and a thin class.
+"""Seed 000's particle filter (Gazdag et al., §II-C), as pure functions and thin classes.
 
 State of particle i: s = [x, y, z, v_x, v_y, v_z, a_x, a_y, a_z] (an (N, 9) array).
 Predict, every period T, with p ~ N(0, σ²) drawn per axis (eqs. 1-7):
@@ -36,11 +36,13 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.nearest import nearest_distances
 from dronetrack.track.resample import RESAMPLERS
+from dronetrack.types import TrackEstimate
 
 __all__ = [
     "MotionModel",
     "NoiseParameters",
     "ParticleFilter",
+    "ParticleTracker",
     "cylinder_particles",
     "eq11_parameters",
     "gate_margin",
@@ -317,3 +319,61 @@ class ParticleFilter:
         """Population variance of the particle positions and velocities (6,)."""
         out: FloatArray = _column_variances(self.X, 6)
         return out
+
+
+class ParticleTracker:
+    """Seed 000's particle filter behind the ``track.base.Tracker`` protocol: predict
+    every period, update when points arrive."""
+
+    def __init__(
+        self,
+        n: int,
+        model: MotionModel,
+        noise: NoiseParameters,
+        rng: np.random.Generator,
+        cylinder_center: FloatArray,
+        cylinder_radius: float,
+        cylinder_height: float,
+        resampling: str = "multinomial",
+        weight_floor: float = 1e-4,
+    ) -> None:
+        self.filter = ParticleFilter(n, model, noise, rng, resampling, weight_floor)
+        self._cylinder = (
+            np.asarray(cylinder_center, dtype=np.float64),
+            cylinder_radius,
+            cylinder_height,
+        )
+        self.reset()
+
+    @property
+    def period(self) -> float:
+        return self.filter.noise.period
+
+    def reset(
+        self,
+        center: FloatArray | None = None,
+        radius: float | None = None,
+        height: float | None = None,
+    ) -> None:
+        """Scatter the particles in the start cylinder, or in a new one."""
+        c, r, h = self._cylinder
+        if center is not None:
+            c = np.asarray(center, dtype=np.float64)
+        self._cylinder = (c, r if radius is None else radius, h if height is None else height)
+        self.filter.reset(*self._cylinder)
+
+    def step(self, t: float, points: FloatArray, steps: int) -> TrackEstimate:
+        for _ in range(steps):
+            self.filter.predict()
+        if steps > 0:
+            self.filter.update(points)
+        position, velocity = self.filter.estimate()
+        return TrackEstimate(
+            t,
+            position,
+            velocity,
+            self.filter.tracked,
+            self.filter.sigma_particles,
+            self.filter.X[:, 0:3],
+            self.filter.variance(),
+        )

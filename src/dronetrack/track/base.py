@@ -1,0 +1,38 @@
+"""The tracker interface the pipeline drives; the trackers themselves are in
+``track.particle``, ``track.sphere_kalman`` and ``track.cluster_kalman``."""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import TrackEstimate
+
+__all__ = ["PositionStart", "Tracker"]
+
+
+class Tracker(Protocol):
+    """Anything the pipeline can feed with foreground points."""
+
+    @property
+    def period(self) -> float:
+        """The filter period T [s]."""
+        ...
+
+    def step(self, t: float, points: FloatArray, steps: int) -> TrackEstimate:
+        """Predict ``steps`` periods (0 for a repeated frame), update with ``points`` (M, 3)."""
+        ...
+
+    def reset(self) -> None:
+        """Start again from the initial belief."""
+        ...
+
+
+@runtime_checkable
+class PositionStart(Protocol):
+    """A tracker that can be started on a known position (the Kalman filters), as seed 000
+    started its EKF baselines on the drone's first clean view."""
+
+    def initialize(self, position: FloatArray) -> None:
+        """Start the track at ``position`` (3,) [m], at rest, with the initial covariance."""
+        ...
