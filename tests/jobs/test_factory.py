@@ -120,7 +120,8 @@ def test_each_mode_builds_its_controller(mode: str) -> None:
     pipe = _pipeline(PipelineConfig(controller=ControllerConfig(mode=mode)))  # type: ignore[arg-type]
     kind = ScanStrategyController if mode in STRATEGIES else TurretController
     assert type(pipe.controller) is kind
-    assert pipe.controller.mode == mode
+    # ``truth``: the simulator's truth aimer steers while tracking, the controller stays out
+    assert pipe.controller.mode == ("external" if mode == "truth" else mode)
 
 
 @pytest.mark.parametrize(

@@ -20,8 +20,8 @@ def _log_run(folder: Path, clouds: list[np.ndarray]) -> None:
     """Write logs with the real logger; frame k ends at 0.1 · (k + 1) s."""
     logger = StrategyLogger(folder)
     for k, cloud in enumerate(clouds):
-        result = SimpleNamespace(t=PERIOD * (k + 1), foreground=cloud, estimate=None)
-        logger.frame(None, None, result)  # type: ignore[arg-type]
+        result = SimpleNamespace(t=PERIOD * (k + 1), foreground=cloud, estimate=None, phase="track")
+        logger.write(None, result)  # type: ignore[arg-type]
     logger.close(SimpleNamespace(transitions=[(0.05, "scan", "track", "raster")]))
 
 
