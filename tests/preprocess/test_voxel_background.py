@@ -1,8 +1,6 @@
-"""Voxel keys, the key set, the background model and its file."""
+"""Voxel keys, the key set and the background model."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +9,6 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import InputError
-from dronetrack.formats.background import load_background, save_background
 from dronetrack.preprocess import voxel
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.voxel import KeySet, coarsen_keys, dilate_keys, unique_keys, voxel_keys
@@ -91,24 +88,6 @@ def test_lookup_depth_coarsens_like_an_octree() -> None:
     )
 
 
-def test_background_file_round_trip(tmp_path: Path) -> None:
-    bg = VoxelBackground(resolution=0.5, inflate=1, lookup_depth=1)
-    bg.insert(_wall())
-    bg.build()
-    path = tmp_path / "site.npz"
-    save_background(bg, path)
-    again = load_background(path)
-    assert (again.resolution, again.inflate, again.lookup_depth) == (0.5, 1, 1)
-    probe = np.random.default_rng(1).uniform([15, -12, -1], [25, 12, 10], (2000, 3))
-    np.testing.assert_array_equal(again.is_background(probe), bg.is_background(probe))
-
-
-def test_bad_background_files(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match="not found"):
-        load_background(tmp_path / "none.npz")
-    junk = tmp_path / "junk.npz"
-    junk.write_bytes(b"not a zip")
-    with pytest.raises(InputError, match=r"not a background model \(not an \.npz archive\)"):
-        load_background(junk)
+def test_an_unbuilt_model_refuses_lookups() -> None:
     with pytest.raises(InputError, match="not been built"):
         VoxelBackground(1.0).is_background(np.zeros((1, 3)))

@@ -240,3 +240,23 @@ def test_centroid_within() -> None:
     np.testing.assert_allclose(c, [0.5, 0.5, 0.0])
     assert centroid_within(pts, np.array([10.0, 0, 0]), 1.0) == (None, 0)
     assert centroid_within(np.zeros((0, 3)), np.zeros(3), 1.0) == (None, 0)
+
+
+@given(seeds, st.integers(2, 9), st.integers(1, 3), st.floats(1e-12, 1e-3))
+def test_joseph_update_stays_symmetric_and_positive_semidefinite(
+    seed: int, n: int, m: int, r: float
+) -> None:
+    """An ill-conditioned prior (eigenvalues from 10⁻⁶ to 10⁶) and a nearly exact
+    measurement: P⁺ keeps P⁺ = P⁺ᵀ and no eigenvalue below −10⁻¹² of the largest."""
+    g = np.random.default_rng(seed)
+    m = min(m, n)
+    Q, _ = np.linalg.qr(g.normal(size=(n, n)))
+    P = (Q * np.logspace(-6, 6, n)) @ Q.T
+    P = 0.5 * (P + P.T)
+    H, R = g.normal(size=(m, n)), r * np.eye(m)
+    u = kf_update(g.normal(size=n), P, g.normal(size=m), H, R)
+    np.testing.assert_array_equal(u.P, u.P.T)
+    eig = np.linalg.eigvalsh(u.P)
+    assert eig.min() >= -1e-12 * eig.max()
+    # The measured directions shrink to about R: H P⁺ Hᵀ ≤ R + (rounding).
+    assert np.all(np.diag(H @ u.P @ H.T) <= r * (1.0 + 1e-3) + 1e-9 * eig.max())

@@ -111,6 +111,25 @@ def test_no_gate_without_a_floor() -> None:
     assert w[0] > 0.99
 
 
+@given(st.floats(0.01, 1.0), st.floats(40.0, 1e4), st.floats(0.0, 0.5))
+def test_far_weights_without_a_floor_keep_their_ratios(
+    sigma: float, k: float, delta: float
+) -> None:
+    """Beyond ~38 σ every Gaussian density underflows to 0; the log-weights still give
+    w_0 / w_1 = exp(((d + δσ)² − d²) / (2σ²)) = exp(k δ + δ²/2) for d = k σ."""
+    d = np.array([k * sigma, (k + delta) * sigma])
+    assert np.all(np.exp(-0.5 * (d / sigma) ** 2) == 0.0)  # the linear form underflows
+    w = likelihood_weights(d, sigma, 0.0)
+    assert w.sum() == pytest.approx(1.0)
+    # log of the known ratio; as k δ grows w_1 itself underflows, so compare in logs
+    # only while w_1 is a normal number.
+    log_ratio = k * delta + 0.5 * delta**2
+    if log_ratio < 700.0:
+        assert np.log(w[0]) - np.log(w[1]) == pytest.approx(log_ratio, rel=1e-6, abs=1e-6)
+    else:
+        assert w[0] == pytest.approx(1.0)
+
+
 @settings(max_examples=20)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 1500))  # both sides of the switch
 def test_nearest_distances_match_a_kd_tree(seed: int, m: int) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -46,29 +45,60 @@ FRAME_COLUMNS = (
 EXTRA_COLUMNS = ("pos_var", "vel_var", "measured", "meas_error_m")
 
 
-@dataclass(slots=True)
-class TrackLog:
-    """One row per tracking frame.  Ground truth may be NaN (recordings without it)."""
+# One row of the log; ``append`` writes one per frame into a block that doubles as
+# it fills, so a run of n frames costs O(n) copies in all.
+_ROW = np.dtype(
+    [
+        ("t", np.float64),
+        ("gt", np.float64, (3,)),
+        ("est", np.float64, (3,)),
+        ("tracked", np.bool_),
+        ("sigma", np.float64),
+        ("n_points", np.int64),
+        ("n_target_points", np.int64),  # -1: unknown
+        ("range_m", np.float64),
+        ("pan", np.float64),
+        ("tilt", np.float64),
+        ("step_ms", np.float64),
+        ("flags", object),  # the frame's flags joined by ';'
+        ("pos_var", np.float64),  # P(x, x) of a Kalman filter [m²]
+        ("vel_var", np.float64),  # P(vx, vx) [(m/s)²]
+        ("measured", np.bool_),  # the filter used a measurement
+        # Distance [m] from the true position to the measurement the frame's update
+        # used: a Kalman filter's z, or the foreground point nearest the truth for a
+        # particle filter (which weighs every point); NaN without an update or truth.
+        ("meas_error", np.float64),
+    ]
+)
+_INITIAL_ROWS = 128
 
-    t: list[float] = field(default_factory=list)
-    gt: list[FloatArray] = field(default_factory=list)
-    est: list[FloatArray] = field(default_factory=list)
-    tracked: list[bool] = field(default_factory=list)
-    sigma: list[float] = field(default_factory=list)
-    n_points: list[int] = field(default_factory=list)
-    n_target_points: list[int] = field(default_factory=list)  # -1: unknown
-    range_m: list[float] = field(default_factory=list)
-    pan: list[float] = field(default_factory=list)
-    tilt: list[float] = field(default_factory=list)
-    step_ms: list[float] = field(default_factory=list)
-    flags: list[str] = field(default_factory=list)
-    pos_var: list[float] = field(default_factory=list)  # P(x, x) of a Kalman filter [m²]
-    vel_var: list[float] = field(default_factory=list)  # P(vx, vx) [(m/s)²]
-    measured: list[bool] = field(default_factory=list)  # the filter used a measurement
-    # Distance [m] from the true position to the measurement the frame's update used:
-    # a Kalman filter's z, or the foreground point nearest the truth for a particle
-    # filter (which weighs every point); NaN without an update or without truth.
-    meas_error: list[float] = field(default_factory=list)
+
+class _Column:
+    """A field of ``TrackLog``: a read-only view of the rows appended so far."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, log: TrackLog, owner: type | None = None) -> NDArray[Any]:
+        view = log._rows[self.name][: log._n]
+        view.flags.writeable = False
+        return view
+
+
+class TrackLog:
+    """One row per tracking frame, held as arrays.  Ground truth may be NaN.
+
+    Each field (``t``, ``gt`` (n, 3), ``est`` (n, 3), ``tracked``, ``sigma``,
+    ``n_points``, ``n_target_points``, ``range_m``, ``pan``, ``tilt``, ``step_ms``,
+    ``flags``, ``pos_var``, ``vel_var``, ``measured``, ``meas_error``) reads as a
+    read-only view of the rows appended so far.
+    """
+
+    __slots__ = ("_n", "_rows")
+
+    def __init__(self) -> None:
+        self._rows = np.zeros(_INITIAL_ROWS, dtype=_ROW)
+        self._n = 0
 
     def append(
         self,
@@ -90,52 +120,80 @@ class TrackLog:
         measured: bool = False,
         meas_error: float = float("nan"),
     ) -> None:
-        self.t.append(t)
-        self.gt.append(np.asarray(gt, dtype=np.float64))
-        self.est.append(np.asarray(est, dtype=np.float64))
-        self.tracked.append(bool(tracked))
-        self.sigma.append(float(sigma))
-        self.n_points.append(int(n_points))
-        self.n_target_points.append(int(n_target_points))
-        self.range_m.append(float(range_m))
-        self.pan.append(float(pan))
-        self.tilt.append(float(tilt))
-        self.step_ms.append(float(step_ms))
-        self.flags.append(";".join(flags))
-        self.pos_var.append(float(pos_var))
-        self.vel_var.append(float(vel_var))
-        self.measured.append(bool(measured))
-        self.meas_error.append(float(meas_error))
+        if self._n == len(self._rows):
+            grown = np.zeros(2 * len(self._rows), dtype=_ROW)
+            grown[: self._n] = self._rows
+            self._rows = grown
+        row = self._rows[self._n]
+        row["t"] = t
+        row["gt"] = np.asarray(gt, dtype=np.float64).reshape(3)
+        row["est"] = np.asarray(est, dtype=np.float64).reshape(3)
+        row["tracked"] = bool(tracked)
+        row["sigma"] = sigma
+        row["n_points"] = int(n_points)
+        row["n_target_points"] = int(n_target_points)
+        row["range_m"] = range_m
+        row["pan"] = pan
+        row["tilt"] = tilt
+        row["step_ms"] = step_ms
+        row["flags"] = ";".join(flags)
+        row["pos_var"] = pos_var
+        row["vel_var"] = vel_var
+        row["measured"] = bool(measured)
+        row["meas_error"] = meas_error
+        self._n += 1
 
     def __len__(self) -> int:
-        return len(self.t)
+        return self._n
+
+    def row(self, i: int) -> np.void:
+        """Row ``i`` (negative counts from the end) as a record with the fields above."""
+        if not -self._n <= i < self._n:
+            raise IndexError(f"row {i} of a log of {self._n}")
+        record: np.void = self._rows[i % self._n].copy()
+        return record
+
+    t = _Column()
+    gt = _Column()
+    est = _Column()
+    tracked = _Column()
+    sigma = _Column()
+    n_points = _Column()
+    n_target_points = _Column()
+    range_m = _Column()
+    pan = _Column()
+    tilt = _Column()
+    step_ms = _Column()
+    flags = _Column()
+    pos_var = _Column()
+    vel_var = _Column()
+    measured = _Column()
+    meas_error = _Column()
 
     def arrays(self) -> dict[str, NDArray[Any]]:
-        """The log as arrays keyed by the frames.csv column names."""
-        n = len(self)
-        gt = np.array(self.gt).reshape(n, 3)
-        est = np.array(self.est).reshape(n, 3)
+        """The log as arrays keyed by the frames.csv column names (read-only views)."""
+        gt, est = self.gt, self.est
         return {
-            "t": np.array(self.t, dtype=np.float64),
+            "t": self.t,
             "gt_x": gt[:, 0],
             "gt_y": gt[:, 1],
             "gt_z": gt[:, 2],
             "est_x": est[:, 0],
             "est_y": est[:, 1],
             "est_z": est[:, 2],
-            "tracked": np.array(self.tracked, dtype=bool),
-            "sigma_particles": np.array(self.sigma, dtype=np.float64),
-            "n_points": np.array(self.n_points, dtype=np.int64),
-            "n_target_points": np.array(self.n_target_points, dtype=np.int64),
-            "range_m": np.array(self.range_m, dtype=np.float64),
-            "pan_rad": np.array(self.pan, dtype=np.float64),
-            "tilt_rad": np.array(self.tilt, dtype=np.float64),
-            "step_ms": np.array(self.step_ms, dtype=np.float64),
-            "pos_var": np.array(self.pos_var, dtype=np.float64),
-            "vel_var": np.array(self.vel_var, dtype=np.float64),
-            "measured": np.array(self.measured, dtype=bool),
-            "meas_error_m": np.array(self.meas_error, dtype=np.float64),
-            "flags": np.array(self.flags, dtype=object),
+            "tracked": self.tracked,
+            "sigma_particles": self.sigma,
+            "n_points": self.n_points,
+            "n_target_points": self.n_target_points,
+            "range_m": self.range_m,
+            "pan_rad": self.pan,
+            "tilt_rad": self.tilt,
+            "step_ms": self.step_ms,
+            "pos_var": self.pos_var,
+            "vel_var": self.vel_var,
+            "measured": self.measured,
+            "meas_error_m": self.meas_error,
+            "flags": self.flags,
         }
 
     def summary(self, radius: float = CORRECT_RADIUS_M, min_consecutive: int = 0) -> dict[str, Any]:
@@ -153,7 +211,7 @@ class TrackLog:
         tracked = a["tracked"]
         out["tracked_pct"] = 100.0 * float(tracked.mean()) if len(self) else 0.0
         out["first_lock_s"] = float(a["t"][np.argmax(tracked)]) if tracked.any() else None
-        out["bad_frames"] = _flag_counts(self.flags)
+        out["bad_frames"] = _flag_counts(a["flags"])
         gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
         if len(self) == 0 or not np.any(np.all(np.isfinite(gt), axis=1)):
             return out
@@ -201,7 +259,7 @@ class TrackLog:
         return out
 
 
-def _flag_counts(flags: list[str]) -> dict[str, int]:
+def _flag_counts(flags: NDArray[Any]) -> dict[str, int]:
     counts: dict[str, int] = {}
     for row in flags:
         for flag in filter(None, row.split(";")):

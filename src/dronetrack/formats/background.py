@@ -1,4 +1,5 @@
-"""Save and load a background model, so a site is scanned once."""
+"""A background model's file (``background.npz``): its lookup cells and settings,
+as numpy arrays, so a site is scanned once."""
 
 from __future__ import annotations
 
@@ -7,10 +8,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
-from dronetrack.preprocess.background import VoxelBackground
-from dronetrack.preprocess.voxel import IntArray
 
 __all__ = [
     "BackgroundSettings",
@@ -20,20 +20,7 @@ __all__ = [
 ]
 
 FORMAT = "dronetrack-background-1"
-
-
-def save_background(model: VoxelBackground, path: Path) -> None:
-    """Write a built model as a compressed ``.npz``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(
-        path,
-        format=np.array(FORMAT),
-        cells=model.cells.keys,
-        resolution=np.float64(model.resolution),
-        inflate=np.int64(model.inflate),
-        lookup_depth=np.int64(model.lookup_depth),
-        min_hits=np.int64(model.min_hits),
-    )
+IntArray = NDArray[np.int64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,6 +32,20 @@ class BackgroundSettings:
     inflate: int
     lookup_depth: int
     min_hits: int
+
+
+def save_background(path: Path, cells: IntArray, settings: BackgroundSettings) -> None:
+    """Write a built model's lookup-cell keys and settings as a compressed ``.npz``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        path,
+        format=np.array(FORMAT),
+        cells=np.asarray(cells, dtype=np.int64),
+        resolution=np.float64(settings.resolution),
+        inflate=np.int64(settings.inflate),
+        lookup_depth=np.int64(settings.lookup_depth),
+        min_hits=np.int64(settings.min_hits),
+    )
 
 
 _MEMBERS = ("format", "cells", "resolution", "inflate", "lookup_depth", "min_hits")
@@ -96,8 +97,8 @@ def read_background_settings(path: Path) -> BackgroundSettings:
     return _read(path, cells=False)[0]
 
 
-def load_background(path: Path) -> VoxelBackground:
-    """Read a model written by ``save_background``."""
-    s, keys = _read(path, cells=True)
+def load_background(path: Path) -> tuple[BackgroundSettings, IntArray]:
+    """The settings and lookup-cell keys of a model written by ``save_background``."""
+    settings, keys = _read(path, cells=True)
     assert keys is not None
-    return VoxelBackground.from_cells(keys, s.resolution, s.inflate, s.lookup_depth, s.min_hits)
+    return settings, keys

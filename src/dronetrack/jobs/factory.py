@@ -31,9 +31,9 @@ from dronetrack.control.strategies import Mode as StrategyMode
 from dronetrack.control.strategies import ScanStrategyController
 from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR, CandidateDetector
 from dronetrack.errors import ConfigError
-from dronetrack.formats.background import load_background
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.jobs.background import load_model
 from dronetrack.pipeline import OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
@@ -200,7 +200,7 @@ def build_pipeline(
     background: VoxelBackground | None = None
     if bg_cfg.enabled:
         if bg_cfg.file is not None:
-            background = load_background(Path(bg_cfg.file).expanduser())
+            background = load_model(Path(bg_cfg.file).expanduser())
         elif bg_cfg.scan_s > 0:
             background = VoxelBackground(
                 bg_cfg.resolution_m, bg_cfg.inflate_voxels, bg_cfg.lookup_depth, bg_cfg.min_hits

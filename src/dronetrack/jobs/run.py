@@ -131,7 +131,7 @@ class RunFolder:
 
     def finish(self, run: RunResult, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Write the rest of the run (see ``write_run``); return its metrics."""
-        from dronetrack.formats.background import save_background
+        from dronetrack.jobs.background import save_model
         from dronetrack.sinks.run_folder import write_metrics, write_plots
 
         self.log_sink(run.log)
@@ -140,7 +140,7 @@ class RunFolder:
         background = run.pipeline.background
         config = run.config
         if background is not None and background.ready and config.pipeline.background.file is None:
-            save_background(background, out_dir / "background.npz")
+            save_model(background, out_dir / "background.npz")
         (out_dir / "config.toml").write_text(dump_scenario(config))
         metrics = run.metrics() if extra is None else extra
         write_metrics(metrics, out_dir / "metrics.json")

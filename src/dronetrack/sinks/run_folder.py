@@ -45,31 +45,24 @@ FRAMES_CSV_COLUMNS = (*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS)
 
 def frame_row(log: TrackLog, i: int) -> list[str]:
     """Row ``i`` of ``log`` as frames.csv writes it, in FRAMES_CSV_COLUMNS order."""
-    gt, est = log.gt[i], log.est[i]
-    numbers = (
-        log.t[i],
-        gt[0],
-        gt[1],
-        gt[2],
-        est[0],
-        est[1],
-        est[2],
-    )
+    r = log.row(i)
+    gt, est = r["gt"], r["est"]
+    numbers = (r["t"], gt[0], gt[1], gt[2], est[0], est[1], est[2])
     return [
         *(_number(float(v)) for v in numbers),
-        str(int(log.tracked[i])),
-        _number(log.sigma[i]),
-        str(log.n_points[i]),
-        str(log.n_target_points[i]),
-        _number(log.range_m[i]),
-        _number(log.pan[i]),
-        _number(log.tilt[i]),
-        _number(log.step_ms[i]),
-        log.flags[i],
-        _number(log.pos_var[i]),
-        _number(log.vel_var[i]),
-        str(int(log.measured[i])),
-        _number(log.meas_error[i]),
+        str(int(r["tracked"])),
+        _number(float(r["sigma"])),
+        str(int(r["n_points"])),
+        str(int(r["n_target_points"])),
+        _number(float(r["range_m"])),
+        _number(float(r["pan"])),
+        _number(float(r["tilt"])),
+        _number(float(r["step_ms"])),
+        str(r["flags"]),
+        _number(float(r["pos_var"])),
+        _number(float(r["vel_var"])),
+        str(int(r["measured"])),
+        _number(float(r["meas_error"])),
     ]
 
 

@@ -146,9 +146,20 @@ def _predict_kernel(
 
 
 def likelihood_weights(distances: FloatArray, sigma_m: float, floor: float) -> FloatArray:
-    """w_i = N(d_i; 0, σ_m²) + floor, normalised to sum to one (eqs. 8-9)."""
+    """w_i = N(d_i; 0, σ_m²) + floor, normalised to sum to one (eqs. 8-9).
+
+    With a floor every w_i ≥ floor, so the sum cannot underflow and the weights are
+    formed directly.  Without one, N(d; 0, σ_m²) underflows to 0 beyond d ≈ 38 σ_m,
+    so the weights come from the log-likelihoods by log-sum-exp instead.
+    """
     d2 = distances**2 + DISTANCE_EPS2
-    w = np.exp(-0.5 * d2 / sigma_m**2) / (sigma_m * np.sqrt(2.0 * np.pi)) + floor
+    if floor > 0.0:
+        w = np.exp(-0.5 * d2 / sigma_m**2) / (sigma_m * np.sqrt(2.0 * np.pi)) + floor
+    else:
+        # ℓ_i = −d_i² / (2 σ_m²) (the normaliser cancels);
+        # w_i = exp(ℓ_i − max ℓ) / Σ_j exp(ℓ_j − max ℓ)
+        log_w = -0.5 * d2 / sigma_m**2
+        w = np.exp(log_w - log_w.max()) if len(log_w) else log_w
     total = float(w.sum())
     if not np.isfinite(total) or total <= 0.0:
         return np.full(len(w), 1.0 / len(w))
