@@ -8,7 +8,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dronetrack.config.pipeline import BackgroundConfig, PipelineConfig, TrackerConfig
+from dronetrack.config.pipeline import (
+    AcquisitionConfig,
+    BackgroundConfig,
+    PipelineConfig,
+    TrackerConfig,
+)
 from dronetrack.config.rig import make_turret
 from dronetrack.geometry.transforms import make_pose
 from dronetrack.jobs.factory import build_pipeline
@@ -187,3 +192,58 @@ def test_bad_time_and_bad_poses() -> None:
         assert result.estimate is not None
         assert np.all(np.isfinite(result.estimate.position))
     assert pipe.counts["bad_pose"] == 3
+
+
+def _pipeline_with(acquisition: bool) -> Pipeline:
+    cfg = PipelineConfig(
+        background=BackgroundConfig(enabled=False),
+        tracker=TrackerConfig(
+            particles=2000,
+            cylinder_center_m=(30.0, 0.0, 5.0),
+            cylinder_radius_m=5.0,
+            cylinder_height_m=5.0,
+        ),
+        acquisition=AcquisitionConfig(enabled=acquisition),
+    )
+    return build_pipeline(
+        cfg,
+        0.1,
+        TURRET.mount,
+        (TURRET.pan.lower, TURRET.pan.upper),
+        (TURRET.tilt.lower, TURRET.tilt.upper),
+        np.random.default_rng(0),
+    )
+
+
+def test_a_drone_far_from_the_start_cylinder_is_acquired_from_detections() -> None:
+    """A drone 90 m out and 40 m to the side, flying at 12 m/s, and one false return
+    per frame at random: the detect stage confirms the drone on its third frame (3 of
+    4), the particles are born there and the filter locks on the fourth or fifth;
+    without acquisition the cloud, 70 m away, never reaches it in 3 s."""
+    v = np.array([-12.0, 0.0, 0.0])
+
+    def run(acquisition: bool) -> list[tuple[bool, int, int]]:
+        g = np.random.default_rng(4)
+        pipe = _pipeline_with(acquisition)
+        out = []
+        for k in range(30):
+            at = np.array([90.0, 40.0, 20.0]) + v * (0.1 * k + 0.1)
+            false = g.uniform([5.0, -100.0, 2.0], [200.0, 100.0, 60.0], (1, 3))
+            r = pipe.step(_frame(0.1 * k, np.vstack([_drone(g, tuple(at)), false])))
+            assert r.estimate is not None
+            good = r.estimate.tracked and float(np.linalg.norm(r.estimate.position - at)) < 1.0
+            n = -1 if r.detections is None else len(r.detections)
+            c = -1 if r.candidates is None else len(r.candidates)
+            out.append((good, n, c))
+        return out
+
+    with_ = run(True)
+    assert [n for _, n, _ in with_] == [2] * 30  # the drone and the false return
+    assert [c for _, _, c in with_[:2]] == [0, 0]
+    assert all(c == 1 for _, _, c in with_[2:])  # only the drone persists
+    first = next(k for k, (good, _, _) in enumerate(with_) if good)
+    assert first <= 4
+    assert all(good for good, _, _ in with_[first:])
+    without = run(False)
+    assert not any(good for good, _, _ in without)
+    assert all(n == c == -1 for _, n, c in without)

@@ -6,9 +6,11 @@ Per frame:
    (and optionally to a convex hull, seed 003's filter node);
 3. while the background is being scanned: add the points to the background model
    and command the scanning raster; when the scan ends, build the model;
-4. otherwise subtract the background, optionally remove outliers, and step the
-   tracker: predict once per elapsed filter period (through gaps), update with
-   the remaining points;
+4. otherwise subtract the background, optionally remove outliers, detect: cluster
+   the foreground and keep the clusters as tentative tracks, confirmed when they
+   persist (``detect.tentative``); while the tracker is not locked, hand it the
+   confirmed candidates to start on; then step the tracker: predict once per
+   elapsed filter period (through gaps), update with the remaining points;
 5. command the turret.
 
 Commands are stamped at the frame's end plus the modelled sensor and processing
@@ -27,6 +29,8 @@ from typing import Protocol
 import numpy as np
 
 from dronetrack.control.controller import Controller
+from dronetrack.detect.candidates import CandidateDetector
+from dronetrack.detect.tentative import TentativeTracks
 from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.interrupt import stop_requested, stoppable
@@ -35,11 +39,19 @@ from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.seams import Actuator, Sink, Source
-from dronetrack.track.base import Tracker
+from dronetrack.track.base import CandidateStart, Tracker
 from dronetrack.track.clock import FilterClock
-from dronetrack.types import Frame, Phase, StepResult, TrackEstimate, TurretCommand
+from dronetrack.types import (
+    Candidates,
+    Detections,
+    Frame,
+    Phase,
+    StepResult,
+    TrackEstimate,
+    TurretCommand,
+)
 
-__all__ = ["OutlierSettings", "Pipeline", "RunStats", "Stage", "StepResult", "run"]
+__all__ = ["Acquisition", "OutlierSettings", "Pipeline", "RunStats", "Stage", "StepResult", "run"]
 
 log = logging.getLogger(__name__)
 
@@ -54,8 +66,24 @@ class OutlierSettings:
     std_mul: float = 1.0
 
 
+@dataclass(frozen=True, slots=True)
+class Acquisition:
+    """The detect stage of every tracking frame: clustering, then tentative tracks."""
+
+    detector: CandidateDetector
+    tracks: TentativeTracks
+
+    def step(self, t: float, points: FloatArray) -> tuple[Detections, Candidates]:
+        """The clusters of the foreground ``points`` at ``t`` and the confirmed candidates."""
+        found = self.detector(points)
+        return found, self.tracks.update(t, found)
+
+    def reset(self) -> None:
+        self.tracks.reset()
+
+
 class Pipeline:
-    """Preprocessing, tracking and turret control, one frame at a time."""
+    """Preprocessing, detection, tracking and turret control, one frame at a time."""
 
     def __init__(
         self,
@@ -68,6 +96,7 @@ class Pipeline:
         outliers: OutlierSettings = OutlierSettings(),
         latency_s: float = 0.0,
         hull: HullCrop | None = None,
+        acquisition: Acquisition | None = None,
     ) -> None:
         self.tracker = tracker
         self.controller = controller
@@ -80,6 +109,8 @@ class Pipeline:
         self.hull = hull
         self.counts: Counter[str] = Counter()
         self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
+        self.acquisition = acquisition
+        self._locked = False  # the tracker's lock after the last frame
 
     @property
     def scanning(self) -> bool:
@@ -106,20 +137,39 @@ class Pipeline:
             points = self._remove_outliers(fg.points)
             if "time_jump" in flags:
                 self.tracker.reset()
+                if self.acquisition is not None:
+                    self.acquisition.reset()
+                self._locked = False
+            found, confirmed = self._detect(frame.end, points, steps)
             estimate = self.tracker.step(frame.end, points, steps)
             if not np.all(np.isfinite(estimate.position)):
                 flags.append("nonfinite_estimate")
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
+            self._locked = estimate.tracked
             command = self.controller.tracking(t_cmd, estimate, points) if steps > 0 else None
             result = self._result(
                 frame, "track", estimate, fg, points, command, start, flags, steps
             )
+            if found is not None:
+                result = replace(result, detections=found, candidates=confirmed)
         for flag in flags:
             self.counts[flag] += 1
         if flags:
             log.debug("frame ending %.3f s: %s", frame.end, ", ".join(flags))
         return result
+
+    def _detect(
+        self, t: float, points: FloatArray, steps: int
+    ) -> tuple[Detections | None, Candidates | None]:
+        """Cluster the foreground and confirm candidates (a new period's frames only);
+        while the tracker is not locked, offer it the confirmed ones."""
+        if self.acquisition is None or steps == 0:
+            return None, None
+        found, confirmed = self.acquisition.step(t, points)
+        if not self._locked and len(confirmed) and isinstance(self.tracker, CandidateStart):
+            self.tracker.acquire(confirmed)
+        return found, confirmed
 
     def _foreground(self, frame: Frame, flags: list[str]) -> Foreground:
         if len(frame) == 0:

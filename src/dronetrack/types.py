@@ -17,6 +17,7 @@ from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray, interpolate_poses, transform_at_times
 
 __all__ = [
+    "Candidates",
     "Detections",
     "Frame",
     "Phase",
@@ -143,6 +144,46 @@ class Detections:
 
 
 @dataclass(frozen=True, slots=True)
+class Candidates:
+    """The detect stage's confirmed candidates at the end of a frame, K of them:
+    tentative tracks of clusters that persisted over several frames with a plausible
+    speed (``detect.tentative``), best first.
+
+    positions: (K, 3) the latest centroid of each, world frame [m].
+    velocities: (K, 3) its velocity estimated from the centroids' motion [m/s].
+    hits: (K,) frames of the confirmation window in which it was detected.
+    sizes: (K,) its largest principal extent in the latest frame [m].
+    ids: (K,) a number that stays with a tentative track for its life.
+    """
+
+    positions: FloatArray
+    velocities: FloatArray
+    hits: NDArray[np.int64]
+    sizes: FloatArray
+    ids: NDArray[np.int64]
+
+    def __post_init__(self) -> None:
+        k = len(self.positions)
+        for name, shape, dtype in (
+            ("positions", (k, 3), np.float64),
+            ("velocities", (k, 3), np.float64),
+            ("hits", (k,), np.int64),
+            ("sizes", (k,), np.float64),
+            ("ids", (k,), np.int64),
+        ):
+            object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
+
+    @classmethod
+    def empty(cls) -> Candidates:
+        """No confirmed candidates."""
+        ints = np.empty(0, dtype=np.int64)
+        return cls(np.empty((0, 3)), np.empty((0, 3)), ints, np.empty(0), ints)
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+
+@dataclass(frozen=True, slots=True)
 class TrackEstimate:
     """A tracker's belief after a frame."""
 
@@ -225,3 +266,7 @@ class StepResult:
     periods: int = 0  # filter periods this frame advanced (0: repeated or older)
     # (N, 3) every point of the frame in the world frame; empty if it could not be placed
     world: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
+    # The detect stage's clusters in the foreground, and the confirmed candidates
+    # among its tentative tracks (None when acquisition is off, and while scanning)
+    detections: Detections | None = None
+    candidates: Candidates | None = None

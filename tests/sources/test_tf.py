@@ -8,7 +8,7 @@ import pytest
 from dronetrack.errors import RecordingError
 from dronetrack.geometry.mount import MountGeometry, sensor_poses, turret_links
 from dronetrack.geometry.transforms import make_pose, matrix_to_quaternion, rot_y, rot_z
-from dronetrack.sources.tf import TransformBuffer, transform_matrix
+from dronetrack.sources.tf import TransformBuffer, transform_matrix, valid_transform
 
 
 def _turret_buffer(
@@ -81,3 +81,26 @@ def test_bad_trees_raise_recording_errors() -> None:
     tf2.add("odom", "lidar", 0.0, np.eye(4), static=True)
     assert tf2.conflicts == 1
     assert tf2.chain("lidar") == ["world", "lidar"]
+
+
+@pytest.mark.parametrize(
+    ("t", "translation", "quaternion", "ok"),
+    [
+        (0.0, (1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0), True),
+        (0.0, (1.0, 2.0, 3.0), (0.0, 0.0, 0.6, 0.6), True),  # |q| = 0.85: normalised on use
+        (0.0, (1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1e200), False),  # |q|² would overflow
+        (0.0, (1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 0.0), False),
+        (0.0, (1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 3.0), False),
+        (0.0, (1.0, float("nan"), 3.0), (0.0, 0.0, 0.0, 1.0), False),
+        (float("inf"), (1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0), False),
+        (0.0, (1.0, 2.0, 3.0), (0.0, 0.0, float("inf"), 1.0), False),
+    ],
+)
+def test_damaged_transforms_are_counted_and_left_out(
+    t: float, translation: tuple[float, ...], quaternion: tuple[float, ...], ok: bool
+) -> None:
+    assert valid_transform(t, translation, quaternion) is ok
+    tf = TransformBuffer()
+    tf.add_transform("world", "sensor", t, translation, quaternion)
+    assert tf.invalid == (0 if ok else 1)
+    assert ("sensor" in tf) is ok

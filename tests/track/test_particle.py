@@ -13,6 +13,7 @@ from scipy.stats import chisquare
 from dronetrack.errors import ConfigError
 from dronetrack.track.nearest import nearest_distances
 from dronetrack.track.particle import (
+    MotionModel,
     NoiseParameters,
     ParticleFilter,
     ParticleTracker,
@@ -24,6 +25,7 @@ from dronetrack.track.particle import (
     spread,
 )
 from dronetrack.track.resample import multinomial, systematic
+from dronetrack.types import Candidates
 
 
 def test_eq11_gives_the_papers_parameters() -> None:
@@ -193,10 +195,10 @@ def test_systematic_counts_are_within_one_of_n_w() -> None:
     assert np.all(np.abs(counts - 500 * w) < 1.0 + 1e-9)
 
 
-def _filter(model: str = "delta", n: int = 5000, seed: int = 0) -> ParticleFilter:
+def _filter(model: MotionModel = "delta", n: int = 5000, seed: int = 0) -> ParticleFilter:
     pf = ParticleFilter(
         n, model, eq11_parameters(15.0, 15.0, 0.4, 0.1), np.random.default_rng(seed)
-    )  # type: ignore[arg-type]
+    )
     pf.reset(np.array([25.0, 0.0, 1.0]), 20.0, 20.0)
     return pf
 
@@ -206,7 +208,7 @@ def _drone_points(center: np.ndarray, g: np.random.Generator, n: int = 5) -> np.
 
 
 @pytest.mark.parametrize("model", ["delta", "cv", "ca"])
-def test_the_filter_locks_on_and_follows(model: str) -> None:
+def test_the_filter_locks_on_and_follows(model: MotionModel) -> None:
     g = np.random.default_rng(2)
     pf = _filter(model)
     assert not pf.tracked
@@ -294,3 +296,68 @@ def test_the_tracker_can_be_reset_to_a_new_cylinder() -> None:
     assert 5.0 <= after.position[2] <= 6.0
     assert after.particles is not None
     assert np.all(np.hypot(after.particles[:, 0] + 40.0, after.particles[:, 1] - 10.0) < 2.0 + 2.0)
+
+
+def _candidate(position: np.ndarray, velocity: np.ndarray) -> Candidates:
+    return Candidates(
+        position[None, :], velocity[None, :], np.array([3]), np.array([0.4]), np.array([7])
+    )
+
+
+@pytest.mark.parametrize("model", ["delta", "cv", "ca"])
+def test_births_on_a_confirmed_candidate_lock_in_two_updates(model: MotionModel) -> None:
+    """A drone 60 m from the start cylinder, flying at 10 m/s: with births the filter
+    locks on the second update (the weight floor lets one or two of the old particles,
+    60 m off, through the first resampling, which alone puts σ_particles above
+    σ_threshold = 0.75 m); without births the cloud has not spread that far in 3 s."""
+    noise = eq11_parameters(15.0, 15.0, 0.4, 0.1)
+    v = np.array([10.0, 0.0, 0.0])
+
+    def run(births: bool) -> list[bool]:
+        rng = np.random.default_rng(5)
+        pf = ParticleTracker(
+            5000,
+            model,
+            noise,
+            rng,
+            np.array([25.0, 0.0, 1.0]),
+            20.0,
+            20.0,
+        )
+        locked = []
+        for k in range(30):
+            p = np.array([90.0, 40.0, 30.0]) + v * (0.1 * k)
+            if births:
+                pf.acquire(_candidate(p, v))
+            e = pf.step(0.1 * k, _drone_points(p, rng), 1)
+            locked.append(e.tracked and float(np.linalg.norm(e.position - p)) < 1.0)
+        return locked
+
+    assert all(run(births=True)[1:])
+    assert not any(run(births=False))
+
+
+def test_births_wait_while_locked_and_are_used_once() -> None:
+    noise = eq11_parameters(15.0, 15.0, 0.4, 0.1)
+    rng = np.random.default_rng(1)
+    pf = ParticleTracker(2000, "delta", noise, rng, np.array([25.0, 0.0, 1.0]), 20.0, 20.0)
+    here = np.array([80.0, 30.0, 20.0])  # outside the start cylinder
+    for k in range(2):
+        pf.acquire(_candidate(here, np.zeros(3)))
+        locked = pf.step(0.1 * k, _drone_points(here, rng), 1).tracked
+    assert locked
+    # Locked: a candidate elsewhere (a bird, say) is offered but not taken.
+    elsewhere = np.array([70.0, -20.0, 15.0])
+    pf.acquire(_candidate(elsewhere, np.zeros(3)))
+    e = pf.step(0.3, _drone_points(here, rng), 1)
+    assert e.tracked
+    assert e.particles is not None
+    assert np.linalg.norm(e.particles - elsewhere, axis=1).min() > 10.0
+
+
+def test_birth_share_is_validated() -> None:
+    noise = eq11_parameters(15.0, 15.0, 0.4, 0.1)
+    with pytest.raises(ConfigError, match="birth_share"):
+        ParticleTracker(
+            100, "delta", noise, np.random.default_rng(0), np.zeros(3), 1.0, 1.0, birth_share=1.5
+        )

@@ -15,6 +15,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
+    "AcquisitionConfig",
     "BackgroundConfig",
     "ControllerConfig",
     "ControllerMode",
@@ -148,11 +149,39 @@ class TrackerConfig(StrictModel):
     sigma_acc: float | None = Field(None, ge=0)  # eq. (11): 0; pf-ca: 0.1 (see below)
     sigma_m: float | None = Field(None, gt=0)  # eq. (11): s_diag / 2
     weight_floor: float = Field(1e-4, ge=0)  # added to every weight, keeps far particles alive
+    # While not locked, this share of the particles is born on the best confirmed
+    # candidate each frame ([pipeline.acquisition]; see ParticleTracker.acquire).
+    birth_share: float = Field(0.5, ge=0, le=1)
     cylinder_center_m: Vec3 = (25.0, 0.0, 1.0)  # centre of the base of the start cylinder
     cylinder_radius_m: float = Field(20.0, gt=0)
     cylinder_height_m: float = Field(20.0, gt=0)
     kalman: KalmanConfig = KalmanConfig()
     detector: DetectorConfig = DetectorConfig()
+
+
+class AcquisitionConfig(StrictModel):
+    """Detection in every frame, and tracks started from it (detect/tentative.py): the
+    foreground's clusters, kept as tentative tracks, confirmed when detected in
+    ``confirm_hits`` of the last ``confirm_frames`` frames at a speed up to the
+    tracker's v_max.  While the tracker is not locked it starts on the best confirmed
+    candidate (births for a particle filter, a start for a Kalman filter)."""
+
+    enabled: bool = True
+    voxel_m: float = Field(0.0, ge=0)  # voxel grid before clustering (0: none)
+    eps_m: float = Field(1.0, gt=0)  # DBSCAN ε: returns closer than this are one cluster
+    # a far drone gives one to three returns a frame, so one return can be a cluster:
+    # persistence, not size, rejects single false returns
+    min_points: int = Field(1, ge=1)
+    max_extent_m: float = Field(2.0, gt=0)  # larger clusters are not a drone
+    confirm_hits: int = Field(3, ge=1, le=62)  # M
+    confirm_frames: int = Field(4, ge=1, le=62)  # N
+    gate_m: float = Field(1.0, ge=0)  # g: centroid jitter allowed on top of v_max Δt
+
+    @model_validator(mode="after")
+    def _m_of_n(self) -> AcquisitionConfig:
+        if self.confirm_hits > self.confirm_frames:
+            raise ValueError("confirm_hits must not exceed confirm_frames")
+        return self
 
 
 class EvaluationConfig(StrictModel):
@@ -195,6 +224,7 @@ class PipelineConfig(StrictModel):
     background: BackgroundConfig = BackgroundConfig()
     outliers: OutlierConfig = OutlierConfig()
     tracker: TrackerConfig = TrackerConfig()
+    acquisition: AcquisitionConfig = AcquisitionConfig()
     controller: ControllerConfig = ControllerConfig()
     latency: LatencyConfig = LatencyConfig()
     evaluation: EvaluationConfig = EvaluationConfig()

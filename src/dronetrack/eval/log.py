@@ -40,9 +40,17 @@ FRAME_COLUMNS = (
     "step_ms",
 )
 # Written after ``flags``: a Kalman filter's x and v_x variances, whether the
-# frame's update used a measurement, and how far the measurement it used lay from
-# the truth (see ``TrackLog.meas_error``).
-EXTRA_COLUMNS = ("pos_var", "vel_var", "measured", "meas_error_m")
+# frame's update used a measurement, how far the measurement it used lay from
+# the truth (see ``TrackLog.meas_error``), and the detect stage's clusters and
+# confirmed candidates (-1: acquisition off).
+EXTRA_COLUMNS = (
+    "pos_var",
+    "vel_var",
+    "measured",
+    "meas_error_m",
+    "n_candidates",
+    "n_confirmed",
+)
 
 
 # One row of the log; ``append`` writes one per frame into a block that doubles as
@@ -68,6 +76,8 @@ _ROW = np.dtype(
         # used: a Kalman filter's z, or the foreground point nearest the truth for a
         # particle filter (which weighs every point); NaN without an update or truth.
         ("meas_error", np.float64),
+        ("n_candidates", np.int64),  # clusters the detect stage found (-1: not run)
+        ("n_confirmed", np.int64),  # confirmed candidates among them (-1: not run)
     ]
 )
 _INITIAL_ROWS = 128
@@ -119,6 +129,8 @@ class TrackLog:
         vel_var: float = float("nan"),
         measured: bool = False,
         meas_error: float = float("nan"),
+        n_candidates: int = -1,
+        n_confirmed: int = -1,
     ) -> None:
         if self._n == len(self._rows):
             grown = np.zeros(2 * len(self._rows), dtype=_ROW)
@@ -141,6 +153,8 @@ class TrackLog:
         row["vel_var"] = vel_var
         row["measured"] = bool(measured)
         row["meas_error"] = meas_error
+        row["n_candidates"] = int(n_candidates)
+        row["n_confirmed"] = int(n_confirmed)
         self._n += 1
 
     def __len__(self) -> int:
@@ -169,6 +183,8 @@ class TrackLog:
     vel_var = _Column()
     measured = _Column()
     meas_error = _Column()
+    n_candidates = _Column()
+    n_confirmed = _Column()
 
     def arrays(self) -> dict[str, NDArray[Any]]:
         """The log as arrays keyed by the frames.csv column names (read-only views)."""
@@ -193,6 +209,8 @@ class TrackLog:
             "vel_var": self.vel_var,
             "measured": self.measured,
             "meas_error_m": self.meas_error,
+            "n_candidates": self.n_candidates,
+            "n_confirmed": self.n_confirmed,
             "flags": self.flags,
         }
 

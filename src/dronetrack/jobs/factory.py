@@ -19,6 +19,7 @@ from typing import Any, Literal, get_args
 import numpy as np
 
 from dronetrack.config.pipeline import (
+    AcquisitionConfig,
     ControllerConfig,
     ControllerMode,
     PipelineConfig,
@@ -30,11 +31,12 @@ from dronetrack.control.controller import Mode as TurretMode
 from dronetrack.control.strategies import Mode as StrategyMode
 from dronetrack.control.strategies import ScanStrategyController
 from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR, CandidateDetector
+from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.background import load_model
-from dronetrack.pipeline import OutlierSettings, Pipeline
+from dronetrack.pipeline import Acquisition, OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
 from dronetrack.track.base import Tracker
@@ -53,6 +55,7 @@ __all__ = [
     "TRACKER_NAMES",
     "ControllerBuilder",
     "TrackerBuilder",
+    "build_acquisition",
     "build_pipeline",
     "build_tracker",
     "noise_parameters",
@@ -224,7 +227,24 @@ def build_pipeline(
         outliers=outliers,
         latency_s=cfg.latency.sensor_s + cfg.latency.processing_s,
         hull=HullCrop(cfg.crop.hull_m) if cfg.crop.hull_m is not None else None,
+        acquisition=build_acquisition(cfg.acquisition, cfg.tracker.v_max),
     )
+
+
+def build_acquisition(cfg: AcquisitionConfig, v_max: float) -> Acquisition | None:
+    """The detect stage's clustering and tentative tracks, None when acquisition is off."""
+    if not cfg.enabled:
+        return None
+    detector = CandidateDetector(
+        voxel_size=cfg.voxel_m,
+        eps=cfg.eps_m,
+        min_points=cfg.min_points,
+        max_extent=cfg.max_extent_m,
+    )
+    settings = ConfirmationSettings(
+        v_max=v_max, gate_m=cfg.gate_m, hits=cfg.confirm_hits, frames=cfg.confirm_frames
+    )
+    return Acquisition(detector, TentativeTracks(settings))
 
 
 def _kwargs(**values: Any) -> dict[str, Any]:
@@ -273,6 +293,7 @@ def _particle_filter(
         cylinder_height=cfg.cylinder_height_m,
         resampling=cfg.resampling if resampling is None else resampling,
         weight_floor=cfg.weight_floor,
+        birth_share=cfg.birth_share,
     )
 
 

@@ -63,6 +63,8 @@ def frame_row(log: TrackLog, i: int) -> list[str]:
         _number(float(r["vel_var"])),
         str(int(r["measured"])),
         _number(float(r["meas_error"])),
+        str(int(r["n_candidates"])),
+        str(int(r["n_confirmed"])),
     ]
 
 

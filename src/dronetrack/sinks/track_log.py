@@ -83,4 +83,6 @@ def log_result(log: TrackLog, sample: Sample, result: StepResult) -> None:
         vel_var=float(var[3]) if var is not None else math.nan,
         measured=est.measurement is not None,
         meas_error=measurement_error(result, gt),
+        n_candidates=-1 if result.detections is None else len(result.detections),
+        n_confirmed=-1 if result.candidates is None else len(result.candidates),
     )

@@ -302,6 +302,8 @@ class BagRecording(BagFile):
                 )
         if tf.conflicts:
             self.skipped["tf_second_parent"] += tf.conflicts
+        if tf.invalid:
+            self.skipped["bad_tf"] += tf.invalid
         return tf
 
     def _read_config(self, reader: Any, conns: Sequence[Any]) -> str | None:

@@ -10,6 +10,7 @@ and held beyond the first and last.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,13 +26,32 @@ from dronetrack.geometry.transforms import (
     quaternion_to_matrix,
 )
 
-__all__ = ["TransformBuffer", "transform_matrix"]
+__all__ = ["TransformBuffer", "transform_matrix", "valid_transform"]
 
 
 def transform_matrix(translation: ArrayLike, quaternion_xyzw: ArrayLike) -> FloatArray:
     """parent_T_child (4, 4) from a ROS translation and quaternion (x, y, z, w)."""
     x, y, z, w = np.asarray(quaternion_xyzw, dtype=np.float64)
     return make_pose(quaternion_to_matrix(np.array([w, x, y, z])), translation)
+
+
+# |q| outside this range is not a rotation a ROS node meant to send (a damaged message)
+QUATERNION_NORM_RANGE = (0.5, 2.0)
+
+
+def valid_transform(t: float, translation: ArrayLike, quaternion_xyzw: ArrayLike) -> bool:
+    """Whether a transform sample is usable: finite time, translation and quaternion,
+    and 0.5 ≤ |q| ≤ 2 (it is normalised when used)."""
+    p = np.asarray(translation, dtype=np.float64)
+    q = np.asarray(quaternion_xyzw, dtype=np.float64)
+    if p.shape != (3,) or q.shape != (4,) or not math.isfinite(t):
+        return False
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))):
+        return False
+    # |q| from its largest component, so that huge values cannot overflow
+    m = float(np.max(np.abs(q)))
+    norm = m * float(np.linalg.norm(q / m)) if m > 0 else 0.0
+    return QUATERNION_NORM_RANGE[0] <= norm <= QUATERNION_NORM_RANGE[1]
 
 
 @dataclass(slots=True)
@@ -70,6 +90,7 @@ class TransformBuffer:
     def __init__(self) -> None:
         self._edges: dict[str, _Edge] = {}
         self.conflicts = 0  # samples that gave a frame a second parent (ignored)
+        self.invalid = 0  # samples with a non-finite value or a quaternion far from unit
 
     def __len__(self) -> int:
         return len(self._edges)
@@ -91,7 +112,14 @@ class TransformBuffer:
         quaternion_xyzw: ArrayLike,
         static: bool = False,
     ) -> None:
-        """Add a ROS transform (translation, quaternion x, y, z, w), at ``t`` unless ``static``."""
+        """Add a ROS transform (translation, quaternion x, y, z, w), at ``t`` unless ``static``.
+
+        A sample with a non-finite value, or whose quaternion is not near unit length
+        (ROS requires unit quaternions), is counted in ``invalid`` and left out.
+        """
+        if not valid_transform(t, translation, quaternion_xyzw):
+            self.invalid += 1
+            return
         edge = self._edges.get(child)
         if edge is None:
             edge = self._edges[child] = _Edge(parent)

@@ -6,9 +6,9 @@ from __future__ import annotations
 from typing import Protocol, runtime_checkable
 
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.types import TrackEstimate
+from dronetrack.types import Candidates, TrackEstimate
 
-__all__ = ["PositionStart", "Tracker"]
+__all__ = ["CandidateStart", "PositionStart", "Tracker"]
 
 
 class Tracker(Protocol):
@@ -35,4 +35,16 @@ class PositionStart(Protocol):
 
     def initialize(self, position: FloatArray) -> None:
         """Start the track at ``position`` (3,) [m], at rest, with the initial covariance."""
+        ...
+
+
+@runtime_checkable
+class CandidateStart(Protocol):
+    """A tracker that starts (and, once lost, restarts) on the detect stage's confirmed
+    candidates rather than on its own start region."""
+
+    def acquire(self, candidates: Candidates) -> None:
+        """Take this frame's confirmed candidates (best first, at the frame's end); the
+        pipeline calls it only while the tracker is not locked, before ``step``, which
+        applies them at the frame's end."""
         ...

@@ -36,7 +36,7 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.nearest import nearest_distances
 from dronetrack.track.resample import RESAMPLERS
-from dronetrack.types import TrackEstimate
+from dronetrack.types import Candidates, TrackEstimate
 
 __all__ = [
     "MotionModel",
@@ -91,6 +91,22 @@ def cylinder_particles(
     X[:, 0] = center[0] + r * np.sin(theta)
     X[:, 1] = center[1] + r * np.cos(theta)
     X[:, 2] = center[2] + rng.uniform(0.0, height, n)
+    return X
+
+
+def birth_particles(
+    rng: np.random.Generator,
+    n: int,
+    position: FloatArray,
+    velocity: FloatArray,
+    sigma_p: float,
+    sigma_v: float,
+) -> FloatArray:
+    """(n, 9) particles born on a confirmed candidate, at rest in acceleration:
+    x ~ N(position, σ_p² I), v ~ N(velocity, σ_v² I)."""
+    X = np.zeros((n, STATE_DIM))
+    X[:, 0:3] = position + sigma_p * rng.standard_normal((n, 3))
+    X[:, 3:6] = velocity + sigma_v * rng.standard_normal((n, 3))
     return X
 
 
@@ -290,6 +306,29 @@ class ParticleFilter:
         )
         self.sigma_particles = spread(self.X)
 
+    def birth(self, position: FloatArray, velocity: FloatArray, share: float) -> None:
+        """Move a share of the particles, drawn at random, onto a confirmed candidate.
+
+        They are spread by σ_p = max(σ_pos, σ_m), so that once the update has kept
+        them their spread is about σ_threshold / 1.5 and the filter locks; their
+        velocities by σ_v = σ_pos / T (= v_max / 3 under eq. 11), the uncertainty of
+        a velocity from a few frames of centroids.
+        """
+        k = round(share * self.n)
+        if k == 0:
+            return
+        idx = self.rng.choice(self.n, size=k, replace=False)
+        noise = self.noise
+        self.X[idx] = birth_particles(
+            self.rng,
+            k,
+            np.asarray(position, dtype=np.float64),
+            np.asarray(velocity, dtype=np.float64),
+            max(noise.sigma_pos, noise.sigma_m),
+            noise.sigma_pos / noise.period,
+        )
+        self.sigma_particles = spread(self.X)
+
     def predict(self) -> None:
         """Move every particle one period ahead (eqs. 1-7)."""
         # ρ from the spread after the previous step, eq. (2)
@@ -347,8 +386,13 @@ class ParticleTracker:
         cylinder_height: float,
         resampling: str = "multinomial",
         weight_floor: float = 1e-4,
+        birth_share: float = 0.5,
     ) -> None:
         self.filter = ParticleFilter(n, model, noise, rng, resampling, weight_floor)
+        if not 0.0 <= birth_share <= 1.0:
+            raise ConfigError(f"birth_share must be in [0, 1], got {birth_share}")
+        self.birth_share = birth_share
+        self._births: Candidates | None = None
         self._cylinder = (
             np.asarray(cylinder_center, dtype=np.float64),
             cylinder_radius,
@@ -372,10 +416,26 @@ class ParticleTracker:
             c = np.asarray(center, dtype=np.float64)
         self._cylinder = (c, r if radius is None else radius, h if height is None else height)
         self.filter.reset(*self._cylinder)
+        self._births = None
+
+    def acquire(self, candidates: Candidates) -> None:
+        """Births on the best confirmed candidate in the next step (``track.base.CandidateStart``).
+
+        Only the best (``candidates`` come best first): births spread over several
+        candidates would leave the weights split between them, and the cloud would
+        never condense enough to lock.  ``birth_share`` of the particles move (0.5 by
+        default): the rest keep the filter's own belief, so a drone that reappears
+        where the cloud waits is kept, while a candidate far from it takes over in
+        one update (particles far from every point fall to the weight floor).
+        """
+        self._births = candidates if len(candidates) else None
 
     def step(self, t: float, points: FloatArray, steps: int) -> TrackEstimate:
         for _ in range(steps):
             self.filter.predict()
+        births, self._births = self._births, None
+        if births is not None and steps > 0 and not self.filter.tracked:
+            self.filter.birth(births.positions[0], births.velocities[0], self.birth_share)
         if steps > 0:
             self.filter.update(points)
         position, velocity = self.filter.estimate()

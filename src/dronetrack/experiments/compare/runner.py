@@ -47,7 +47,7 @@ def case_config(
 ) -> ScenarioConfig:
     """The scenario a method runs in a case: the named scenario with the suite's turret
     mode (or scan strategy), the method's tracker, the run's seed."""
-    base = _scored(get_scenario(case.scenario), suite.min_consecutive)
+    base = _scored(get_scenario(case.scenario), suite.min_consecutive, suite.acquisition)
     if suite.tracker is not None:  # the methods are scan strategies feeding one tracker
         return apply_overrides(
             base, seed=seed, duration=duration, tracker=suite.tracker, turret_mode=method
@@ -57,11 +57,13 @@ def case_config(
     )
 
 
-def _scored(cfg: ScenarioConfig, min_consecutive: int) -> ScenarioConfig:
-    """``cfg`` with the suite's scoring rule in its evaluation section, so a method's run
-    scores the same in ``simulate`` of its configuration as in the table."""
+def _scored(cfg: ScenarioConfig, min_consecutive: int, acquisition: bool) -> ScenarioConfig:
+    """``cfg`` with the suite's scoring rule in its evaluation section and its choice of
+    acquisition, so a method's run scores the same in ``simulate`` of its configuration
+    as in the table."""
     evaluation = cfg.pipeline.evaluation.model_copy(update={"min_consecutive": min_consecutive})
-    pipeline = cfg.pipeline.model_copy(update={"evaluation": evaluation})
+    acquire = cfg.pipeline.acquisition.model_copy(update={"enabled": acquisition})
+    pipeline = cfg.pipeline.model_copy(update={"evaluation": evaluation, "acquisition": acquire})
     return cfg.model_copy(update={"pipeline": pipeline})
 
 

@@ -1,0 +1,185 @@
+"""Tentative tracks: which of the detect stage's clusters persist, and which move
+plausibly, so that a track can start on them.
+
+Every frame the clusters are associated with the tentative tracks by global
+nearest neighbour (scipy's ``linear_sum_assignment`` on the distances to the
+predicted positions p̂ = p + v Δt), inside a speed gate: a cluster may continue a
+track only if
+
+    |c − p| ≤ v_max Δt + g                                       (the speed gate)
+
+that is, a target at the highest expected speed could have moved there since the
+track was last detected, plus g for the jitter of a few points' centroid.  A
+track's velocity is the centroids' motion, smoothed:
+
+    v ← (c − p) / Δt                      on its second detection,
+    v ← v + a ((c − p) / Δt − v)          after that (a = 1/2).
+
+The gate is the plausibility check on motion: every step of a track is at most
+v_max Δt + g, so its velocity stays below v_max + g / Δt.  A track is **confirmed**
+when it was detected in at least M of the last N frames (M-of-N) and in this one.
+It is dropped after N − M + 1 frames in a row without a detection, when it can no
+longer reach M of N.  So a single false return, or a flicker of foliage that does
+not come back at a plausible place, never confirms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+from dronetrack.errors import ConfigError
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import Candidates, Detections
+
+__all__ = ["ConfirmationSettings", "TentativeTracks", "gated_assignment"]
+
+SMOOTHING = 0.5  # a: the weight of a new velocity measurement
+_INFEASIBLE = 1e12  # an assignment cost no feasible pair can reach [m]
+
+
+@dataclass(frozen=True, slots=True)
+class ConfirmationSettings:
+    """M-of-N confirmation with a speed gate (see the module docstring).
+
+    v_max: the highest speed a target may have [m/s]; gate_m: g [m]; hits: M;
+    frames: N; max_tracks: the tentative tracks kept at most (the oldest beyond
+    it are dropped), which bounds the work when clutter floods the foreground.
+    """
+
+    v_max: float = 15.0
+    gate_m: float = 1.0
+    hits: int = 3
+    frames: int = 4
+    max_tracks: int = 64
+
+    def __post_init__(self) -> None:
+        if not (self.v_max > 0 and self.gate_m >= 0):
+            raise ConfigError(f"need v_max > 0 and gate ≥ 0, got {self.v_max}, {self.gate_m}")
+        if not 1 <= self.hits <= self.frames <= 62:
+            raise ConfigError(
+                f"need 1 ≤ hits ≤ frames ≤ 62 for M-of-N confirmation, got "
+                f"{self.hits} of {self.frames}"
+            )
+        if self.max_tracks < 1:
+            raise ConfigError(f"max_tracks must be positive, got {self.max_tracks}")
+
+    @property
+    def max_misses(self) -> int:
+        """N − M + 1: misses in a row after which M of N is out of reach."""
+        return self.frames - self.hits + 1
+
+
+def gated_assignment(
+    predicted: FloatArray, last: FloatArray, reach: FloatArray, centroids: FloatArray
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Global nearest-neighbour pairs (track i, cluster j) inside the speed gate.
+
+    predicted, last: (T, 3) p̂ and p of each track; reach: (T,) v_max Δt + g;
+    centroids: (D, 3).  Minimises Σ |c_j − p̂_i| over the pairs with
+    |c_j − p_i| ≤ reach_i; returns the indices of the feasible pairs only.
+    """
+    if len(predicted) == 0 or len(centroids) == 0:
+        empty = np.empty(0, dtype=np.intp)
+        return empty, empty
+    cost = np.linalg.norm(predicted[:, None, :] - centroids[None, :, :], axis=2)
+    moved = np.linalg.norm(last[:, None, :] - centroids[None, :, :], axis=2)
+    feasible = moved <= reach[:, None]
+    rows, cols = linear_sum_assignment(np.where(feasible, cost, _INFEASIBLE))
+    keep = feasible[rows, cols]
+    return rows[keep], cols[keep]
+
+
+def _popcount(history: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Set bits of each history word (N ≤ 62)."""
+    count = np.zeros_like(history)
+    h = history.copy()
+    while np.any(h):
+        count += h & 1
+        h >>= 1
+    return count
+
+
+class TentativeTracks:
+    """The tentative tracks, updated once per frame with its clusters."""
+
+    def __init__(self, settings: ConfirmationSettings = ConfirmationSettings()) -> None:
+        self.settings = settings
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every tentative track."""
+        self.p = np.empty((0, 3))  # latest centroid [m]
+        self.v = np.zeros((0, 3))  # velocity [m/s]
+        self.t_last = np.empty(0)  # time of the latest detection [s]
+        self.history = np.empty(0, dtype=np.int64)  # bit k: detected k frames ago
+        self.detections = np.empty(0, dtype=np.int64)  # detections over its life
+        self.misses = np.empty(0, dtype=np.int64)  # frames in a row without one
+        self.size = np.empty(0)  # largest extent in the latest detection [m]
+        self.ids = np.empty(0, dtype=np.int64)
+        self._next_id = 0
+
+    def __len__(self) -> int:
+        return len(self.p)
+
+    def update(self, t: float, found: Detections) -> Candidates:
+        """Take the clusters of the frame ending at ``t`` [s]; the confirmed candidates."""
+        s = self.settings
+        dt = np.maximum(t - self.t_last, 0.0)
+        # p̂ = p + v Δt;  reach = v_max Δt + g
+        predicted = self.p + self.v * dt[:, None]
+        rows, cols = gated_assignment(predicted, self.p, s.v_max * dt + s.gate_m, found.centroids)
+        hit = np.zeros(len(self), dtype=bool)
+        hit[rows] = True
+        # v ← (c − p)/Δt on the second detection, else v + a ((c − p)/Δt − v)
+        step = found.centroids[cols] - self.p[rows]
+        v_meas = step / np.maximum(dt[rows], 1e-9)[:, None]
+        first = self.detections[rows] == 1
+        self.v[rows] = np.where(
+            first[:, None], v_meas, self.v[rows] + SMOOTHING * (v_meas - self.v[rows])
+        )
+        self.p[rows] = found.centroids[cols]
+        self.t_last[rows] = t
+        self.size[rows] = found.extents[cols, 0]
+        self.detections[rows] += 1
+        self.misses = np.where(hit, 0, self.misses + 1)
+        window = (1 << s.frames) - 1
+        self.history = ((self.history << 1) | hit.astype(np.int64)) & window
+        self._drop(self.misses < s.max_misses)
+        new = np.setdiff1d(np.arange(len(found)), cols)
+        self._add(t, found, new)
+        return self._confirmed(t)
+
+    def _drop(self, keep: NDArray[np.bool_]) -> None:
+        for name in ("p", "v", "t_last", "history", "detections", "misses", "size", "ids"):
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _add(self, t: float, found: Detections, new: NDArray[np.intp]) -> None:
+        k = len(new)
+        self.p = np.concatenate([self.p, found.centroids[new]])
+        self.v = np.concatenate([self.v, np.zeros((k, 3))])
+        self.t_last = np.concatenate([self.t_last, np.full(k, t)])
+        self.history = np.concatenate([self.history, np.ones(k, dtype=np.int64)])
+        self.detections = np.concatenate([self.detections, np.ones(k, dtype=np.int64)])
+        self.misses = np.concatenate([self.misses, np.zeros(k, dtype=np.int64)])
+        self.size = np.concatenate([self.size, found.extents[new, 0]])
+        self.ids = np.concatenate([self.ids, self._next_id + np.arange(k, dtype=np.int64)])
+        self._next_id += k
+        excess = len(self) - self.settings.max_tracks
+        if excess > 0:  # keep the tracks detected most often; of equals, the older
+            order = np.lexsort((self.ids, -self.detections))
+            keep = np.zeros(len(self), dtype=bool)
+            keep[order[: self.settings.max_tracks]] = True
+            self._drop(keep)
+
+    def _confirmed(self, t: float) -> Candidates:
+        """Detected now and in M of the last N frames; best first (most detections in the
+        window, then over its life, then the older)."""
+        hits = _popcount(self.history)
+        ok = (self.t_last == t) & (hits >= self.settings.hits)
+        idx = np.flatnonzero(ok)
+        idx = idx[np.lexsort((self.ids[idx], -self.detections[idx], -hits[idx]))]
+        return Candidates(self.p[idx], self.v[idx], hits[idx], self.size[idx], self.ids[idx])

@@ -1,0 +1,115 @@
+"""Tentative tracks: M-of-N confirmation inside a speed gate."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks, gated_assignment
+from dronetrack.errors import ConfigError
+from dronetrack.types import Detections
+
+T = 0.1  # frame period [s]
+
+
+def _found(*centroids: tuple[float, float, float], size: float = 0.5) -> Detections:
+    k = len(centroids)
+    c = np.array(centroids, dtype=np.float64).reshape(k, 3)
+    return Detections(
+        c, np.full(k, 3), np.tile([size, 0.1, 0.1], (k, 1)), np.zeros((k, 3, 3)), np.zeros(k)
+    )
+
+
+def test_a_moving_target_is_confirmed_on_its_third_frame_with_its_velocity() -> None:
+    tracks = TentativeTracks(ConfirmationSettings(v_max=15.0, hits=3, frames=4))
+    v = np.array([10.0, -4.0, 1.0])
+    out = []
+    for k in range(5):
+        p = np.array([50.0, 10.0, 20.0]) + v * (k * T)
+        out.append(tracks.update(k * T, _found(tuple(p))))
+    assert [len(c) for c in out] == [0, 0, 1, 1, 1]
+    # Exact centroids: (c − p)/Δt is v exactly, and so is its smoothed value.
+    np.testing.assert_allclose(out[-1].velocities[0], v, atol=1e-9)
+    np.testing.assert_allclose(out[-1].positions[0], [54.0, 8.4, 20.4], atol=1e-9)
+    assert out[-1].hits[0] == 4
+    assert out[-1].ids[0] == out[2].ids[0] == 0
+    assert out[-1].sizes[0] == pytest.approx(0.5)
+
+
+def test_m_of_n_tolerates_one_miss_and_drops_after_n_minus_m_plus_one() -> None:
+    tracks = TentativeTracks(ConfirmationSettings(hits=3, frames=4))
+    here = _found((30.0, 0.0, 5.0))
+    none = Detections.empty()
+    seen = [tracks.update(k * T, f) for k, f in enumerate([here, here, none, here])]
+    # hits 1, 2, (miss), 3 of the last 4 frames: confirmed on the fourth
+    assert [len(c) for c in seen] == [0, 0, 0, 1]
+    # two misses in a row: 3 of 4 is out of reach, the track is gone
+    tracks.update(4 * T, none)
+    assert len(tracks) == 1
+    tracks.update(5 * T, none)
+    assert len(tracks) == 0
+
+
+def test_a_jump_faster_than_v_max_starts_another_track() -> None:
+    s = ConfirmationSettings(v_max=15.0, gate_m=1.0, hits=2, frames=2)
+    tracks = TentativeTracks(s)
+    tracks.update(0.0, _found((30.0, 0.0, 5.0)))
+    # v_max Δt + g = 2.5 m: 2.4 m continues the track, 2.6 m cannot
+    assert len(tracks.update(T, _found((32.4, 0.0, 5.0)))) == 1
+    far = TentativeTracks(s)
+    far.update(0.0, _found((30.0, 0.0, 5.0)))
+    assert len(far.update(T, _found((32.6, 0.0, 5.0)))) == 0
+    # the old track missed (and, as 2 of 2 is out of reach, is gone); a new one began
+    assert far.ids.tolist() == [1]
+
+
+def test_global_nearest_neighbour_minimises_the_total_distance() -> None:
+    # Greedy nearest-first would give track 0 cluster 0 (distance 0.1) and leave track 1
+    # cluster 1 at 1.9; the global optimum crosses them: 0.9 + 0.3.
+    predicted = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    centroids = np.array([[0.9, 0.0, 0.0], [-0.9, 0.0, 0.0]])
+    rows, cols = gated_assignment(predicted, predicted, np.array([5.0, 5.0]), centroids)
+    assert sorted(zip(rows.tolist(), cols.tolist(), strict=True)) == [(0, 1), (1, 0)]
+    # Outside every gate: no pair.
+    rows, _ = gated_assignment(predicted, predicted, np.array([0.5, 0.5]), centroids + 5.0)
+    assert len(rows) == 0
+
+
+def test_random_false_returns_do_not_confirm() -> None:
+    """Ten single false returns a frame, uniform in a 200 m × 200 m × 50 m box, for
+    300 frames: a return lands in a track's 2.5 m gate with probability about
+    10 · (4/3 π 2.5³) / 2·10⁶ ≈ 3·10⁻⁴ a frame, so three in four frames do not happen."""
+    rng = np.random.default_rng(3)
+    tracks = TentativeTracks()
+    confirmed = 0
+    for k in range(300):
+        pts = rng.uniform([0, -100, 0], [200, 100, 50], (10, 3))
+        confirmed += len(tracks.update(k * T, _found(*map(tuple, pts))))
+    assert confirmed == 0
+    assert len(tracks) <= 64
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 12))
+def test_confirmed_candidates_move_within_the_speed_gate(seed: int, n: int) -> None:
+    """Each step is at most v_max Δt + g, so |v| ≤ v_max + g / Δt (Δt ≥ T here)."""
+    rng = np.random.default_rng(seed)
+    s = ConfirmationSettings(v_max=5.0, gate_m=0.5, hits=2, frames=3, max_tracks=8)
+    tracks = TentativeTracks(s)
+    p = rng.uniform(-20, 20, (n, 3))
+    for k in range(15):
+        p = p + rng.normal(0.0, 1.0, p.shape)  # some steps are faster than v_max
+        out = tracks.update(k * T, _found(*map(tuple, p)))
+        assert np.all(np.linalg.norm(out.velocities, axis=1) <= s.v_max + s.gate_m / T + 1e-9)
+        assert np.all(out.hits >= s.hits)
+        assert len(tracks) <= s.max_tracks
+        assert len(np.unique(out.ids)) == len(out)
+
+
+def test_bad_settings() -> None:
+    with pytest.raises(ConfigError, match="hits ≤ frames"):
+        ConfirmationSettings(hits=5, frames=4)
+    with pytest.raises(ConfigError, match="v_max > 0"):
+        ConfirmationSettings(v_max=0.0)
