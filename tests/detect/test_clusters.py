@@ -7,7 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dronetrack.detect.clusters import cluster_features, cylinder_mask, dbscan, voxel_centroids
+from dronetrack.detect.clusters import (
+    cluster_features,
+    connected_components,
+    cylinder_mask,
+    dbscan,
+    voxel_centroids,
+)
 
 
 def _reference_dbscan(P: np.ndarray, eps: float, min_points: int) -> np.ndarray:
@@ -138,3 +144,22 @@ def test_cylinder_mask_bounds() -> None:
     np.testing.assert_array_equal(
         cylinder_mask(P + np.array([10.0, 0.0, 0.0]), (10.0, 0.0), 5.0, 1.0, 5.0), mask
     )
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 60), st.integers(0, 2**32 - 1), st.integers(0, 120))
+def test_components_partition_as_scipys(n: int, seed: int, m: int) -> None:
+    """The same partition as scipy.sparse.csgraph, each labelled by its smallest node."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components as scipy_components
+
+    edges = np.random.default_rng(seed).integers(0, n, (m, 2)).astype(np.int64)
+    ours = connected_components(n, edges)
+    graph = coo_matrix((np.ones(m), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, theirs = scipy_components(graph, directed=False)
+    # same partition: equal labels exactly where scipy's are equal
+    np.testing.assert_array_equal(
+        ours[:, None] == ours[None, :], theirs[:, None] == theirs[None, :]
+    )
+    for label in np.unique(ours):
+        assert label == np.flatnonzero(ours == label).min()

@@ -139,6 +139,13 @@ def _particle_filters() -> None:
             pf.variance()
 
 
+def _detection() -> None:
+    """The detect stage's clustering."""
+    from dronetrack.detect.clusters import dbscan
+
+    dbscan(_frame().points, 1.0, 1)
+
+
 def _replay() -> None:
     """A recording's ground-truth point count and PCD's LZF decoder."""
     from dronetrack.formats.lzf import lzf_compress_literal, lzf_decompress
@@ -153,7 +160,12 @@ def _replay() -> None:
 
 
 # Smallest first: the first step tells within a second whether the cache is cold.
-PIPELINE_WARM_UPS: tuple[WarmUpStep, ...] = (_geometry, _foreground, _particle_filters)
+PIPELINE_WARM_UPS: tuple[WarmUpStep, ...] = (
+    _geometry,
+    _foreground,
+    _particle_filters,
+    _detection,
+)
 REPLAY_WARM_UPS: tuple[WarmUpStep, ...] = (*PIPELINE_WARM_UPS, _replay)
 
 
