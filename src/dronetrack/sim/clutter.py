@@ -15,8 +15,9 @@ f_i T_s (f_i uniform in [0.8, 1.25]) along its own horizontal direction û_i, wi
 random phases φ_i, ψ_i.  s_i scales the amplitudes with the height z_i of the part's
 centre: a bending stem moves more the higher up, so a hedge 0.8 m up moves a tenth
 as much as a crown 8 m up.  Each frame is cast against the scene as it stands at
-the frame's middle time: within a 100 ms frame a crown moves at most
-2π A_s s_i / (0.8 T_s) · 0.1 s, 4 cm at the defaults.
+the frame's middle time: within a 100 ms frame a part moves at most
+2π s_i (A_g / T_g + A_s / (0.8 T_s)) · 0.1 s, 7 cm for the tallest crowns (centres
+15 m up) at the defaults, so a return is off by at most half that.
 
 **Random false alarms.**  N ~ Poisson(λ T) spurious returns in a frame of T
 seconds, each on a pulse of the frame drawn uniformly (so they spread over the
@@ -34,16 +35,19 @@ heading, 0.5 L across, 0.1 L thick) flying at a speed s in [v_lo, v_hi]:
     ω_k = μ + a (ω_{k−1} − μ) + σ √(1 − a²) n,  a = exp(−Δt / τ)   (each OU process)
 
 with the turn rate ω (mean 0), the speed s and a height goal h* Ornstein-Uhlenbeck
-processes (s and h* clipped to their ranges); ψ̇ = clip(ω + k_s e, ±ω_max), where
-the steering term k_s e turns the bird towards the area's centre (e the heading
-error) once it leaves the inner area (the scene's area less a margin of
-2 v_hi / ω_max + 5 m, twice the widest turn); and γ = γ_max tanh((h* − z) / L_z)
-climbs or sinks towards the goal, which keeps z within the height range (a step
-never overshoots the goal).  The path is integrated with Δt = 50 ms, the birds'
-positions interpolated linearly between steps, so their speed is s exactly.  A
-bird can be sent across the line of sight: it then passes halfway between the
-sensor and the target at the given time, heading across the line; its path before
-that is integrated backwards from there.
+processes (s and h* clipped to their ranges), and
+
+    ψ̇ = clip(ω + k_s e, ±ω_max),   γ = γ_max tanh((h* − z) / L_z)
+
+where the steering term k_s e turns the bird towards the area's centre (e the
+heading error) once it leaves the inner area: the scene's area less a margin of
+2 v_hi / ω_max + 5 m, the widest turn's diameter and some.  γ climbs or sinks
+towards the goal, which keeps z within the height range (a step never overshoots
+the goal).  The path is integrated with Δt = 50 ms, the positions interpolated
+linearly between steps, so a bird's speed is s exactly.  A bird can be sent across
+the line of sight: it then passes halfway between the sensor and the target at the
+given time, heading across the line; its path before that is integrated backwards
+from there.
 """
 
 from __future__ import annotations

@@ -318,6 +318,14 @@ class LidarSimulator:
         half_beam = 0.5 * max(sensor.divergence_h, sensor.divergence_v)
         best = np.full(n, np.inf)
         reflectivity, fill, surface = np.zeros(n), np.zeros(n), np.zeros(n)
+        # Every ray of the frame lies within `spread` of `axis`, about the rays' mean
+        # direction (a spinning head's rays all around: no axis), so a bird outside that
+        # cone is skipped at once.
+        axis = np.ones(len(D[::16])) @ D[::16]
+        spread = np.pi
+        if np.linalg.norm(axis) > 1e-3:
+            axis = axis / np.linalg.norm(axis)
+            spread = float(np.arccos(np.clip((D @ axis).min(), -1.0, 1.0)))
         for b in range(len(flock)):
             center = ends[b, 1]
             # A sphere that holds the bird over the whole frame (its path is straight
@@ -332,6 +340,9 @@ class LidarSimulator:
                 idx = np.arange(n)
             else:
                 cone = np.arcsin(min(1.0, (radius + slack) / dist)) + half_beam
+                off_axis = np.arccos(np.clip(np.dot(v / dist, axis), -1.0, 1.0))
+                if spread < np.pi and off_axis > spread + cone:
+                    continue
                 idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
             if len(idx) == 0:
                 continue
