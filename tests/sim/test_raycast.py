@@ -121,6 +121,31 @@ def test_cube_map_index_never_changes_the_answer(seed: int) -> None:
     assert not index.covers(origin + 0.3, 0.1)
 
 
+@settings(max_examples=20)
+@given(st.integers(0, 2**32 - 1))
+def test_cube_map_with_a_margin_holds_for_moved_primitives(seed: int) -> None:
+    """An index built on the still scene with a margin per primitive answers rays against
+    the scene with each primitive moved by up to its margin (swaying crowns)."""
+    g = np.random.default_rng(seed)
+    parts = [ground(0.3)]
+    for _ in range(30):
+        c = g.uniform([-40, -40, 2], [40, 40, 15])
+        parts.append(ellipsoid(c, g.uniform(0.5, 4, 3), 0.5))
+    prims = Primitives.concat(parts)
+    margin = np.r_[0.0, g.uniform(0.0, 2.0, 30)]
+    offset = unit(g.normal(size=(31, 3))) * (margin * g.uniform(0, 1, 31))[:, None]
+    moved = Primitives(
+        prims.kind, prims.center + offset, prims.rotation, prims.half, prims.reflectivity
+    )
+    origin = np.array([0.0, 0.0, 1.5])
+    dirs = unit(g.normal(size=(3000, 3)))
+    index = build_cube_map(prims, origin, 0.2, margin=margin)
+    plain = cast_rays(moved, origin, dirs)
+    indexed = cast_rays(moved, origin, dirs, index=index)
+    for a, b in zip(plain, indexed, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_cube_cells_cover_the_sphere() -> None:
     centres, radius = cube_cells(8)
     assert centres.shape == (6 * 64, 3)

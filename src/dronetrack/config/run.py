@@ -25,6 +25,7 @@ from dronetrack.config.tomlfile import read_toml
 from dronetrack.errors import ScenarioError
 
 __all__ = [
+    "ClutterConfig",
     "DroneConfig",
     "FlightSource",
     "ObserverConfig",
@@ -47,9 +48,52 @@ Vec3 = tuple[float, float, float]
 Pair = tuple[float, float]
 
 
+class ClutterConfig(StrictModel):
+    """What else moves or echoes in the scene: swaying tree crowns, random false alarms
+    and birds (``sim/clutter.py``).  The sway amplitudes are those of a crown whose
+    centre stands 10 m up; other crowns and the hedges scale with their height."""
+
+    # Crowns and hedges sway: a slow gust along the wind plus a faster sway at the
+    # trees' natural period, each with a random phase per tree.  0 m turns one off.
+    gust_m: float = Field(0.25, ge=0, le=10)  # gust amplitude [m]
+    gust_period_s: float = Field(20.0, gt=0, le=3600)
+    sway_m: float = Field(0.15, ge=0, le=10)  # natural-sway amplitude [m]
+    sway_period_s: float = Field(3.0, gt=0, le=60)  # varies ±25 % from tree to tree
+    # Spurious returns per second, besides the sensor's own per-pulse false_alarm_rate.
+    false_alarms_per_s: float = Field(0.0, ge=0, le=1e6)
+    birds: int = Field(0, ge=0, le=100)
+    # Seconds after the target's take-off at which one of the birds crosses the line of
+    # sight to the target, halfway along it (at most one crossing per bird).
+    bird_crossings_s: tuple[float, ...] = ()
+    bird_size_m: Pair = (0.2, 0.5)  # wingspan, drawn uniformly per bird
+    bird_speed_m_s: Pair = (5.0, 15.0)
+    bird_height_m: Pair = (5.0, 60.0)
+    bird_reflectivity: float = Field(0.3, gt=0, le=1)  # diffuse, at 905 nm
+
+    @model_validator(mode="after")
+    def _check(self) -> Self:
+        for key in ("bird_size_m", "bird_speed_m_s", "bird_height_m"):
+            lo, hi = getattr(self, key)
+            if not 0 < lo <= hi:
+                raise ValueError(f"{key} must be (low, high) with 0 < low ≤ high, got {lo}, {hi}")
+        if self.bird_size_m[1] > 5.0 or self.bird_speed_m_s[1] > 50.0:
+            raise ValueError("birds are at most 5 m across and fly at most 50 m/s")
+        if self.bird_height_m[1] > 1000.0:
+            raise ValueError("birds fly at most 1000 m up")
+        if any(not 0 <= t <= MAX_DURATION_S for t in self.bird_crossings_s):
+            raise ValueError(f"bird_crossings_s must be times from 0 to {MAX_DURATION_S:g} s")
+        if len(self.bird_crossings_s) > self.birds:
+            raise ValueError(
+                f"{len(self.bird_crossings_s)} bird crossings need at least as many birds, "
+                f"got birds = {self.birds}"
+            )
+        return self
+
+
 class SceneConfig(StrictModel):
     name: str = "outdoor"
     layout_seed: int = Field(0, ge=0)
+    clutter: ClutterConfig | None = None  # None: a still scene, as the seeds had
 
 
 class DroneConfig(StrictModel):

@@ -18,6 +18,7 @@ from dronetrack.config.pipeline import (
 )
 from dronetrack.config.rig import make_turret
 from dronetrack.config.run import (
+    ClutterConfig,
     DroneConfig,
     ObserverConfig,
     ScenarioConfig,
@@ -174,6 +175,21 @@ def _outdoor(
     )
 
 
+def _cluttered(
+    base: ScenarioConfig, name: str, description: str, clutter: ClutterConfig
+) -> ScenarioConfig:
+    """``base`` with clutter in its scene."""
+    scene = base.scene.model_copy(update={"clutter": clutter})
+    return base.model_copy(update={"name": name, "description": description, "scene": scene})
+
+
+# Clutter to measure false locks: the default amplitudes of sway (a moderate wind), a
+# false alarm every 50 ms on average besides the sensor's own, and five birds, two of
+# them sent across the line of sight to the drone, at 24 m (12 s after take-off, the
+# drone 48 m out on its first pass) and at 54 m (40 s, the drone 108 m out).
+OUTDOOR_CLUTTER = ClutterConfig(false_alarms_per_s=20.0, birds=5, bird_crossings_s=(12.0, 40.0))
+
+
 def _indoor(
     name: str, flight: str, description: str, duration: float, scene: str = "indoor"
 ) -> ScenarioConfig:
@@ -200,12 +216,20 @@ def _walk(name: str, flight: str, description: str, duration: float) -> Scenario
     )
 
 
+DEFAULT = _outdoor(
+    "default",
+    "horizontal-fast",
+    "seed 000 horizontal fast: Phantom 4 at 15 m/s to 140 m, Avia on a WidowX, clear",
+    66.0,
+)
 _LIST = [
-    _outdoor(
-        "default",
-        "horizontal-fast",
-        "seed 000 horizontal fast: Phantom 4 at 15 m/s to 140 m, Avia on a WidowX, clear",
-        66.0,
+    DEFAULT,
+    _cluttered(
+        DEFAULT,
+        "outdoor-clutter",
+        "the default flight amid clutter: crowns swaying in a moderate wind, 20 false "
+        "alarms/s, 5 birds, two crossing the line of sight at 12 s and 40 s",
+        OUTDOOR_CLUTTER,
     ),
     _outdoor(
         "outdoor-simple-distance",

@@ -10,7 +10,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -107,8 +107,15 @@ def write_rendering(rendering: Rendering, out_dir: Path) -> list[Path]:
     counts = np.array([len(f) for f in frames])
     world = [f.world_points() for f in frames]
     npz = out_dir / "frames.npz"
+    clutter: dict[str, Any] = {}
+    if truths and all(tr.clutter is not None for tr in truths):
+        # Per point what clutter it is (sim.clutter's codes), per frame the birds.
+        clutter["clutter"] = np.concatenate([tr.clutter for tr in truths if tr.clutter is not None])
+        birds = [tr.bird_positions for tr in truths if tr.bird_positions is not None]
+        clutter["bird_positions"] = np.stack(birds)
     np.savez_compressed(
         npz,
+        **clutter,
         x=np.concatenate([f.points[:, 0] for f in frames]),
         y=np.concatenate([f.points[:, 1] for f in frames]),
         z=np.concatenate([f.points[:, 2] for f in frames]),

@@ -21,6 +21,7 @@ from dronetrack.config.run import (
     absolute_path,
     map_paths,
 )
+from dronetrack.sim.clutter import ClutterSpec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.flights import make_flight
 from dronetrack.sim.physics import extinction_coefficient
@@ -95,7 +96,8 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
     """The simulator for a scenario; ``rng`` defaults to one seeded with ``cfg.seed``.
 
     The observer's flight (if any) is built after the target's, so the target flies
-    the same path with or without one.
+    the same path with or without one.  The birds' crossing times count from the
+    target's take-off, ``trajectory.hold_s``.
     """
     rng = np.random.default_rng(cfg.seed) if rng is None else rng
     sensor = _sensor(cfg.sensor)
@@ -118,4 +120,7 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
         tilt=math.radians(cfg.turret.tilt_deg),
         observer=observer,
         odometry_sigma=0.0 if cfg.observer is None else cfg.observer.odometry_sigma_m,
+        clutter=None
+        if cfg.scene.clutter is None
+        else ClutterSpec.from_config(cfg.scene.clutter, cfg.trajectory.hold_s),
     )

@@ -78,13 +78,24 @@ def cube_cells(n: int) -> tuple[FloatArray, FloatArray]:
 
 
 def build_cube_map(
-    prims: Primitives, origin: FloatArray, slack: float, t_max: float = np.inf, n: int = 32
+    prims: Primitives,
+    origin: FloatArray,
+    slack: float,
+    t_max: float = np.inf,
+    n: int = 32,
+    margin: FloatArray | None = None,
 ) -> CubeMapIndex:
-    """Index ``prims`` for rays from within ``slack`` of ``origin`` and no longer than ``t_max``."""
+    """Index ``prims`` for rays from within ``slack`` of ``origin`` and no longer than ``t_max``.
+
+    ``margin`` (P,): how far each primitive may move from where it is [m] (swaying
+    crowns); the index then holds for the primitives anywhere within it.
+    """
     o = np.asarray(origin, dtype=np.float64)
     v = prims.center - o
     dist = np.linalg.norm(v, axis=1)
     r = prims.bound_radius + slack
+    if margin is not None:
+        r = r + margin
     plane = prims.kind == PLANE
     holds = ~plane & (dist <= r)
     reachable = dist - r <= t_max

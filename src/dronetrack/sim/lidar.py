@@ -15,21 +15,37 @@ Per pulse, in order:
 4. first return: the nearer echo is detected with probability P_d
    (``physics.detection_probability``), else the farther one is tried;
 5. noise: range σ_R and angular σ per axis; false alarms at a rate per pulse.
+
+With clutter (``sim/clutter.py``) the scene is cast as the wind has moved its
+crowns at the frame's middle time, birds are cast like the target (sub-rays over
+the footprint, each bird where it is at the pulse's firing time) and take their
+place among the echoes by range, and the clutter's random false alarms are added.
+Where a bird and the target share a pulse, the nearer one hides its fill fraction
+of the farther one's footprint.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.geometry.transforms import FloatArray, apply_interpolated_poses
+from dronetrack.sim.clutter import (
+    CLUTTER_BIRD,
+    CLUTTER_FALSE_ALARM,
+    CLUTTER_NONE,
+    CLUTTER_SWAY,
+    Clutter,
+    Flock,
+)
 from dronetrack.sim.cubemap import CubeMapIndex, build_cube_map
 from dronetrack.sim.drones import DroneModel, attitude_from_acceleration
 from dronetrack.sim.patterns import Pulses
 from dronetrack.sim.physics import detection_probability, signal_ratio
+from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.raycast import cast_rays
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.sensors import SensorModel
@@ -40,6 +56,13 @@ __all__ = ["LidarSimulator", "Scan", "footprint_samples"]
 LIVOX_DIFFUSE_MAX = 150.0  # Livox reflectivity byte for 100 % diffuse
 INDEX_SLACK_M = 0.5  # how far ray origins may wander before the scene is indexed again
 SUBRAY_SPACING_M = 0.02  # footprint sampling: the thinnest target parts (arms, legs) are 1-4 cm
+
+# Where a return comes from (``_first_returns``).
+FROM_SCENE = 0
+FROM_TARGET = 1
+FROM_BIRD = 2
+FROM_FALSE_ALARM = 3  # the sensor's own, per pulse
+_NO_BIRDS = np.empty(0)
 
 
 def footprint_samples(k: int) -> FloatArray:
@@ -60,6 +83,7 @@ class Scan:
     intensity: NDArray[np.float32]  # (M,) Livox reflectivity encoding
     hit_target: NDArray[np.bool_]  # (M,) ground truth: the return came from the target
     n_pulses: int
+    clutter: NDArray[np.int8] | None = None  # (M,) CLUTTER_* codes, with clutter only
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,14 +151,19 @@ class LidarSimulator:
         drone: DroneModel,
         trajectory: Trajectory,
         extinction: float,
+        clutter: Clutter | None = None,
     ) -> None:
         self.sensor = sensor
         self.scene = scene
         self.drone = drone
         self.trajectory = trajectory
         self.extinction = extinction
+        self.clutter = clutter
         self._scene_rho = np.append(scene.prims.reflectivity, 0.0)  # index -1 → no echo
         self._index: CubeMapIndex | None = None
+        # With swaying crowns the index allows for how far the wind moves each primitive.
+        self._margin = None if clutter is None else clutter.sway_margin()
+        self._sways = None if clutter is None else clutter.sway_mask(len(scene.prims))
 
     def _subray_count(self, range_m: float) -> int:
         """Sub-rays per pulse at this range: about one per (SUBRAY_SPACING_M)² of footprint.
@@ -205,6 +234,35 @@ class LidarSimulator:
         if len(idx) == 0:
             empty = np.empty(0)
             return _TargetEcho(idx, empty, empty, empty, empty)
+        return self._footprint_echo(
+            self.drone.body,
+            pulses,
+            idx,
+            o_b,
+            d_b,
+            Rb,
+            pose_t,
+            poses,
+            float(np.linalg.norm(v)),
+            scene_range,
+        )
+
+    def _footprint_echo(
+        self,
+        body: Primitives,
+        pulses: Pulses,
+        idx: NDArray[np.int64],
+        o_b: FloatArray,
+        d_b: FloatArray,
+        Rb: FloatArray,
+        pose_t: FloatArray,
+        poses: FloatArray,
+        range_m: float,
+        scene_range: FloatArray,
+    ) -> _TargetEcho:
+        """Echoes of the pulses ``idx`` from ``body``, whose frame the rays (o_b, d_b) are in
+        (turned from the world by Rb), over the pulses' footprints at about ``range_m``."""
+        sensor = self.sensor
         h_s, v_s = _beam_axes(pulses.dirs[idx])
         t_idx = pulses.t[idx]
         axes_w, _ = apply_interpolated_poses(
@@ -212,7 +270,7 @@ class LidarSimulator:
         )
         h_b, v_b = np.split(axes_w @ Rb, 2)
         # Sub-ray k: d + u_k (θ_h/2) h + v_k (θ_v/2) v
-        samples = footprint_samples(self._subray_count(float(np.linalg.norm(v))))
+        samples = footprint_samples(self._subray_count(range_m))
         u = samples[:, 0] * 0.5 * sensor.divergence_h
         w = samples[:, 1] * 0.5 * sensor.divergence_v
         sub = (
@@ -222,13 +280,11 @@ class LidarSimulator:
         )
         sub /= np.linalg.norm(sub, axis=2, keepdims=True)
         k = len(samples)
-        t_k, hit_k, cos_k = cast_rays(
-            self.drone.body, np.repeat(o_b, k, axis=0), sub.reshape(-1, 3)
-        )
+        t_k, hit_k, cos_k = cast_rays(body, np.repeat(o_b, k, axis=0), sub.reshape(-1, 3))
         t_k = t_k.reshape(-1, k)
         hit_k = hit_k.reshape(-1, k)
         on = (hit_k >= 0) & (t_k < scene_range[idx][:, None])
-        rho_k = np.where(on, self.drone.body.reflectivity[np.maximum(hit_k, 0)], 0.0)
+        rho_k = np.where(on, body.reflectivity[np.maximum(hit_k, 0)], 0.0)
         count = on.sum(axis=1)
         per_hit = 1.0 / np.maximum(count, 1)
         mean_range = np.where(count > 0, np.where(on, t_k, 0.0).sum(axis=1) * per_hit, np.inf)
@@ -240,22 +296,108 @@ class LidarSimulator:
             surface=rho_k.sum(axis=1) * per_hit,
         )
 
+    def _bird_echoes(
+        self,
+        flock: Flock,
+        pulses: Pulses,
+        pose_t: FloatArray,
+        poses: FloatArray,
+        orig: FloatArray,
+        D: FloatArray,
+        o_mean: FloatArray,
+        slack: float,
+        scene_range: FloatArray,
+    ) -> _TargetEcho:
+        """The birds' echoes, as the target's (``_target_echo``): the nearest bird echo of
+        each pulse that meets a bird."""
+        sensor = self.sensor
+        n = len(D)
+        t0, t1 = float(pulses.t[0]), float(pulses.t[-1])
+        tm = 0.5 * (t0 + t1)
+        ends = np.stack([flock.positions(t0), flock.positions(tm), flock.positions(t1)], axis=1)
+        half_beam = 0.5 * max(sensor.divergence_h, sensor.divergence_v)
+        best = np.full(n, np.inf)
+        reflectivity, fill, surface = np.zeros(n), np.zeros(n), np.zeros(n)
+        # Every ray of the frame lies within `spread` of `axis`, about the rays' mean
+        # direction (a spinning head's rays all around: no axis), so a bird outside that
+        # cone is skipped at once.
+        axis = np.ones(len(D[::16])) @ D[::16]
+        spread = np.pi
+        if np.linalg.norm(axis) > 1e-3:
+            axis = axis / np.linalg.norm(axis)
+            spread = float(np.arccos(np.clip((D @ axis).min(), -1.0, 1.0)))
+        for b in range(len(flock)):
+            center = ends[b, 1]
+            # A sphere that holds the bird over the whole frame (its path is straight
+            # between 50 ms steps), plus a margin.
+            radius = flock.radius[b] + np.max(np.linalg.norm(ends[b] - center, axis=1)) * 1.2
+            radius += 0.05
+            v = center - o_mean
+            dist = float(np.linalg.norm(v))
+            if dist - radius - slack > sensor.max_range_m:
+                continue
+            if dist <= radius + slack:
+                idx = np.arange(n)
+            else:
+                cone = np.arcsin(min(1.0, (radius + slack) / dist)) + half_beam
+                off_axis = np.arccos(np.clip(np.dot(v / dist, axis), -1.0, 1.0))
+                if spread < np.pi and off_axis > spread + cone:
+                    continue
+                idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
+            if len(idx) == 0:
+                continue
+            # Rays in the bird's frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
+            Rb = flock.attitude(b, tm)
+            o_b = (orig[idx] - flock.path(b, pulses.t[idx])) @ Rb
+            d_b = D[idx] @ Rb
+            miss = np.linalg.norm(np.cross(o_b, d_b), axis=1)
+            near = (miss <= flock.radius[b] + half_beam * np.linalg.norm(o_b, axis=1)) & (
+                np.einsum("ij,ij->i", o_b, d_b) < 0
+            )
+            if not near.any():
+                continue
+            echo = self._footprint_echo(
+                flock.bodies[b],
+                pulses,
+                idx[near],
+                o_b[near],
+                d_b[near],
+                Rb,
+                pose_t,
+                poses,
+                dist,
+                scene_range,
+            )
+            closer = echo.range_m < best[echo.index]
+            at = echo.index[closer]
+            best[at] = echo.range_m[closer]
+            reflectivity[at] = echo.reflectivity[closer]
+            fill[at] = echo.fill[closer]
+            surface[at] = echo.surface[closer]
+        hit = np.flatnonzero(np.isfinite(best))
+        return _TargetEcho(hit, reflectivity[hit], fill[hit], best[hit], surface[hit])
+
     def _cast_scene(
-        self, orig: FloatArray, D: FloatArray, o_mean: FloatArray, slack: float
+        self, prims: Primitives, orig: FloatArray, D: FloatArray, o_mean: FloatArray, slack: float
     ) -> tuple[FloatArray, NDArray[np.int64], FloatArray]:
-        """Central rays against the static scene, through a cube-map index of it.
+        """Central rays against the scene, through a cube-map index of it.
 
         The index holds while the rays start within its slack of its origin (a
         turret moves the sensor by centimetres); a sensor that travels further
-        gets a new index.
+        gets a new index.  ``prims`` are the scene's, or as the wind has moved them
+        (by at most ``self._margin`` each, which the index allows for).
         """
         index = self._index
         if index is None or not index.covers(o_mean, slack):
             index = build_cube_map(
-                self.scene.prims, o_mean, max(2.0 * slack, INDEX_SLACK_M), self.sensor.max_range_m
+                self.scene.prims,
+                o_mean,
+                max(2.0 * slack, INDEX_SLACK_M),
+                self.sensor.max_range_m,
+                margin=self._margin,
             )
             self._index = index
-        return cast_rays(self.scene.prims, orig, D, self.sensor.max_range_m, index)
+        return cast_rays(prims, orig, D, self.sensor.max_range_m, index)
 
     def scan(
         self,
@@ -277,6 +419,7 @@ class LidarSimulator:
                 np.empty(0, np.float32),
                 np.empty(0, bool),
                 0,
+                None if self.clutter is None else np.empty(0, np.int8),
             )
         D, orig = apply_interpolated_poses(pose_t, poses, pulses.t, pulses.dirs, pulses.origins)
         # Every ray starts within `slack` of `o_mean`: the sensor origin's path during
@@ -284,15 +427,37 @@ class LidarSimulator:
         path = poses[:, :3, 3]
         o_mean = path.mean(axis=0)
         slack = float(np.max(np.linalg.norm(path - o_mean, axis=1))) + pulses.max_origin_offset
-        t_s, hit_s, cos_s = self._cast_scene(orig, D, o_mean, slack)
+        clutter = self.clutter
+        prims = self.scene.prims
+        if clutter is not None:
+            prims = clutter.scene_at(prims, 0.5 * (t_start + t_end))
+        t_s, hit_s, cos_s = self._cast_scene(prims, orig, D, o_mean, slack)
         echo = self._target_echo(pulses, pose_t, poses, orig, D, o_mean, slack, t_s)
-        pd_target = np.zeros(n)
-        pd_target[echo.index] = detection_probability(
-            self._signal(echo.reflectivity, echo.range_m), sensor.pd_width_db
-        )
-        scene_hit = np.flatnonzero(hit_s >= 0)
+        target_reflectivity = echo.reflectivity
         fill = np.ones(n)
         fill[echo.index] -= echo.fill
+        u_bird = pd_bird = bird_range = bird_rho = _NO_BIRDS
+        if clutter is not None and clutter.flock is not None:
+            birds = self._bird_echoes(
+                clutter.flock, pulses, pose_t, poses, orig, D, o_mean, slack, t_s
+            )
+            target_reflectivity, bird_reflectivity = _mutual_occlusion(n, echo, birds)
+            fill[birds.index] -= birds.fill
+            fill = np.maximum(fill, 0.0)
+            pd_bird, bird_range, bird_rho = np.zeros(n), np.full(n, np.inf), np.zeros(n)
+            pd_bird[birds.index] = detection_probability(
+                self._signal(bird_reflectivity, birds.range_m), sensor.pd_width_db
+            )
+            bird_range[birds.index] = birds.range_m
+            bird_rho[birds.index] = birds.surface
+            # u = 1 never detects; the birds' draws come from the clutter's stream.
+            u_bird = np.ones(n)
+            u_bird[birds.index] = clutter.rng.random(len(birds.index))
+        pd_target = np.zeros(n)
+        pd_target[echo.index] = detection_probability(
+            self._signal(target_reflectivity, echo.range_m), sensor.pd_width_db
+        )
+        scene_hit = np.flatnonzero(hit_s >= 0)
         pd_scene = np.zeros(n)
         pd_scene[scene_hit] = detection_probability(
             self._signal(
@@ -308,7 +473,7 @@ class LidarSimulator:
         target_range[echo.index] = echo.range_m
         target_rho = np.zeros(n)
         target_rho[echo.index] = echo.surface
-        keep, r, rho, from_target = _first_returns(
+        keep, r, rho, source = _first_returns(
             u,
             pd_target,
             pd_scene,
@@ -319,6 +484,10 @@ class LidarSimulator:
             sensor.min_range_m,
             sensor.max_range_m,
             sensor.false_alarm_rate,
+            u_bird,
+            pd_bird,
+            bird_range,
+            bird_rho,
         )
 
         noise = rng.standard_normal((len(keep), 3))
@@ -330,14 +499,66 @@ class LidarSimulator:
             sensor.angular_sigma,
             sensor.range_sigma_m,
         )
-        return Scan(
+        scan = Scan(
             points=points,
             t=pulses.t[keep],
             line=pulses.line[keep],
             intensity=np.clip(LIVOX_DIFFUSE_MAX * rho, 0.0, LIVOX_DIFFUSE_MAX).astype(np.float32),
-            hit_target=from_target,
+            hit_target=source == FROM_TARGET,
             n_pulses=n,
         )
+        if clutter is None:
+            return scan
+        assert self._sways is not None
+        kind = np.full(len(keep), CLUTTER_NONE, dtype=np.int8)
+        kind[(source == FROM_SCENE) & self._sways[hit_s[keep]]] = CLUTTER_SWAY
+        kind[source == FROM_BIRD] = CLUTTER_BIRD
+        fa, fa_range = clutter.false_alarms(
+            pulses, t_end - t_start, sensor.min_range_m, sensor.max_range_m
+        )
+        return _with_false_alarms(replace(scan, clutter=kind), keep, pulses, fa, fa_range)
+
+
+def _mutual_occlusion(
+    n: int, target: _TargetEcho, birds: _TargetEcho
+) -> tuple[FloatArray, FloatArray]:
+    """The target's and the birds' echo reflectivities where they share pulses: the nearer
+    one hides its fill fraction F of the farther one's footprint, ρ' = ρ (1 − F)."""
+    t_range, t_fill = np.full(n, np.inf), np.zeros(n)
+    t_range[target.index], t_fill[target.index] = target.range_m, target.fill
+    b_range, b_fill = np.full(n, np.inf), np.zeros(n)
+    b_range[birds.index], b_fill[birds.index] = birds.range_m, birds.fill
+    ti, bi = target.index, birds.index
+    target_rho = target.reflectivity * np.where(b_range[ti] < t_range[ti], 1.0 - b_fill[ti], 1.0)
+    bird_rho = birds.reflectivity * np.where(t_range[bi] < b_range[bi], 1.0 - t_fill[bi], 1.0)
+    return target_rho, bird_rho
+
+
+def _with_false_alarms(
+    scan: Scan,
+    keep: NDArray[np.int64],
+    pulses: Pulses,
+    fa: NDArray[np.int64],
+    fa_range: FloatArray,
+) -> Scan:
+    """The scan with the clutter's false alarms on pulses ``fa`` at ``fa_range`` added, each
+    after its pulse's own return (reflectivity 0, no noise)."""
+    if len(fa) == 0:
+        return scan
+    assert scan.clutter is not None
+    # p = o + R d in the sensor frame.
+    fa_points = pulses.origins[fa] + fa_range[:, None] * pulses.dirs[fa]
+    order = np.argsort(np.concatenate([keep, fa]), kind="stable")
+    m = len(fa)
+    return replace(
+        scan,
+        points=np.concatenate([scan.points, fa_points])[order],
+        t=np.concatenate([scan.t, pulses.t[fa]])[order],
+        line=np.concatenate([scan.line, pulses.line[fa]])[order],
+        intensity=np.concatenate([scan.intensity, np.zeros(m, np.float32)])[order],
+        hit_target=np.concatenate([scan.hit_target, np.zeros(m, bool)])[order],
+        clutter=np.concatenate([scan.clutter, np.full(m, CLUTTER_FALSE_ALARM, np.int8)])[order],
+    )
 
 
 @nb.njit(cache=True)
@@ -352,34 +573,50 @@ def _first_returns(
     r_min: float,
     r_max: float,
     p_fa: float,
-) -> tuple[NDArray[np.int64], FloatArray, FloatArray, NDArray[np.bool_]]:
-    """Which pulses return, from what range and reflectivity, and whether from the target.
+    u_bird: FloatArray,
+    pd_bird: FloatArray,
+    bird_range: FloatArray,
+    bird_rho: FloatArray,
+) -> tuple[NDArray[np.int64], FloatArray, FloatArray, NDArray[np.int8]]:
+    """Which pulses return, from what range and reflectivity, and from what (FROM_*).
 
     Per pulse with uniforms u = (u₀, u₁, u₂): the target echoes if u₀ < P_d,target,
     else the scene if u₁ < P_d,scene; a return counts within [r_min, r_max].  A pulse
     without one is a false alarm if u₂ < p_fa, at range r_min + (r_max − r_min) u₂ / p_fa
-    (given u₂ < p_fa, u₂ / p_fa is uniform on [0, 1)) and reflectivity 0.
+    (given u₂ < p_fa, u₂ / p_fa is uniform on [0, 1)) and reflectivity 0.  With birds
+    (``u_bird`` not empty) a bird echoes if u_bird < P_d,bird, tried before the target if
+    it is nearer, after it otherwise, and always before the scene behind both.
     """
     n = u.shape[0]
+    has_birds = u_bird.shape[0] > 0
     keep = np.empty(n, dtype=np.int64)
     r = np.empty(n)
     rho = np.empty(n)
-    from_target = np.empty(n, dtype=np.bool_)
+    source = np.empty(n, dtype=np.int8)
     m = 0
     for i in range(n):
-        hit_target = u[i, 0] < pd_target[i]
-        hit_scene = not hit_target and u[i, 1] < pd_scene[i]
-        rng_i = target_range[i] if hit_target else scene_range[i]
-        if (hit_target or hit_scene) and r_min <= rng_i <= r_max:
+        bird_first = has_birds and bird_range[i] < target_range[i]
+        hit_bird = bird_first and u_bird[i] < pd_bird[i]
+        hit_target = not hit_bird and u[i, 0] < pd_target[i]
+        if has_birds and not bird_first and not hit_target:
+            hit_bird = u_bird[i] < pd_bird[i]
+        hit_scene = not hit_target and not hit_bird and u[i, 1] < pd_scene[i]
+        if hit_target:
+            rng_i, rho_i, src = target_range[i], target_rho[i], FROM_TARGET
+        elif hit_bird:
+            rng_i, rho_i, src = bird_range[i], bird_rho[i], FROM_BIRD
+        else:
+            rng_i, rho_i, src = scene_range[i], scene_rho[i], FROM_SCENE
+        if (hit_target or hit_bird or hit_scene) and r_min <= rng_i <= r_max:
             keep[m] = i
             r[m] = rng_i
-            rho[m] = target_rho[i] if hit_target else scene_rho[i]
-            from_target[m] = hit_target
+            rho[m] = rho_i
+            source[m] = src
             m += 1
         elif u[i, 2] < p_fa:
             keep[m] = i
             r[m] = r_min + (r_max - r_min) * (u[i, 2] / p_fa)
             rho[m] = 0.0
-            from_target[m] = False
+            source[m] = FROM_FALSE_ALARM
             m += 1
-    return keep[:m], r[:m], rho[:m], from_target[:m]
+    return keep[:m], r[:m], rho[:m], source[:m]

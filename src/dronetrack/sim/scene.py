@@ -5,9 +5,10 @@ World frame: origin at the turret base on the ground, x forward, y left, z up.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError
 from dronetrack.sim.primitives import Primitives
@@ -28,14 +29,20 @@ RHO_FLOOR = 0.25
 
 @dataclass(frozen=True, slots=True)
 class Scene:
-    """A named set of static primitives and the area it covers (x0, y0, x1, y1) [m]."""
+    """A named set of static primitives and the area it covers (x0, y0, x1, y1) [m].
+
+    ``swaying`` lists the primitives the wind can move (tree crowns and hedges), for
+    the clutter of ``sim/clutter.py``; without clutter every primitive stands still.
+    """
 
     name: str
     prims: Primitives
     extent: tuple[float, float, float, float]
+    swaying: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, dtype=np.int64))
 
 
 def _tree(x: float, y: float, height: float, crown_radius: float) -> list[Primitives]:
+    """A trunk and its crown, in that order (one primitive each)."""
     trunk_h = 0.45 * height
     return [
         cylinder((x, y, 0.5 * trunk_h), 0.15 + 0.02 * height, trunk_h, RHO_TRUNK),
@@ -56,6 +63,7 @@ def outdoor_field(layout_seed: int = 0) -> Scene:
     """
     rng = np.random.default_rng(layout_seed)
     parts = [ground(RHO_GRASS)]
+    swaying: list[int] = []  # every part is one primitive: its index is its place in parts
     for center, size, yaw in (
         ((-45.0, 55.0, 5.0), (24.0, 16.0, 10.0), 0.1),
         ((-60.0, -40.0, 6.0), (30.0, 14.0, 12.0), -0.05),
@@ -72,6 +80,7 @@ def outdoor_field(layout_seed: int = 0) -> Scene:
             parts += _tree(
                 x + jitter[0], y_edge + jitter[1], rng.uniform(9.0, 16.0), rng.uniform(2.5, 4.5)
             )
+            swaying.append(len(parts) - 1)
     for y in np.arange(-120.0, 121.0, 20.0):
         parts += _tree(
             215.0 + rng.uniform(-3, 3),
@@ -79,13 +88,21 @@ def outdoor_field(layout_seed: int = 0) -> Scene:
             rng.uniform(10.0, 18.0),
             rng.uniform(3.0, 5.0),
         )
+        swaying.append(len(parts) - 1)
     # Single trees inside the field, away from the corridor |y| < 50 m.
     for x, y in ((45.0, 75.0), (80.0, -70.0), (120.0, 85.0), (150.0, -65.0), (25.0, -60.0)):
         parts += _tree(x, y, rng.uniform(8.0, 14.0), rng.uniform(2.5, 4.0))
+        swaying.append(len(parts) - 1)
     # A hedge and a wall.
     parts.append(box((70.0, -55.0, 0.8), (60.0, 1.5, 1.6), RHO_HEDGE))
+    swaying.append(len(parts) - 1)
     parts.append(box((205.0, 60.0, 1.25), (0.4, 40.0, 2.5), RHO_WALL))
-    return Scene("outdoor", Primitives.concat(parts), (-50.0, -150.0, 250.0, 150.0))
+    return Scene(
+        "outdoor",
+        Primitives.concat(parts),
+        (-50.0, -150.0, 250.0, 150.0),
+        np.array(swaying, dtype=np.int64),
+    )
 
 
 def indoor_room(partition: bool = False) -> Scene:

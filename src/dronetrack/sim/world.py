@@ -31,6 +31,7 @@ from dronetrack.config.rig import TurretSpec
 from dronetrack.errors import InputError
 from dronetrack.geometry.mount import MountGeometry, sensor_poses
 from dronetrack.geometry.transforms import FloatArray, make_pose, rot_z
+from dronetrack.sim.clutter import CLUTTER_NONE, Clutter, ClutterSpec
 from dronetrack.sim.drones import DroneModel
 from dronetrack.sim.lidar import LidarSimulator
 from dronetrack.sim.scene import Scene
@@ -157,10 +158,23 @@ class FrameTruth:
     # and the one its odometry reports (the frame's poses use the reported one).
     observer_position: FloatArray | None = None
     observer_reported: FloatArray | None = None
+    # With clutter ([scene.clutter]): what each point is (sim.clutter's CLUTTER_* codes:
+    # none, a swaying crown or hedge, a bird, a random false alarm), (N,), and every
+    # bird's position at the frame end [m], (B, 3).
+    clutter: NDArray[np.int8] | None = None
+    bird_positions: FloatArray | None = None
 
     @property
     def n_target_points(self) -> int:
         return int(np.count_nonzero(self.hit_target))
+
+    @property
+    def hit_clutter(self) -> NDArray[np.bool_]:
+        """(N,) per point: the return came from clutter (all False without clutter)."""
+        if self.clutter is None:
+            return np.zeros(len(self.hit_target), dtype=bool)
+        hit: NDArray[np.bool_] = self.clutter != CLUTTER_NONE
+        return hit
 
     def target_returns(self, frame: Frame, world: FloatArray) -> int:
         """The frame's returns the ray caster marked as hitting the target (``types.Truth``)."""
@@ -173,7 +187,9 @@ class SimWorld:
     With an ``observer`` the turret rides on it (``mount.base`` in its body frame)
     and ``odometry_sigma`` [m/√s] makes the reported poses drift from the true
     ones; the drift draws from a child of ``rng``, so the returns are the same
-    with and without it.
+    with and without it.  ``clutter`` adds swaying crowns, false alarms and birds
+    (``sim/clutter.py``), drawn from a child of ``rng`` spawned after the drift's, so
+    a world without clutter draws exactly what it did before clutter existed.
     """
 
     def __init__(
@@ -192,8 +208,8 @@ class SimWorld:
         t0: float = 0.0,
         observer: Observer | None = None,
         odometry_sigma: float = 0.0,
+        clutter: ClutterSpec | None = None,
     ) -> None:
-        self.lidar = LidarSimulator(sensor, scene, drone, trajectory, extinction)
         self.trajectory = trajectory
         self.mount = mount
         self.integration_time = integration_time
@@ -206,6 +222,10 @@ class SimWorld:
         self.odometry: OdometryDrift | None = None
         if observer is not None and odometry_sigma > 0:
             self.odometry = OdometryDrift(odometry_sigma, rng.spawn(1)[0], t0)
+        self.clutter: Clutter | None = None
+        if clutter is not None:
+            self.clutter = Clutter(clutter, scene, rng.spawn(1)[0], t0, self._line_of_sight)
+        self.lidar = LidarSimulator(sensor, scene, drone, trajectory, extinction, self.clutter)
 
     @property
     def time(self) -> float:
@@ -235,6 +255,13 @@ class SimWorld:
             return np.zeros(3)
         p: FloatArray = self.observer.trajectory.position(t)[0]
         return p
+
+    def _line_of_sight(self, t: float) -> tuple[FloatArray, FloatArray]:
+        """The turret base's and the target's true positions at time t, (3,) each."""
+        base = np.append(self.mount.base_vec, 1.0)
+        if self.observer is not None:
+            base = self.observer.body_poses(t)[0] @ base
+        return base[:3].copy(), self.target_position(t)
 
     def _poses(
         self, times: FloatArray, pan: FloatArray, tilt: FloatArray
@@ -306,5 +333,7 @@ class SimWorld:
             turret=self.plant.state(),
             observer_position=observer,
             observer_reported=observer_reported,
+            clutter=scan.clutter,
+            bird_positions=None if self.clutter is None else self.clutter.bird_positions(t1),
         )
         return frame, truth
