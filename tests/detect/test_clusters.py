@@ -163,3 +163,19 @@ def test_components_partition_as_scipys(n: int, seed: int, m: int) -> None:
     )
     for label in np.unique(ours):
         assert label == np.flatnonzero(ours == label).min()
+
+
+def test_a_single_return_is_a_cluster_without_spread() -> None:
+    """The shortcut for one point gives what the general formulas give."""
+    pts = np.array([[3.0, -2.0, 7.5]])
+    (one,) = cluster_features(pts, np.array([0]))
+    np.testing.assert_array_equal(one.centroid, pts[0])
+    np.testing.assert_array_equal(one.covariance, np.zeros((3, 3)))
+    np.testing.assert_array_equal(one.extent, np.zeros(3))
+    assert (one.planarity, one.n) == (0.0, 1)
+    # two coincident returns take the general path: the same statistics
+    (two,) = cluster_features(np.vstack([pts, pts]), np.array([0, 0]))
+    np.testing.assert_array_equal(two.centroid, one.centroid)
+    np.testing.assert_array_equal(two.covariance, one.covariance)
+    np.testing.assert_array_equal(two.extent, one.extent)
+    assert two.planarity == one.planarity

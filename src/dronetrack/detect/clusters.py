@@ -115,6 +115,8 @@ class Cluster:
 
 
 def _features(pts: FloatArray) -> Cluster:
+    if len(pts) == 1:  # a single return: no spread (what the general case gives, without eigh)
+        return Cluster(pts[0].copy(), np.zeros((3, 3)), np.zeros(3), 0.0, 1)
     centroid = pts.mean(axis=0)
     centred = pts - centroid
     # Σ = (1/n) Σᵢ (pᵢ − p̄)(pᵢ − p̄)ᵀ
