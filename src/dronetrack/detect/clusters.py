@@ -73,6 +73,14 @@ def dbscan(points: FloatArray, eps: float, min_points: int) -> IntArray:
     if n == 0:
         return labels
     pairs = cKDTree(pts).query_pairs(eps, output_type="ndarray")
+    if min_points <= 1:
+        # Every point is a core point: the clusters are the connected components of
+        # the ε-graph, numbered by their first point (each component's label is its
+        # smallest point, so ranking the labels numbers them in that order).
+        component = connected_components(n, np.ascontiguousarray(pairs, dtype=np.int64))
+        _, inverse = np.unique(component, return_inverse=True)
+        out: IntArray = inverse.astype(np.int64)
+        return out
     # Neighbourhood size |N_ε(p)| counts p itself.
     neighbours = np.bincount(pairs.ravel(), minlength=n) + 1
     core = neighbours >= min_points
