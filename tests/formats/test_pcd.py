@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import logging
 import struct
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -348,6 +349,22 @@ def test_frame_drops_nan_points_and_maps_fields() -> None:
     assert frame.line.tolist() == [1, 255]
     assert frame.t.tolist() == [2.0, 2.0]
     np.testing.assert_array_equal(frame.poses[0], np.eye(4))
+
+
+def test_signalling_nans_are_dropped_or_zeroed_without_a_warning() -> None:
+    fields = ("x", "y", "z", "time", "intensity", "ring")
+    arr = np.zeros(2, [(name, "<f4") for name in fields])
+    snan32 = np.array([0x7FA00001], dtype="<u4").view("<f4")[0]  # exponent all ones, quiet bit 0
+    for name in fields:
+        arr[name][0] = snan32
+    arr["x"][1], arr["ring"][1] = 4.0, 7.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        frame = cloud_frame(arr, 2.0, 0.1)
+        poisoned = cloud_frame(arr[:1].copy(), 2.0, 0.1)
+    assert frame.points.tolist() == [[4.0, 0.0, 0.0]]
+    assert frame.line.tolist() == [7]
+    assert len(poisoned) == 0
 
 
 @pytest.mark.parametrize(

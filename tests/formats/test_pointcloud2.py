@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import struct
+import warnings
 from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from dronetrack.errors import DecodeError, InputError
@@ -406,8 +407,26 @@ def _reference_value(
     return struct.unpack_from(fmt, data, pos + field.offset)
 
 
+_SIGNALLING_NAN_LAYOUT = (
+    [
+        Field("_", 0, 1),
+        Field("a", 1, 1),
+        Field("b", 2, 1),
+        Field("c", 3, 5, 3),
+        Field("__", 15, 1),
+        Field("___", 19, 7, 2),
+    ],
+    27,
+    False,
+    1,
+    1,
+    27,
+)
+
+
 @settings(max_examples=80)
 @given(layout=layouts(), seed=st.integers(0, 2**32 - 1))
+@example(layout=_SIGNALLING_NAN_LAYOUT, seed=238)  # bytes 23-26 are a float32 signalling NaN
 def test_decode_matches_struct_reference(
     layout: tuple[list[Field], int, bool, int, int, int], seed: int
 ) -> None:
@@ -420,8 +439,26 @@ def test_decode_matches_struct_reference(
         pos = row * row_step + col * point_step
         for f in fields:
             want = np.array(_reference_value(data, pos, f, bigendian), dtype=np.float64)
-            got = np.atleast_1d(arr[f.name][i]).astype(np.float64)
+            # Random bytes can hold a signalling NaN; widening it to float64 quiets it
+            # and raises the 'invalid' flag, which is expected here, not an error.
+            with np.errstate(invalid="ignore"):
+                got = np.atleast_1d(arr[f.name][i]).astype(np.float64)
             np.testing.assert_array_equal(got, want)  # NaN equals NaN here
+
+
+def test_cloud_points_keeps_signalling_nans_as_nan() -> None:
+    snan32 = np.array([0x7FA00001], dtype="<u4").view("<f4")[0]  # exponent all ones, quiet bit 0
+    fields = [Field(name, 4 * k, 7) for k, name in enumerate(("x", "y", "z", "t", "intensity"))]
+    fields.append(Field("ring", 20, 7))
+    data = np.full(6, snan32, dtype="<f4").tobytes()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cp = cloud_points(decode_cloud(fields, data, 1, 1, 24, 24, False), STAMP)
+    assert np.isnan(cp.points).all()
+    assert cp.t is not None
+    assert np.isnan(cp.t).all()
+    assert np.isnan(cp.intensity).all()
+    np.testing.assert_array_equal(cp.line, [0])
 
 
 @settings(max_examples=40)

@@ -299,19 +299,21 @@ def cloud_points(arr: NDArray[np.void], stamp: float) -> CloudPoints:
         raise DecodeError(f"PointCloud2 has no x, y, z fields (it has: {', '.join(names)})")
     n = arr.shape[0]
     points = np.empty((n, 3), dtype=np.float64)
-    # Corrupt bytes may hold signalling NaNs: they stay NaN, and the pipeline counts them.
+    # Corrupt bytes may hold signalling NaNs in any float column: a cast quiets them
+    # and raises numpy's 'invalid' flag.  They stay NaN, and the pipeline counts them.
     with np.errstate(invalid="ignore"):
         for k, axis in enumerate(("x", "y", "z")):
             points[:, k] = _scalar_column(arr, axis)  # converts byte order and type
-    intensity_name = _first_present(names, _INTENSITY_FIELDS)
-    intensity = (
-        np.zeros(n, dtype=np.float32)
-        if intensity_name is None
-        else _scalar_column(arr, intensity_name).astype(np.float32)
-    )
-    line_name = _first_present(names, _LINE_FIELDS)
-    line = np.zeros(n, dtype=np.uint8) if line_name is None else _line_column(arr, line_name)
-    return CloudPoints(points, _relative_time(arr, names, stamp), intensity, line)
+        intensity_name = _first_present(names, _INTENSITY_FIELDS)
+        intensity = (
+            np.zeros(n, dtype=np.float32)
+            if intensity_name is None
+            else _scalar_column(arr, intensity_name).astype(np.float32)
+        )
+        line_name = _first_present(names, _LINE_FIELDS)
+        line = np.zeros(n, dtype=np.uint8) if line_name is None else _line_column(arr, line_name)
+        t_rel = _relative_time(arr, names, stamp)
+    return CloudPoints(points, t_rel, intensity, line)
 
 
 # The livox_ros_driver2 PointCloud2 record written by encode_cloud (see the table above).

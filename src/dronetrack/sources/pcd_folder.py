@@ -241,13 +241,19 @@ def _scalar_field(cloud: NDArray[np.void], names: Sequence[str]) -> NDArray[np.g
     return None
 
 
+def _as_float64(values: NDArray[np.generic]) -> FloatArray:
+    """``values`` as float64; a signalling NaN from corrupt bytes becomes a quiet NaN."""
+    with np.errstate(invalid="ignore"):  # the cast quiets it and raises the 'invalid' flag
+        return values.astype(np.float64)
+
+
 def cloud_xyz(cloud: NDArray[np.void]) -> FloatArray:
     """Points (N, 3) [m] from the x, y, z fields; DecodeError naming the fields found."""
     fields: Mapping[str, Any] = cloud.dtype.fields or {}
     if not all(k in fields and fields[k][0].shape == () for k in "xyz"):
         found = ", ".join(cloud.dtype.names or ()) or "none"
         raise DecodeError(f"the cloud has no scalar x, y, z fields (fields: {found})")
-    return np.column_stack([cloud[k].astype(np.float64) for k in "xyz"])
+    return np.column_stack([_as_float64(cloud[k]) for k in "xyz"])
 
 
 def _finite_extreme(values: FloatArray, largest: bool) -> float | None:
@@ -264,14 +270,14 @@ def cloud_times(
     file's time relative to ``origin``, ``absolute`` whether ``origin`` is a real time."""
     rel = _scalar_field(cloud, ("offset_time", "t"))
     if rel is not None:  # t = stamp + offset · 1e-9
-        return stamp + rel.astype(np.float64) * 1e-9
+        return stamp + _as_float64(rel) * 1e-9
     rel = _scalar_field(cloud, ("time",))
     if rel is not None:  # t = stamp + time
-        return stamp + rel.astype(np.float64)
+        return stamp + _as_float64(rel)
     ts = _scalar_field(cloud, ("timestamp",))
     if ts is None:
         return None
-    seconds = ts.astype(np.float64)
+    seconds = _as_float64(ts)
     largest = _finite_extreme(seconds, largest=True)
     if largest is not None and largest > _NS_THRESHOLD:
         seconds = seconds * 1e-9
@@ -283,7 +289,7 @@ def cloud_times(
 
 def _line_numbers(values: NDArray[np.generic]) -> NDArray[np.uint8]:
     """Laser line numbers clipped to 0..255, NaN as 0."""
-    clean = np.nan_to_num(values.astype(np.float64), nan=0.0, posinf=255.0, neginf=0.0)
+    clean = np.nan_to_num(_as_float64(values), nan=0.0, posinf=255.0, neginf=0.0)
     return np.clip(clean, 0.0, 255.0).astype(np.uint8)
 
 
@@ -308,7 +314,7 @@ def cloud_frame(
         duration,
         xyz[keep],
         t=None if t is None else t[keep],
-        intensity=None if intensity is None else intensity[keep].astype(np.float32),
+        intensity=None if intensity is None else _as_float64(intensity[keep]).astype(np.float32),
         line=None if line is None else _line_numbers(line[keep]),
         pose=pose,
     )
