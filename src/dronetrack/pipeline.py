@@ -147,7 +147,9 @@ class Pipeline:
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
             self._locked = estimate.tracked
-            command = self.controller.tracking(t_cmd, estimate, points) if steps > 0 else None
+            command = (
+                self.controller.tracking(t_cmd, estimate, points, confirmed) if steps > 0 else None
+            )
             result = self._result(
                 frame, "track", estimate, fg, points, command, start, flags, steps
             )

@@ -11,7 +11,7 @@ from dronetrack.control.aiming import aim_angles
 from dronetrack.control.controller import TurretController
 from dronetrack.control.scan import raster, triangle
 from dronetrack.geometry.mount import MountGeometry
-from dronetrack.types import TrackEstimate
+from dronetrack.types import Candidates, TrackEstimate
 
 MOUNT = MountGeometry((0.0, 0.0, 1.0), (0.0, 0.0, 0.05), (0.025, 0.0, 0.086))
 LIMITS = ((-math.pi, math.pi), (math.radians(-68), math.radians(68)))
@@ -47,33 +47,69 @@ def test_before_the_first_lock_it_looks_home() -> None:
     assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles((60.0, 0.0, 15.0), MOUNT))
 
 
-def test_a_lost_target_is_held_then_searched_for() -> None:
+def test_a_lost_target_is_followed_then_searched_for() -> None:
+    area = ((math.radians(-90), math.radians(90)), (math.radians(-40), math.radians(5)))
     c = _controller(
         search_hold_s=2.0,
         search_pan=math.radians(30),
-        search_tilt=math.radians(10),
-        search_period_s=4.0,
+        search_lane=math.radians(20),
+        search_rate=math.radians(40),
+        search_area=area,
     )
     last = (40.0, -20.0, 10.0)
     c.tracking(0.0, _estimate(0.0, last))
-    held = aim_angles(last, MOUNT)
-    pans = []
-    for k in range(1, 200):
+    pans, tilts = [], []
+    for k in range(1, 400):
         t = 0.1 * k
-        cmd = c.tracking(t, _estimate(t, (0.0, 0.0, 0.0), tracked=False))
+        # The tracker's prediction drifts on at 5 m/s along y.
+        predicted = (40.0, -20.0 + 5.0 * t, 10.0)
+        cmd = c.tracking(t, _estimate(t, predicted, tracked=False))
         assert cmd is not None
-        if t < 2.0:
-            assert (cmd.pan, cmd.tilt) == pytest.approx(held)
+        if t < 2.0 - 1e-9:  # following the prediction
+            assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles(predicted, MOUNT))
         else:
-            pans.append(cmd.pan - held[0])
-            assert abs(cmd.tilt - held[1]) <= math.radians(10) + 1e-9
-    pans_deg = np.degrees(pans)
-    assert pans_deg.max() == pytest.approx(30.0, abs=1.0)
-    assert pans_deg.min() == pytest.approx(-30.0, abs=1.0)
+            pans.append(cmd.pan)
+            tilts.append(cmd.tilt)
+    # The search reaches both ends of the field's pan range (within a frame's 4° of
+    # motion, as the frames sample it) and stays inside it.
+    assert min(pans) == pytest.approx(area[0][0], abs=math.radians(4.0))
+    assert max(pans) == pytest.approx(area[0][1], abs=math.radians(4.0))
+    assert area[0][0] <= min(pans) <= max(pans) <= area[0][1]
+    assert area[1][0] <= min(tilts) <= max(tilts) <= area[1][1]
+    # It moves at the search rate: 40°/s at most, 4° a 0.1 s frame.
+    assert np.max(np.abs(np.diff(pans))) <= math.radians(4.0) + 1e-9
     # Found again: back to tracking at once.
-    back = c.tracking(20.0, _estimate(20.0, (30.0, 5.0, 8.0)))
+    back = c.tracking(50.0, _estimate(50.0, (30.0, 5.0, 8.0)))
     assert back is not None
     assert (back.pan, back.tilt) == pytest.approx(aim_angles((30.0, 5.0, 8.0), MOUNT))
+
+
+def _candidates(p: tuple[float, float, float], v: tuple[float, float, float]) -> Candidates:
+    one = np.ones(1, dtype=np.int64)
+    return Candidates(np.array([p]), np.array([v]), 3 * one, np.array([0.4]), one)
+
+
+def test_a_confirmed_candidate_gets_the_dense_centre_before_any_lock() -> None:
+    c = _controller(home=(60.0, 0.0, 15.0), lead_s=0.5)
+    cand = _candidates((80.0, 40.0, 20.0), (0.0, -4.0, 0.0))
+    cmd = c.tracking(0.0, _estimate(0.0, (5.0, 5.0, 5.0), tracked=False), None, cand)
+    assert cmd is not None
+    assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles((80.0, 38.0, 20.0), MOUNT))
+    # The candidate gone: the turret stays on it for the hold, not back home.
+    held = c.tracking(1.0, _estimate(1.0, (5.0, 5.0, 5.0), tracked=False), None, None)
+    assert held is not None
+    assert (held.pan, held.tilt) == pytest.approx((cmd.pan, cmd.tilt))
+
+
+def test_before_any_lock_or_candidate_it_searches_after_the_hold() -> None:
+    c = _controller(home=(60.0, 0.0, 15.0), search_hold_s=1.0)
+    home = aim_angles((60.0, 0.0, 15.0), MOUNT)
+    seen = [
+        c.tracking(0.1 * k, _estimate(0.1 * k, (5.0, 5.0, 5.0), tracked=False)) for k in range(30)
+    ]
+    assert all(cmd is not None for cmd in seen)
+    assert all((cmd.pan, cmd.tilt) == pytest.approx(home) for cmd in seen[:10] if cmd)
+    assert any(abs(cmd.pan - home[0]) > math.radians(10) for cmd in seen[10:] if cmd)
 
 
 def test_fixed_mode_sends_home_once_and_then_nothing() -> None:

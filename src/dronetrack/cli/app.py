@@ -12,6 +12,7 @@ import typer
 
 from dronetrack import __version__
 from dronetrack.cli.output import (
+    err_console,
     print_kernel_note,
     print_metrics,
 )
@@ -90,6 +91,15 @@ def report_run(folder: RunFolder, run: RunResult, metrics: dict[str, Any]) -> No
     """After a run's folder is written: the kernels' compile time if it compiled, then
     one ``interrupted`` line (exit 130) if Ctrl-C ended it, else the metrics table."""
     print_kernel_note(run.kernels)
+    outside = metrics.get("outside_field_pct")
+    if outside:
+        err_console.print(
+            f"warning: the drone spends {outside:.1f} % of the run outside the detection area "
+            "(the crop box and the field of regard); see outside_field_pct in metrics.json",
+            markup=False,
+            highlight=False,
+            soft_wrap=True,
+        )
     stop_if_interrupted(run.interrupted, f"; kept {len(run.log)} frames in {folder.out_dir}")
     print_metrics(metrics, folder.out_dir)
 

@@ -82,6 +82,18 @@ def print_kernel_note(kernels: KernelWarmUp) -> None:
         )
 
 
+def _reacquisitions(times: object) -> str:
+    """``reacquire_s`` in a line: how many losses, the worst time, how many never ended."""
+    if not isinstance(times, list) or not times:
+        return "no losses"
+    done = [t for t in times if t is not None]
+    worst = f", worst {max(done):.1f} s" if done else ""
+    missed = len(times) - len(done)
+    return f"{len(times)} loss{'es' if len(times) > 1 else ''}{worst}" + (
+        f", {missed} not re-acquired" if missed else ""
+    )
+
+
 def print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
     from rich.table import Table
 
@@ -104,6 +116,16 @@ def print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
         ("RMSE x, y, z", fmt(metrics.get("rmse_xyz_m"), " m")),
         ("RMSE while tracked", fmt(metrics.get("rmse_tracked_m"), " m")),
         ("first lock", fmt(metrics.get("first_lock_s"), " s", 1)),
+    ]
+    if "lock_on_visible_pct" in metrics:
+        rows += [
+            ("acquired after first returns", fmt(metrics.get("acquire_s"), " s", 1)),
+            ("re-acquisitions", _reacquisitions(metrics.get("reacquire_s"))),
+            ("locked on while visible", fmt(metrics.get("lock_on_visible_pct"), " %", 1)),
+        ]
+    if "false_lock_pct" in metrics:
+        rows.append(("false locks", fmt(metrics.get("false_lock_pct"), " %", 1)))
+    rows += [
         (
             "step time mean / std / max",
             " / ".join(

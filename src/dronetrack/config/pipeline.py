@@ -10,9 +10,12 @@ Defaults follow the reference implementation's outdoor configuration
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from dronetrack.geometry.field import FieldOfRegard
 
 __all__ = [
     "AcquisitionConfig",
@@ -22,6 +25,7 @@ __all__ = [
     "CropConfig",
     "DetectorConfig",
     "EvaluationConfig",
+    "FieldOfRegardConfig",
     "KalmanConfig",
     "LatencyConfig",
     "OutlierConfig",
@@ -29,6 +33,9 @@ __all__ = [
     "StrictModel",
     "TrackerConfig",
     "TrackerKind",
+    "crop_box",
+    "field_of_regard",
+    "scan_area",
 ]
 
 Vec3 = tuple[float, float, float]
@@ -61,17 +68,53 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
-class CropConfig(StrictModel):
-    """World-frame box that keeps the points worth tracking (drops the ground and far points)."""
+# Without a field of regard or a box of one's own, the crop box and the background scan
+# take these values.
+DEFAULT_CROP_MIN_M: Vec3 = (1.0, -200.0, 1.0)
+DEFAULT_CROP_MAX_M: Vec3 = (300.0, 200.0, 100.0)
+DEFAULT_SCAN_PAN_DEG: Pair = (-60.0, 60.0)
+DEFAULT_SCAN_TILT_DEG: Pair = (-25.0, 5.0)
+DEFAULT_SCAN_PERIOD_S = 4.0  # one pan sweep of the default 120° there and back
+CROP_FLOOR_M = 1.0  # a crop box from the field of regard starts this high (drops the ground)
 
-    min_m: Vec3 = (1.0, -200.0, 1.0)
-    max_m: Vec3 = (300.0, 200.0, 100.0)
+
+class FieldOfRegardConfig(StrictModel):
+    """The region the site watches, from the turret base: pan and tilt ranges in the
+    turret's conventions (pan counter-clockwise from x; tilt negative looks up) and a
+    range limit.  The background scan covers it, the crop box bounds it (unless they
+    are set), the turret's search pattern covers it, and the acquisition figures count
+    the drone as visible only inside it."""
+
+    pan_deg: Pair = (-180.0, 180.0)
+    tilt_deg: Pair = (-30.0, 5.0)
+    range_m: float = Field(200.0, gt=0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> FieldOfRegardConfig:
+        lo, hi = self.pan_deg
+        if not lo < hi <= lo + 360.0:
+            raise ValueError("field_of_regard pan_deg must satisfy lo < hi ≤ lo + 360")
+        if not -90.0 <= self.tilt_deg[0] < self.tilt_deg[1] <= 90.0:
+            raise ValueError("field_of_regard tilt_deg must satisfy −90 ≤ lo < hi ≤ 90")
+        return self
+
+
+class CropConfig(StrictModel):
+    """World-frame box that keeps the points worth tracking (drops the ground and far
+    points).  Unset: the field of regard's bounding box from 1 m up, or without one
+    (1, −200, 1)-(300, 200, 100) m."""
+
+    min_m: Vec3 | None = None
+    max_m: Vec3 | None = None
     # Seed 003's second filter: keep only points inside the convex hull of these vertices.
     hull_m: tuple[Vec3, ...] | None = None
 
     @model_validator(mode="after")
     def _ordered(self) -> CropConfig:
-        if not all(lo < hi for lo, hi in zip(self.min_m, self.max_m, strict=True)):
+        if (self.min_m is None) != (self.max_m is None):
+            raise ValueError("crop min_m and max_m must be set together")
+        pairs = zip(self.min_m or (), self.max_m or (), strict=True)
+        if not all(lo < hi for lo, hi in pairs):
             raise ValueError("crop min_m must be below max_m on every axis")
         return self
 
@@ -86,10 +129,12 @@ class BackgroundConfig(StrictModel):
     min_hits: int = Field(1, ge=1)  # returns a voxel needs to count as occupied
     scan_s: float = Field(10.0, ge=0)  # scanning time before tracking starts
     file: str | None = None  # load a saved map instead of scanning (and skip the scan)
-    # The scanning pattern: pan and tilt triangle waves over these ranges.
-    scan_pan_deg: Pair = (-60.0, 60.0)
-    scan_tilt_deg: Pair = (-25.0, 5.0)
-    scan_period_s: float = Field(4.0, gt=0)  # one pan sweep there and back
+    # The scanning pattern: pan and tilt triangle waves over these ranges.  Unset: the
+    # field of regard's ranges, or without one pan ±60°, tilt −25° to 5°.
+    scan_pan_deg: Pair | None = None
+    scan_tilt_deg: Pair | None = None
+    # One pan sweep there and back; unset: 4 s per 120° of pan (60°/s).
+    scan_period_s: float | None = Field(None, gt=0)
 
 
 class OutlierConfig(StrictModel):
@@ -202,10 +247,15 @@ class ControllerConfig(StrictModel):
     mode: ControllerMode = "tracking"
     home_m: Vec3 = (60.0, 0.0, 15.0)  # where the sensor looks before a lock, and in fixed mode
     lead_s: float = Field(0.0, ge=0)  # aim at p + v·lead (0: at the estimate, as the reference)
-    search_hold_s: float = Field(2.0, ge=0)  # hold after losing the target, then scan
-    search_pan_deg: float = Field(30.0, ge=0)  # scan ± this around the last bearing
-    search_tilt_deg: float = Field(10.0, ge=0)
-    search_period_s: float = Field(4.0, gt=0)
+    # Lost: follow the prediction this long (before the first lock: look home), then
+    # search the field of regard (or without one the background scan's area): sweeps of
+    # ± search_pan_deg around the last bearing, one lane wider each, then a raster of
+    # search_lane_deg lanes at search_rate_deg_s (control.search).  The lane is the
+    # sensor's dense centre: 20° suits the Avia's rosette (see the README).
+    search_hold_s: float = Field(2.0, ge=0)
+    search_pan_deg: float = Field(30.0, ge=0)
+    search_lane_deg: float = Field(20.0, gt=0)
+    search_rate_deg_s: float = Field(40.0, gt=0)
     # Seed 003's scan strategies (pan only): the sweep's range and rate, and the fixed tilt.
     sweep_pan_deg: Pair = (-90.0, 90.0)
     sweep_rate_deg_s: float = Field(30.0, gt=0)
@@ -220,6 +270,7 @@ class LatencyConfig(StrictModel):
 
 
 class PipelineConfig(StrictModel):
+    field_of_regard: FieldOfRegardConfig | None = None
     crop: CropConfig = CropConfig()
     background: BackgroundConfig = BackgroundConfig()
     outliers: OutlierConfig = OutlierConfig()
@@ -228,3 +279,45 @@ class PipelineConfig(StrictModel):
     controller: ControllerConfig = ControllerConfig()
     latency: LatencyConfig = LatencyConfig()
     evaluation: EvaluationConfig = EvaluationConfig()
+
+
+# ---------------------------------------------------------------------------------------
+# Settings that follow from the field of regard unless they are set
+
+
+def field_of_regard(cfg: PipelineConfig, base: Vec3) -> FieldOfRegard | None:
+    """The configured field of regard around the turret base ``base`` [m], in radians."""
+    f = cfg.field_of_regard
+    if f is None:
+        return None
+    rad = math.radians
+    return FieldOfRegard(
+        (rad(f.pan_deg[0]), rad(f.pan_deg[1])),
+        (rad(f.tilt_deg[0]), rad(f.tilt_deg[1])),
+        f.range_m,
+        base,
+    )
+
+
+def crop_box(cfg: PipelineConfig, base: Vec3) -> tuple[Vec3, Vec3]:
+    """The crop box [m]: as set, else the field of regard's bounding box from
+    ``CROP_FLOOR_M`` up, else the default box."""
+    if cfg.crop.min_m is not None and cfg.crop.max_m is not None:
+        return cfg.crop.min_m, cfg.crop.max_m
+    field = field_of_regard(cfg, base)
+    if field is None:
+        return DEFAULT_CROP_MIN_M, DEFAULT_CROP_MAX_M
+    lo, hi = field.bounding_box(CROP_FLOOR_M)
+    return (float(lo[0]), float(lo[1]), float(lo[2])), (float(hi[0]), float(hi[1]), float(hi[2]))
+
+
+def scan_area(cfg: PipelineConfig) -> tuple[Pair, Pair, float]:
+    """The background scan's pan and tilt ranges [deg] and period [s]: as set, else the
+    field of regard's ranges, else the defaults; the period keeps the pan at 60°/s."""
+    bg, f = cfg.background, cfg.field_of_regard
+    pan = bg.scan_pan_deg or (f.pan_deg if f is not None else DEFAULT_SCAN_PAN_DEG)
+    tilt = bg.scan_tilt_deg or (f.tilt_deg if f is not None else DEFAULT_SCAN_TILT_DEG)
+    # T = 4 s · (pan span / 120°), never below 4 s
+    span = pan[1] - pan[0]
+    period = bg.scan_period_s or DEFAULT_SCAN_PERIOD_S * max(1.0, span / 120.0)
+    return pan, tilt, period

@@ -13,6 +13,7 @@ from dronetrack.config.pipeline import (
     ControllerConfig,
     CropConfig,
     EvaluationConfig,
+    FieldOfRegardConfig,
     PipelineConfig,
     TrackerConfig,
 )
@@ -222,8 +223,61 @@ DEFAULT = _outdoor(
     "seed 000 horizontal fast: Phantom 4 at 15 m/s to 140 m, Avia on a WidowX, clear",
     66.0,
 )
+# The acquisition scenarios watch a field of regard of ±90° pan, from 40° up to 5° down,
+# out to 200 m: the background scan covers it and the crop box bounds it.
+# A voxel needs two returns in the scan to be background: with one, the sensor's random
+# false alarms mark about 1.5 % of the sky 10-30 m up as background (measured on the
+# outdoor-incoming scan), and a drone hovering in such a cell vanishes from the foreground.
+# Two hits need a longer scan of the wider field: 20 s, so the hedge is seen twice.
+OUTDOOR_FIELD = OUTDOOR.model_copy(
+    update={
+        "field_of_regard": FieldOfRegardConfig(
+            pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 5.0), range_m=200.0
+        ),
+        "background": BackgroundConfig(min_hits=2, scan_s=20.0),
+    }
+)
+
+
+def _acquisition(
+    name: str, flight: str, description: str, duration: float, scene: str = "outdoor"
+) -> ScenarioConfig:
+    """Finding the drone by itself: seed 000's rig outdoors with a field of regard."""
+    return _scenario(
+        name,
+        description,
+        duration,
+        scene,
+        "phantom4",
+        flight,
+        "avia",
+        "widowx",
+        1.0,
+        pipeline=OUTDOOR_FIELD,
+    )
+
+
 _LIST = [
     DEFAULT,
+    _acquisition(
+        "outdoor-incoming",
+        "incoming",
+        "acquisition: the drone enters from beyond reach, 25° off the home bearing, at 15 m/s",
+        40.0,
+    ),
+    _acquisition(
+        "outdoor-escape",
+        "escape",
+        "acquisition: away at 12 m/s beyond reach from 30 m out, back in on a bearing 40° round",
+        65.0,
+    ),
+    _acquisition(
+        "outdoor-hide",
+        "hide",
+        "acquisition: hides behind a barn at 60 m, reappears 25° further round, climbing",
+        50.0,
+        scene="outdoor-barn",
+    ),
     _cluttered(
         DEFAULT,
         "outdoor-clutter",

@@ -2,9 +2,13 @@
 
 - Scanning (building the background): a raster over the configured area.
 - Tracking: aim at the estimate (seed 000's eq. 10, through the mount geometry),
-  optionally ahead of it by ``lead_s`` of its velocity.  Before the first lock
-  look at ``home``.  Once the target is lost, hold on the last position for
-  ``search_hold_s``, then sweep around the last bearing until it is found again.
+  optionally ahead of it by ``lead_s`` of its velocity.  While not locked, aim at the
+  detect stage's best confirmed candidate if there is one, so the tracker gets the
+  dense centre on it.  Otherwise: before the first lock look at ``home`` for
+  ``search_hold_s``; once the target is lost, follow the tracker's prediction for
+  ``search_hold_s``.  Then search the field of regard (``control.search``): sweeps
+  growing around that bearing, then a raster of the whole field, until a confirmed
+  candidate or a lock brings it back to tracking.
 - Fixed: look at ``home`` and never move (the ablation of seed 000 Table II).
 - External: the pipeline scans the background, then leaves the turret to someone
   else (an operator, or the simulator's truth aimer for seed 000's Table III).
@@ -20,10 +24,11 @@ from typing import Literal, Protocol
 import numpy as np
 
 from dronetrack.control.aiming import aim_angles
-from dronetrack.control.scan import raster, triangle
+from dronetrack.control.scan import raster
+from dronetrack.control.search import SearchPath, search_path
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.types import TrackEstimate, TurretCommand
+from dronetrack.types import Candidates, TrackEstimate, TurretCommand
 
 __all__ = ["Controller", "TurretController"]
 
@@ -48,9 +53,14 @@ class Controller(Protocol):
         ...
 
     def tracking(
-        self, t: float, estimate: TrackEstimate, points: FloatArray | None = None
+        self,
+        t: float,
+        estimate: TrackEstimate,
+        points: FloatArray | None = None,
+        candidates: Candidates | None = None,
     ) -> TurretCommand | None:
-        """The command after a tracking step; ``points`` is the frame's foreground (world)."""
+        """The command after a tracking step; ``points`` is the frame's foreground (world),
+        ``candidates`` the detect stage's confirmed candidates (None: acquisition off)."""
         ...
 
 
@@ -67,12 +77,17 @@ class TurretController:
         lead_s: float = 0.0,
         search_hold_s: float = 2.0,
         search_pan: float = math.radians(30.0),
-        search_tilt: float = math.radians(10.0),
-        search_period_s: float = 4.0,
+        search_lane: float = math.radians(20.0),
+        search_rate: float = math.radians(40.0),
+        search_area: tuple[tuple[float, float], tuple[float, float]] | None = None,
         scan_pan: tuple[float, float] = (math.radians(-60.0), math.radians(60.0)),
         scan_tilt: tuple[float, float] = (math.radians(-25.0), math.radians(5.0)),
         scan_period_s: float = 4.0,
     ) -> None:
+        """``search_pan``: the first search sweep's half-width; ``search_lane``: the
+        sensor's dense centre (the raster's lane width); ``search_rate``: the search's
+        angular rate; ``search_area``: (pan, tilt) ranges to search [rad], default the
+        background scan's (all clipped to the joint limits)."""
         self.mount = mount
         self.pan_limits = pan_limits
         self.tilt_limits = tilt_limits
@@ -80,11 +95,14 @@ class TurretController:
         self.home = aim_angles(np.asarray(home, dtype=np.float64), mount)
         self.lead_s = lead_s
         self.search_hold_s = search_hold_s
-        self.search = (search_pan, search_tilt, search_period_s)
+        area = search_area if search_area is not None else (scan_pan, scan_tilt)
+        self.search_area = (_clip_range(area[0], pan_limits), _clip_range(area[1], tilt_limits))
+        self.search = (search_pan, search_lane, search_rate)
         self.scan = (scan_pan, scan_tilt, scan_period_s)
         self._locked_once = False
         self._last_aim = self.home
-        self._lost_since: float | None = None
+        self._lost_since: float | None = None  # when the tracker last stopped being on it
+        self._path: SearchPath | None = None
         self._fixed_sent = False
 
     def _command(self, t: float, pan: float, tilt: float) -> TurretCommand:
@@ -98,7 +116,11 @@ class TurretController:
         return self._command(t, *raster(t, pan, tilt, period))
 
     def tracking(
-        self, t: float, estimate: TrackEstimate, points: FloatArray | None = None
+        self,
+        t: float,
+        estimate: TrackEstimate,
+        points: FloatArray | None = None,
+        candidates: Candidates | None = None,
     ) -> TurretCommand | None:
         """The command after a tracking step whose result is ``estimate``; None to stay put.
 
@@ -114,22 +136,31 @@ class TurretController:
         if estimate.tracked:
             self._locked_once = True
             self._lost_since = None
-            # Aim ahead by the lead time: p + v · lead
-            target = estimate.position + self.lead_s * estimate.velocity
-            self._last_aim = aim_angles(target, self.mount)
-            return self._command(t, *self._last_aim)
-        if not self._locked_once:
-            return self._command(t, *self.home)
+            self._path = None
+            return self._aim(t, estimate.position, estimate.velocity)
+        if candidates is not None and len(candidates):
+            # A confirmed candidate: put the dense centre on it; a search resumes from it.
+            self._lost_since, self._path = t, None
+            return self._aim(t, candidates.positions[0], candidates.velocities[0])
         if self._lost_since is None:
             self._lost_since = t
         lost_for = t - self._lost_since
         if lost_for < self.search_hold_s:
-            return self._command(t, *self._last_aim)
-        # Search: sweep ± the search span around the last bearing.
-        pan_span, tilt_span, period = self.search
-        s = lost_for - self.search_hold_s
-        pan = self._last_aim[0] + triangle(s + period / 4, -pan_span, pan_span, period)
-        tilt = self._last_aim[1] + triangle(
-            s + period * math.pi / 4, -tilt_span, tilt_span, period * math.pi
-        )
-        return self._command(t, pan, tilt)
+            if self._locked_once and np.all(np.isfinite(estimate.position)):
+                return self._aim(t, estimate.position, estimate.velocity)  # the prediction
+            return self._command(t, *self._last_aim)  # home, or the last candidate
+        if self._path is None:
+            first, lane, rate = self.search
+            self._path = search_path(self._last_aim, *self.search_area, lane, first, rate)
+        return self._command(t, *self._path.at(lost_for - self.search_hold_s))
+
+    def _aim(self, t: float, position: FloatArray, velocity: FloatArray) -> TurretCommand:
+        """Aim ahead by the lead time: p + v · lead."""
+        target = position + self.lead_s * velocity
+        self._last_aim = aim_angles(target, self.mount)
+        return self._command(t, *self._last_aim)
+
+
+def _clip_range(r: tuple[float, float], limits: tuple[float, float]) -> tuple[float, float]:
+    lo, hi = max(r[0], limits[0]), min(r[1], limits[1])
+    return (lo, hi) if lo < hi else (limits[0], limits[1])

@@ -56,7 +56,7 @@ from dronetrack.control.plans import (
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray, wrap_angle
-from dronetrack.types import TrackEstimate, TurretCommand
+from dronetrack.types import Candidates, TrackEstimate, TurretCommand
 
 __all__ = ["MODES", "Mode", "ScanStrategyController", "State", "Transition"]
 
@@ -181,11 +181,17 @@ class ScanStrategyController:
         return self._command(t)
 
     def tracking(
-        self, t: float, estimate: TrackEstimate | None, points: ArrayLike | None = None
+        self,
+        t: float,
+        estimate: TrackEstimate | None,
+        points: ArrayLike | None = None,
+        candidates: Candidates | None = None,
     ) -> TurretCommand | None:
         """The command for time t after a frame with foreground ``points`` (M, 3), world [m].
 
         ``estimate`` gives the target's velocity for ``adaptive`` when it is tracked.
+        Seed 003's strategies react to the foreground as published: ``candidates`` are
+        not used.
         """
         self._advance(t)
         pts = np.asarray(points if points is not None else (), dtype=np.float64).reshape(-1, 3)

@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from dronetrack.eval.metrics import (
     CORRECT_RADIUS_M,
+    acquisition_metrics,
     detection_gaps,
     first_lock,
     first_visible,
@@ -214,13 +215,20 @@ class TrackLog:
             "flags": self.flags,
         }
 
-    def summary(self, radius: float = CORRECT_RADIUS_M, min_consecutive: int = 0) -> dict[str, Any]:
+    def summary(
+        self,
+        radius: float = CORRECT_RADIUS_M,
+        min_consecutive: int = 0,
+        in_field: NDArray[np.bool_] | None = None,
+    ) -> dict[str, Any]:
         """The run's metrics (metrics.json); those needing ground truth only when it exists.
 
         ``radius``: an estimate within this distance of the truth is correct;
         ``min_consecutive``: a run with a shorter longest stretch of correct frames scores
-        0 coverage and 0 distance (see ``scored_tracking``).  ``dronetrack compare``'s
-        table reads the same definitions (``experiments/compare/runner.py``).
+        0 coverage and 0 distance (see ``scored_tracking``); ``in_field`` (one per row):
+        the drone is inside the field of regard (the acquisition figures count only
+        those frames as visible).  ``dronetrack compare``'s table reads the same
+        definitions (``experiments/compare/runner.py``).
         """
         a = self.arrays()
         out: dict[str, Any] = {"frames": len(self)}
@@ -252,6 +260,9 @@ class TrackLog:
         )
         r_tracked = rmse(err[tracked])
         out["rmse_tracked_m"] = r_tracked.value
+        out.update(
+            acquisition_metrics(a["t"], err, tracked, a["n_target_points"], radius, in_field)
+        )
         # Frames whose foreground reached the tracker (seed 003's detections).
         out["n_detections"] = int(np.count_nonzero(a["n_points"] > 0))
         counts = a["n_target_points"]

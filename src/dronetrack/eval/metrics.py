@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,14 +27,21 @@ from dronetrack.geometry.transforms import FloatArray
 
 __all__ = [
     "CORRECT_RADIUS_M",
+    "HIDDEN_S",
     "Rmse",
+    "acquire_time",
+    "acquisition_metrics",
     "correct",
     "coverage_pct",
     "detection_gaps",
+    "false_lock_pct",
+    "lock_on_visible_pct",
+    "locked_on",
     "longest_run",
     "max_tracking_distance",
     "nice_bin_width",
     "points_by_distance",
+    "reacquire_times",
     "rmse",
     "timing",
 ]
@@ -210,3 +218,130 @@ def first_visible(n_points: NDArray[np.int64], n_target_points: NDArray[np.int64
     the background model); the length if none."""
     seen = np.flatnonzero((n_target_points > 0) & (n_points > 0))
     return int(seen[0]) if len(seen) else len(n_points)
+
+
+# ---------------------------------------------------------------------------------------
+# Acquisition (issue: finding the drone by itself, and again after losing it).
+#
+# A frame is *visible* when the drone returns points in it and lies inside the field of
+# regard; it is *locked on* when the tracker calls itself tracked and its estimate is
+# correct (within the correct radius).  Times are frame end times [s].
+
+HIDDEN_S = 0.5  # a gap in the drone's returns longer than this means it was out of view
+
+
+def locked_on(errors: FloatArray, tracked: NDArray[np.bool_], radius: float) -> NDArray[np.bool_]:
+    """Frames the tracker calls tracked with a correct estimate."""
+    ok: NDArray[np.bool_] = np.asarray(tracked, dtype=bool) & correct(errors, radius)
+    return ok
+
+
+def acquire_time(
+    t: FloatArray, visible: NDArray[np.bool_], locked: NDArray[np.bool_]
+) -> float | None:
+    """``acquire_s``: from the first visible frame to the first frame locked on at or after
+    it [s]; 0 when the tracker is already on the drone then, None when it never locks on
+    (or the drone is never visible)."""
+    seen = np.flatnonzero(visible)
+    if not len(seen):
+        return None
+    first = int(seen[0])
+    later = np.flatnonzero(locked[first:])
+    return float(t[first + int(later[0])] - t[first]) if len(later) else None
+
+
+def _return_time(t: FloatArray, visible_idx: NDArray[np.intp], hidden_s: float) -> float:
+    """The time the drone came back into view among visible frames ``visible_idx``: the
+    first of them, or the first after the last gap in its returns longer than ``hidden_s``."""
+    times = t[visible_idx]
+    back = np.flatnonzero(np.diff(times) > hidden_s)
+    return float(times[int(back[-1]) + 1] if len(back) else times[0])
+
+
+def reacquire_times(
+    t: FloatArray,
+    visible: NDArray[np.bool_],
+    locked: NDArray[np.bool_],
+    hidden_s: float = HIDDEN_S,
+) -> list[float | None]:
+    """``reacquire_s``: one entry per loss of lock after the first lock-on.
+
+    A loss is a stretch of frames not locked on; its entry runs from the frame the drone
+    returns points again (the first visible frame of the stretch or the re-lock frame,
+    or the first after the stretch's last gap in returns longer than ``hidden_s``) to
+    the re-lock [s].  A loss the run ends in is None if the drone returned and is left
+    out if it never did (nothing could have found it).
+    """
+    ok = np.asarray(locked, dtype=bool)
+    n = len(ok)
+    # Stretch boundaries after the first lock-on: falls (ok → not ok) and rises (→ ok).
+    change = np.flatnonzero(np.diff(ok.astype(np.int8)))
+    falls = change[~ok[change + 1]] + 1
+    out: list[float | None] = []
+    for s in falls:
+        rises = np.flatnonzero(ok[s:])
+        e = int(s + rises[0]) if len(rises) else n  # the re-lock frame, or n
+        window = np.flatnonzero(visible[s : min(e + 1, n)]) + s
+        if e == n:
+            if len(window):
+                out.append(None)
+            continue
+        if not len(window):  # back on the drone by prediction alone, before any return
+            out.append(0.0)
+            continue
+        out.append(float(t[e]) - _return_time(t, window, hidden_s))
+    return out
+
+
+def lock_on_visible_pct(visible: NDArray[np.bool_], locked: NDArray[np.bool_]) -> float | None:
+    """``lock_on_visible_pct``: locked-on frames among the visible ones [%]; None if none."""
+    n = int(np.count_nonzero(visible))
+    return 100.0 * int(np.count_nonzero(visible & locked)) / n if n else None
+
+
+def false_lock_pct(errors: FloatArray, tracked: NDArray[np.bool_], radius: float) -> float | None:
+    """``false_lock_pct``: tracked frames whose estimate is more than ``radius`` from the
+    drone, over the tracked frames with a known truth [%]; None if there are none."""
+    known = np.all(np.isfinite(errors), axis=1) & np.asarray(tracked, dtype=bool)
+    n = int(np.count_nonzero(known))
+    if not n:
+        return None
+    wrong = known & ~correct(errors, radius)
+    return 100.0 * int(np.count_nonzero(wrong)) / n
+
+
+def acquisition_metrics(
+    t: FloatArray,
+    errors: FloatArray,
+    tracked: NDArray[np.bool_],
+    n_target_points: NDArray[np.int64],
+    radius: float,
+    in_field: NDArray[np.bool_] | None = None,
+) -> dict[str, Any]:
+    """The acquisition figures of a run with ground truth: ``false_lock_pct`` and, where
+    the drone's returns are known (``n_target_points`` ≥ 0), ``acquire_s``,
+    ``reacquire_s`` (the list), its worst entry ``reacquire_max_s``, ``losses`` (the
+    list's length), ``reacquire_missed`` (its None entries) and ``lock_on_visible_pct``.
+    ``in_field`` (N,) limits the visible frames to those with the drone inside the field
+    of regard (all frames without it)."""
+    out: dict[str, Any] = {"false_lock_pct": false_lock_pct(errors, tracked, radius)}
+    counts = np.asarray(n_target_points)
+    if len(counts) == 0 or np.any(counts < 0):
+        return out
+    visible = counts > 0
+    if in_field is not None:
+        visible &= np.asarray(in_field, dtype=bool)
+    locked = locked_on(errors, tracked, radius)
+    times = reacquire_times(t, visible, locked)
+    done = [x for x in times if x is not None]
+    out.update(
+        {
+            "acquire_s": acquire_time(t, visible, locked),
+            "reacquire_s": times,
+            "reacquire_max_s": max(done) if done else None,
+            "losses": len(times),
+            "reacquire_missed": len(times) - len(done),
+            "lock_on_visible_pct": lock_on_visible_pct(visible, locked),
+        }
+    )
+    return out

@@ -25,6 +25,9 @@ from dronetrack.config.pipeline import (
     PipelineConfig,
     TrackerConfig,
     TrackerKind,
+    crop_box,
+    field_of_regard,
+    scan_area,
 )
 from dronetrack.control.controller import Controller, TurretController
 from dronetrack.control.controller import Mode as TurretMode
@@ -134,7 +137,8 @@ def _turret_controller(
     pan_limits: tuple[float, float],
     tilt_limits: tuple[float, float],
 ) -> Controller:
-    bg = scan.background
+    pan, tilt, period = scan_area(scan)
+    field = field_of_regard(scan, mount.base)
     return TurretController(
         mount=mount,
         pan_limits=pan_limits,
@@ -144,11 +148,12 @@ def _turret_controller(
         lead_s=cfg.lead_s,
         search_hold_s=cfg.search_hold_s,
         search_pan=math.radians(cfg.search_pan_deg),
-        search_tilt=math.radians(cfg.search_tilt_deg),
-        search_period_s=cfg.search_period_s,
-        scan_pan=(math.radians(bg.scan_pan_deg[0]), math.radians(bg.scan_pan_deg[1])),
-        scan_tilt=(math.radians(bg.scan_tilt_deg[0]), math.radians(bg.scan_tilt_deg[1])),
-        scan_period_s=bg.scan_period_s,
+        search_lane=math.radians(cfg.search_lane_deg),
+        search_rate=math.radians(cfg.search_rate_deg_s),
+        search_area=None if field is None else (field.pan, field.tilt),
+        scan_pan=(math.radians(pan[0]), math.radians(pan[1])),
+        scan_tilt=(math.radians(tilt[0]), math.radians(tilt[1])),
+        scan_period_s=period,
     )
 
 
@@ -208,6 +213,7 @@ def build_pipeline(
             background = VoxelBackground(
                 bg_cfg.resolution_m, bg_cfg.inflate_voxels, bg_cfg.lookup_depth, bg_cfg.min_hits
             )
+    crop = crop_box(cfg, mount.base)
     o = cfg.outliers
     outliers = OutlierSettings(
         radius=o.radius_m if o.radius_enabled else None,
@@ -220,8 +226,8 @@ def build_pipeline(
         controller=CONTROLLERS[cfg.controller.mode](
             cfg.controller, cfg, mount, pan_limits, tilt_limits
         ),
-        crop_min=np.asarray(cfg.crop.min_m),
-        crop_max=np.asarray(cfg.crop.max_m),
+        crop_min=np.asarray(crop[0]),
+        crop_max=np.asarray(crop[1]),
         background=background,
         scan_until=start + bg_cfg.scan_s,
         outliers=outliers,

@@ -12,11 +12,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from dronetrack.config.rig import TurretSpec, target_spec
+from dronetrack.config.pipeline import crop_box, field_of_regard, scan_area
+from dronetrack.config.rig import TurretSpec, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig, dump_scenario
 from dronetrack.eval.log import TrackLog
 from dronetrack.formats.background import read_background_settings
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_pipeline, noise_parameters, resolve_tracker
 from dronetrack.jobs.kernels import KernelWarmUp
 from dronetrack.pipeline import Pipeline
@@ -55,8 +58,34 @@ def resolve_pipeline(cfg: ScenarioConfig) -> ScenarioConfig:
                 "min_hits": stored.min_hits,
             }
         )
-    pipeline = pipeline.model_copy(update={"tracker": tracker, "background": background})
+    # The crop box and the background scan, as set or from the field of regard.
+    low, high = crop_box(pipeline, turret_spec(cfg.turret).mount.base)
+    crop = pipeline.crop.model_copy(update={"min_m": low, "max_m": high})
+    pan, tilt, period = scan_area(pipeline)
+    background = background.model_copy(
+        update={"scan_pan_deg": pan, "scan_tilt_deg": tilt, "scan_period_s": period}
+    )
+    pipeline = pipeline.model_copy(
+        update={"tracker": tracker, "background": background, "crop": crop}
+    )
     return cfg.model_copy(update={"pipeline": pipeline})
+
+
+def detection_area(cfg: ScenarioConfig, points: FloatArray) -> NDArray[np.bool_] | None:
+    """(N,) True where a point lies where the pipeline can detect it: inside the crop box
+    and the field of regard (if set) of a turret on the ground; None on a moving observer
+    (its crop box moves with it) and for non-finite points False."""
+    if cfg.observer is not None:
+        return None
+    base = turret_spec(cfg.turret).mount.base
+    low, high = crop_box(cfg.pipeline, base)
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    with np.errstate(invalid="ignore"):
+        inside: NDArray[np.bool_] = np.all((p >= low) & (p <= high), axis=1)
+    field = field_of_regard(cfg.pipeline, base)
+    if field is not None:
+        inside &= field.contains(p)
+    return inside
 
 
 def run_seeds(seed: int) -> tuple[np.random.SeedSequence, np.random.SeedSequence]:
@@ -80,6 +109,16 @@ def turret_pipeline(
     )
 
 
+def outside_share(inside: NDArray[np.bool_]) -> float:
+    """``outside_field_pct``: of the frames from the drone's first one inside the detection
+    area on, the share outside it [%] (a drone waiting on the ground below the crop box
+    before take-off has not left it); 100 if it never enters (0 without frames)."""
+    entered = np.flatnonzero(inside)
+    if not len(entered):
+        return 100.0 if len(inside) else 0.0
+    return 100.0 * float(np.mean(~inside[int(entered[0]) :]))
+
+
 @dataclass(frozen=True, slots=True)
 class RunResult:
     """A finished run: closed-loop, or a replay."""
@@ -98,7 +137,12 @@ class RunResult:
 
     def metrics(self) -> dict[str, Any]:
         evaluation = self.config.pipeline.evaluation
-        out = self.log.summary(evaluation.correct_radius_m, evaluation.min_consecutive)
+        gt = self.log.gt
+        known = np.all(np.isfinite(gt), axis=1)
+        area = detection_area(self.config, gt) if known.any() else None
+        out = self.log.summary(evaluation.correct_radius_m, evaluation.min_consecutive, area)
+        if area is not None:
+            out["outside_field_pct"] = outside_share(area[known])
         out["realtime_factor"] = self.realtime_factor
         out["wall_s"] = self.wall_s
         if self.interrupted:

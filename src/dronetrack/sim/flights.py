@@ -241,6 +241,45 @@ def _observer_orbit(hold: float, duration: float, rng: np.random.Generator) -> T
     )
 
 
+def _polar(r: float, bearing_deg: float, z: float) -> tuple[float, float, float]:
+    """The point ``r`` metres out at ``bearing_deg`` (counter-clockwise from +x), height z."""
+    b = math.radians(bearing_deg)
+    return (r * math.cos(b), r * math.sin(b), z)
+
+
+def _incoming(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
+    # Hovers 170 m out (beyond the Avia's reach for a Phantom 4) 25° off the home bearing
+    # during the scan, flies in at 15 m/s (entering the reach about 110 m out), then
+    # crosses to the other side at 8 m/s.
+    route = [
+        Waypoint(_polar(25.0, 25.0, 12.0), 15.0, 5.0, 3.0),
+        Waypoint(_polar(40.0, -20.0, 15.0), 8.0, 4.0),
+    ]
+    return fly_waypoints(_polar(170.0, 25.0, 25.0), route, hold=hold)
+
+
+def _escape(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
+    # Takes off 30 m out, flies away at 12 m/s to 200 m (beyond reach), moves 40° round
+    # out there and comes back in on that bearing.
+    route = _route(
+        [_polar(200.0, 0.0, 20.0), _polar(200.0, 40.0, 20.0), _polar(30.0, 40.0, 15.0)], 12.0, 4.0
+    )
+    return _takeoff_and_fly((30.0, 0.0, 20.0), route, hold, 0.15, 3.0, 2.0, 1.0)
+
+
+def _hide(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
+    # On the outdoor-barn scene: from 35 m out it flies low behind the barn (53-67 m out,
+    # 15-45 m left, 12 m high; out of sight from about 80 m, 22 m left), waits, creeps
+    # along behind it and reappears past its far end, 25° further left, climbing.
+    route = [
+        Waypoint((80.0, 22.0, 8.0), 8.0, 3.0, 3.0),
+        Waypoint((95.0, 60.0, 8.0), 5.0, 3.0),
+        Waypoint((100.0, 95.0, 20.0), 8.0, 3.0),
+        Waypoint((50.0, 60.0, 20.0), 8.0, 3.0),
+    ]
+    return _takeoff_and_fly((35.0, -5.0, 8.0), route, hold, 0.15, 3.0, 2.0, 1.0)
+
+
 _SIGN_Z = 2.3  # the board held above the walker's head [m]
 
 FLIGHTS: dict[str, Flight] = {
@@ -306,6 +345,18 @@ FLIGHTS: dict[str, Flight] = {
             4.0,
             2.0,
         ),
+    ),
+    "incoming": Flight(
+        "enters from 170 m out, 25° off the home bearing, at 15 m/s; then crosses at 8 m/s",
+        _incoming,
+    ),
+    "escape": Flight(
+        "from 30 m out away at 12 m/s to 200 m, 40° round out there, and back in on that bearing",
+        _escape,
+    ),
+    "hide": Flight(
+        "outdoor-barn: behind the barn at 8 m altitude, waits, reappears past its far end",
+        _hide,
     ),
     "indoor-horizontal": Flight(
         "seed 000 indoor: 1.2 m left-right at 3 m, 3 s legs, 2 s waits, 3 times",

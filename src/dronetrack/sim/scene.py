@@ -136,6 +136,19 @@ def indoor_room(partition: bool = False) -> Scene:
     return Scene(name, Primitives.concat(parts), (x0, y0, x1, y1))
 
 
+# outdoor-barn's barn: 14 × 30 m, 12 m high, 53-67 m out and 15-45 m to the left.  From
+# the turret it hides bearings of about 13° to 40° below 12 m at 53 m (the hide flight).
+BARN_CENTER = (60.0, 30.0, 6.0)
+BARN_SIZE = (14.0, 30.0, 12.0)
+
+
+def outdoor_barn(layout_seed: int = 0) -> Scene:
+    """``outdoor_field`` with a barn in the field to hide behind (``BARN_*``)."""
+    base = outdoor_field(layout_seed)
+    barn = box(BARN_CENTER, BARN_SIZE, RHO_BUILDING)  # appended: the swaying indices hold
+    return Scene("outdoor-barn", Primitives.concat([base.prims, barn]), base.extent, base.swaying)
+
+
 def empty_field() -> Scene:
     """Only the ground: for tests and range studies."""
     return Scene("empty", ground(RHO_GRASS), (-50.0, -150.0, 250.0, 150.0))
@@ -146,14 +159,17 @@ def sky() -> Scene:
     return Scene("sky", Primitives.empty(), (-50.0, -150.0, 250.0, 150.0))
 
 
-SCENE_NAMES = ("outdoor", "indoor", "indoor-occluded", "empty", "sky")
+SCENE_NAMES = ("outdoor", "outdoor-barn", "indoor", "indoor-occluded", "empty", "sky")
 
 
 def make_scene(name: str, layout_seed: int = 0) -> Scene:
-    """Build a scene by name: ``outdoor``, ``indoor``, ``indoor-occluded``, ``empty`` or ``sky``."""
+    """Build a scene by name: ``outdoor``, ``outdoor-barn``, ``indoor``, ``indoor-occluded``,
+    ``empty`` or ``sky``."""
     key = name.strip().lower()
     if key == "outdoor":
         return outdoor_field(layout_seed)
+    if key == "outdoor-barn":
+        return outdoor_barn(layout_seed)
     if key in ("indoor", "indoor-occluded"):
         return indoor_room(partition=key == "indoor-occluded")
     if key == "empty":

@@ -18,11 +18,17 @@ import numpy as np
 from dronetrack.config.run import ScenarioConfig, apply_overrides
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError
-from dronetrack.eval.metrics import first_lock, first_visible, rmse, scored_tracking
+from dronetrack.eval.metrics import (
+    acquisition_metrics,
+    first_lock,
+    first_visible,
+    rmse,
+    scored_tracking,
+)
 from dronetrack.experiments.compare.suites import Case, Suite
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_tracker
-from dronetrack.jobs.run import RunResult
+from dronetrack.jobs.run import RunResult, detection_area
 from dronetrack.jobs.simulate import run_lockstep, run_simulation
 from dronetrack.sinks.strategy_logs import StrategyLogger
 from dronetrack.types import Sample, StepResult
@@ -185,7 +191,21 @@ def run_metrics(suite: Suite, sim: RunResult) -> dict[str, float]:
         "update_hz": min(1.0 / period, 1e3 / step_ms) if step_ms > 0 else 1.0 / period,
     }
     out.update(_detection_metrics(a, err))
+    out.update(_acquisition_metrics(sim.config, a, err, evaluation.correct_radius_m))
     return {k: v for k, v in out.items() if k in suite.metrics}
+
+
+def _acquisition_metrics(
+    cfg: ScenarioConfig, a: dict[str, np.ndarray], err: FloatArray, radius: float
+) -> dict[str, float]:
+    """metrics.json's acquisition figures as numbers (NaN for none): ``reacquire_s`` is
+    the run's longest re-acquisition, with ``reacquire_missed`` counting the losses never
+    re-acquired."""
+    gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
+    area = detection_area(cfg, gt)
+    found = acquisition_metrics(a["t"], err, a["tracked"], a["n_target_points"], radius, area)
+    found["reacquire_s"] = found.pop("reacquire_max_s", None)
+    return {k: math.nan if v is None else float(v) for k, v in found.items()}
 
 
 def _detection_metrics(a: dict[str, np.ndarray], err: FloatArray) -> dict[str, float]:

@@ -10,7 +10,9 @@ themselves, so each strategy gets its own world (same seed, same flight).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import get_args
 
+from dronetrack.config.pipeline import TrackerKind
 from dronetrack.errors import ConfigError
 
 __all__ = ["SUITES", "Case", "Suite", "get_suite"]
@@ -58,6 +60,15 @@ def _grid(
     return out
 
 
+_ACQUISITION_METRICS = (
+    "acquire_s",
+    "reacquire_s",
+    "reacquire_missed",
+    "lock_on_visible_pct",
+    "false_lock_pct",
+    "coverage_pct",
+    "rmse_m",
+)
 _OUTDOOR = (
     ("simple distance", "outdoor-simple-distance"),
     ("vertical", "outdoor-vertical"),
@@ -299,6 +310,34 @@ _LIST = [
         ),
     ),
 ]
+_LIST.append(
+    Suite(
+        name="acquisition",
+        title="Acquisition: every tracker finds the drone by itself, and again after losing it",
+        methods=get_args(TrackerKind),
+        cases=(
+            Case("default", "default", "tracking"),
+            Case("incoming", "outdoor-incoming", "tracking"),
+            Case("escape", "outdoor-escape", "tracking"),
+            Case("hide", "outdoor-hide", "tracking"),
+            Case("clutter", "outdoor-clutter", "tracking"),
+        ),
+        metrics=_ACQUISITION_METRICS,
+        lockstep=False,
+        acquisition=True,
+        note=(
+            "Each tracker steers its own turret, with detection-driven acquisition and the "
+            "search on.  A frame is visible when the drone returns points in it and lies in "
+            "the field of regard; locked on when the tracker calls itself tracked within the "
+            "4 m correct radius.  acquire_s: first visible frame to the first locked-on "
+            "one; reacquire_s: the run's longest re-acquisition (from the drone's return to "
+            "view to the re-lock), reacquire_missed: losses never re-acquired although the "
+            "drone came back; lock_on_visible_pct: locked-on frames over visible frames; "
+            "false_lock_pct: tracked frames off the drone over tracked frames.  A run where "
+            "a figure does not exist (never acquired, no loss) leaves it out of the mean."
+        ),
+    )
+)
 SUITES: dict[str, Suite] = {s.name: s for s in _LIST}
 
 

@@ -50,6 +50,10 @@ LOWER_IS_BETTER = {
     "error_3d_m",
     "cpu_pct",
     "memory_mb",
+    "acquire_s",
+    "reacquire_s",
+    "reacquire_missed",
+    "false_lock_pct",
 }
 # Interval ends are not rankings.
 UNRANKED = {"rmse_ci_low_m", "rmse_ci_high_m", "gap_min_s"}

@@ -1,0 +1,122 @@
+"""The acquisition figures: acquire_s, reacquire_s, lock_on_visible_pct, false_lock_pct."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dronetrack.eval.metrics import (
+    acquire_time,
+    acquisition_metrics,
+    false_lock_pct,
+    lock_on_visible_pct,
+    locked_on,
+    reacquire_times,
+)
+
+T = 0.1 * np.arange(1, 31)  # frame ends of a 10 Hz run [s]
+
+
+def _mask(n: int, *ranges: tuple[int, int]) -> np.ndarray:
+    m = np.zeros(n, dtype=bool)
+    for a, b in ranges:
+        m[a:b] = True
+    return m
+
+
+def test_locked_on_needs_both_the_flag_and_a_correct_estimate() -> None:
+    err = np.array([[1.0, 0, 0], [5.0, 0, 0], [1.0, 0, 0], [np.nan, 0, 0]])
+    tracked = np.array([True, True, False, True])
+    assert locked_on(err, tracked, 4.0).tolist() == [True, False, False, False]
+
+
+def test_acquire_time_known_answers() -> None:
+    visible = _mask(30, (3, 30))
+    assert acquire_time(T, visible, _mask(30, (5, 30))) == pytest.approx(0.2)
+    # Already on the drone when its first returns come: 0.
+    assert acquire_time(T, visible, _mask(30, (0, 30))) == 0.0
+    # Never locked on after the first returns, or never visible: None.
+    assert acquire_time(T, visible, _mask(30, (0, 2))) is None
+    assert acquire_time(T, _mask(30), _mask(30, (0, 30))) is None
+
+
+def test_reacquire_from_the_return_after_a_long_gap() -> None:
+    # Locked 2-4, lost from 5; no returns 5-7 (0.3 s), returns from 8, re-lock at 10.
+    locked = _mask(30, (2, 5), (10, 30))
+    visible = _mask(30, (0, 5), (8, 30))
+    assert reacquire_times(T, visible, locked, hidden_s=0.25) == pytest.approx([0.2])
+    # A 0.3 s gap is not out of view for hidden_s = 0.5: from the loss's first return.
+    visible[5] = True
+    assert reacquire_times(T, visible, locked, hidden_s=0.5) == pytest.approx([0.5])
+
+
+def test_reacquire_lists_every_loss_and_the_unfinished_one() -> None:
+    locked = _mask(30, (0, 5), (7, 12), (15, 20))
+    visible = _mask(30, (0, 30))
+    # Losses at 5-6 (back at 7), 12-14 (back at 15), and from 20 to the end with returns.
+    got = reacquire_times(T, visible, locked)
+    assert got[:2] == pytest.approx([0.2, 0.3])
+    assert got[2] is None
+    # A loss the run ends in with no returns left nothing to find: not listed.
+    assert reacquire_times(T, _mask(30, (0, 20)), locked) == pytest.approx([0.2, 0.3])
+
+
+def test_reacquire_by_prediction_alone_is_zero() -> None:
+    locked = _mask(30, (0, 5), (6, 30))
+    visible = _mask(30, (0, 5), (7, 30))  # no returns at the loss or the re-lock
+    assert reacquire_times(T, visible, locked) == [0.0]
+
+
+def test_lock_on_visible_and_false_lock_known_answers() -> None:
+    visible = _mask(10, (0, 8))
+    locked = _mask(10, (2, 10))
+    assert lock_on_visible_pct(visible, locked) == pytest.approx(75.0)
+    assert lock_on_visible_pct(_mask(10), locked) is None
+    err = np.zeros((10, 3))
+    err[:3, 0] = 10.0  # three tracked frames far off
+    err[9] = np.nan  # no truth: not counted
+    tracked = np.ones(10, dtype=bool)
+    assert false_lock_pct(err, tracked, 4.0) == pytest.approx(100.0 * 3 / 9)
+    assert false_lock_pct(err, np.zeros(10, dtype=bool), 4.0) is None
+
+
+def test_summary_keys_and_field_of_regard_mask() -> None:
+    err = np.zeros((30, 3))
+    err[:10, 0] = 50.0
+    tracked = np.ones(30, dtype=bool)
+    counts = np.where(np.arange(30) >= 4, 5, 0)
+    out = acquisition_metrics(T, err, tracked, counts, 4.0)
+    assert out["acquire_s"] == pytest.approx(0.6)
+    assert out["false_lock_pct"] == pytest.approx(100.0 / 3)
+    assert out["lock_on_visible_pct"] == pytest.approx(100.0 * 20 / 26)
+    assert (out["reacquire_s"], out["losses"], out["reacquire_missed"]) == ([], 0, 0)
+    assert out["reacquire_max_s"] is None
+    # Outside the field of regard until frame 9: visible from then, locked on at once.
+    inside = np.arange(30) >= 9
+    out = acquisition_metrics(T, err, tracked, counts, 4.0, inside)
+    assert out["acquire_s"] == pytest.approx(0.1)
+    # Unknown returns (-1): only false_lock_pct.
+    assert set(acquisition_metrics(T, err, tracked, -np.ones(30, int), 4.0)) == {"false_lock_pct"}
+
+
+@settings(max_examples=200)
+@given(
+    locked=st.lists(st.booleans(), min_size=1, max_size=60),
+    seen=st.lists(st.booleans(), min_size=60, max_size=60),
+)
+def test_reacquire_properties(locked: list[bool], seen: list[bool]) -> None:
+    ok = np.array(locked)
+    visible = np.array(seen[: len(ok)])
+    t = 0.1 * np.arange(len(ok))
+    got = reacquire_times(t, visible, ok)
+    falls = int(np.count_nonzero(ok[:-1] & ~ok[1:]))
+    assert len(got) <= falls
+    # Every loss that ends in a re-lock is listed, with 0 ≤ entry ≤ the loss's length.
+    rises = int(np.count_nonzero(~ok[:-1] & ok[1:])) - int(not ok[0] and ok.any())
+    finished = [x for x in got if x is not None]
+    assert len(finished) == rises
+    assert all(0.0 <= x <= 0.1 * len(ok) for x in finished)
+    a = acquire_time(t, visible, ok)
+    assert a is None or 0.0 <= a <= t[-1]
