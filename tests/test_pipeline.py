@@ -11,6 +11,7 @@ import pytest
 from dronetrack.config.pipeline import (
     AcquisitionConfig,
     BackgroundConfig,
+    FieldOfRegardConfig,
     PipelineConfig,
     TrackerConfig,
 )
@@ -247,3 +248,54 @@ def test_a_drone_far_from_the_start_cylinder_is_acquired_from_detections() -> No
     without = run(False)
     assert not any(good for good, _, _ in without)
     assert all(n == c == -1 for _, n, c in without)
+
+
+def test_points_beyond_the_field_of_regard_are_no_target() -> None:
+    """The crop box is the field's bounding box; the field itself cuts the corners: a
+    return 110 m out at 34° pan lies in the box (|y| ≤ 100 sin 45°) but beyond the
+    100 m range."""
+    cfg = PipelineConfig(
+        background=BackgroundConfig(enabled=False),
+        field_of_regard=FieldOfRegardConfig(
+            pan_deg=(-45.0, 45.0), tilt_deg=(-40.0, 5.0), range_m=100
+        ),
+    )
+    pipe = build_pipeline(
+        cfg,
+        0.1,
+        TURRET.mount,
+        (TURRET.pan.lower, TURRET.pan.upper),
+        (TURRET.tilt.lower, TURRET.tilt.upper),
+        np.random.default_rng(0),
+    )
+    far = np.array([[90.0, 60.0, 20.0]])
+    near = np.array([[60.0, 30.0, 10.0]])
+    assert pipe.step(_frame(0.0, far)).n_points == 0
+    assert pipe.step(_frame(0.1, np.vstack([far, near]))).n_points == 1
+
+
+@pytest.mark.parametrize(
+    ("seen", "other", "taken"),
+    [(20, (30.0, 80.0, 20.0), False), (20, (30.0, 20.0, 6.0), True), (8, (30.0, 80.0, 20.0), True)],
+)
+def test_after_a_loss_only_what_the_drone_could_reach_starts_a_track(
+    seen: int, other: tuple[float, float, float], taken: bool
+) -> None:
+    """Tracked at (30, 0, 6), the drone vanishes; another target then persists 80 m
+    away, or 20 m away.  The reach since the last fix is v_max t + g = 15 t + 1 m: 80 m
+    is out of reach for the 3 s that follow, so no track starts on it; 20 m is within
+    reach after 1.3 s, so the filter starts and locks on it.  A lock shorter than
+    ESTABLISHED_S (8 frames seen: locked for about 0.5 s) sets no gate."""
+    g = np.random.default_rng(3)
+    pipe = _pipeline_with(True)
+    for k in range(seen):
+        r = pipe.step(_frame(0.1 * k, _drone(g)))
+    assert r.estimate is not None
+    assert r.estimate.tracked
+    locked_on_other = []
+    for k in range(seen, seen + 30):
+        r = pipe.step(_frame(0.1 * k, _drone(g, other)))
+        assert r.estimate is not None
+        near = float(np.linalg.norm(r.estimate.position - np.array(other))) < 1.0
+        locked_on_other.append(r.estimate.tracked and near)
+    assert any(locked_on_other) is taken

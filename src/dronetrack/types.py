@@ -182,6 +182,16 @@ class Candidates:
     def __len__(self) -> int:
         return len(self.positions)
 
+    def take(self, idx: NDArray[np.intp]) -> Candidates:
+        """The candidates at ``idx``, in that order."""
+        return Candidates(
+            self.positions[idx],
+            self.velocities[idx],
+            self.hits[idx],
+            self.sizes[idx],
+            self.ids[idx],
+        )
+
 
 @dataclass(frozen=True, slots=True)
 class TrackEstimate:

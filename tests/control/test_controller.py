@@ -112,6 +112,43 @@ def test_before_any_lock_or_candidate_it_searches_after_the_hold() -> None:
     assert any(abs(cmd.pan - home[0]) > math.radians(10) for cmd in seen[10:] if cmd)
 
 
+def _cue(p: tuple[float, float, float], v: tuple[float, float, float]) -> Candidates:
+    one = np.ones(1, dtype=np.int64)
+    return Candidates(np.array([p]), np.array([v]), 2 * one, np.array([0.4]), one)
+
+
+def test_a_cue_gets_a_look_without_lead_for_at_least_the_look_time() -> None:
+    c = _controller(home=(60.0, 0.0, 15.0), lead_s=0.5, search_hold_s=0.0, cue_look_s=0.5)
+    lost = _estimate(0.0, (5.0, 5.0, 5.0), tracked=False)
+    cue = _cue((90.0, 40.0, 20.0), (0.0, 8.0, 0.0))
+    cmd = c.tracking(0.0, lost, None, None, cue)
+    assert cmd is not None
+    # No lead: two hits give a poor velocity.
+    assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles((90.0, 40.0, 20.0), MOUNT))
+    # The cue's track dropped: the look goes on to 0.5 s ...
+    for t in (0.1, 0.3, 0.4):
+        held = c.tracking(t, _estimate(t, (5.0, 5.0, 5.0), tracked=False))
+        assert held is not None
+        assert (held.pan, held.tilt) == pytest.approx((cmd.pan, cmd.tilt))
+    # ... then the search takes over (with no hold, it starts from the look's bearing).
+    after = c.tracking(0.6, _estimate(0.6, (5.0, 5.0, 5.0), tracked=False))
+    assert after is not None
+    assert (after.pan, after.tilt) != pytest.approx((cmd.pan, cmd.tilt))
+
+
+def test_a_confirmed_candidate_or_a_lock_ends_a_look() -> None:
+    c = _controller(cue_look_s=1.0)
+    lost = _estimate(0.0, (5.0, 5.0, 5.0), tracked=False)
+    c.tracking(0.0, lost, None, None, _cue((90.0, 40.0, 20.0), (0.0, 0.0, 0.0)))
+    cand = _candidates((30.0, -20.0, 10.0), (0.0, 0.0, 0.0))
+    cmd = c.tracking(0.1, lost, None, cand, None)
+    assert cmd is not None
+    assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles((30.0, -20.0, 10.0), MOUNT))
+    locked = c.tracking(0.2, _estimate(0.2, (50.0, 10.0, 20.0)))
+    assert locked is not None
+    assert (locked.pan, locked.tilt) == pytest.approx(aim_angles((50.0, 10.0, 20.0), MOUNT))
+
+
 def test_fixed_mode_sends_home_once_and_then_nothing() -> None:
     c = _controller(mode="fixed", home=(80.0, 0.0, 20.0))
     first = c.tracking(0.0, _estimate(0.0, (10.0, 0.0, 5.0)))

@@ -7,9 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks, gated_assignment
+from dronetrack.detect.tentative import (
+    ConfirmationSettings,
+    TentativeTracks,
+    gated_assignment,
+    within_reach,
+)
 from dronetrack.errors import ConfigError
-from dronetrack.types import Detections
+from dronetrack.types import Candidates, Detections
 
 T = 0.1  # frame period [s]
 
@@ -109,7 +114,62 @@ def test_confirmed_candidates_move_within_the_speed_gate(seed: int, n: int) -> N
 
 
 def test_bad_settings() -> None:
+    with pytest.raises(ConfigError, match="cue_hits"):
+        ConfirmationSettings(hits=3, frames=4, cue_hits=4)
     with pytest.raises(ConfigError, match="hits ≤ frames"):
         ConfirmationSettings(hits=5, frames=4)
     with pytest.raises(ConfigError, match="v_max > 0"):
         ConfirmationSettings(v_max=0.0)
+
+
+def test_a_track_seen_twice_is_a_cue_until_it_confirms_or_drops() -> None:
+    tracks = TentativeTracks(ConfirmationSettings(v_max=15.0, hits=3, frames=4, cue_hits=2))
+    none = Detections.empty()
+    tracks.update(0.0, _found((100.0, 0.0, 10.0)))
+    assert len(tracks.cues(0.0)) == 0  # one hit: a single return is no cue
+    tracks.update(T, _found((101.0, 0.0, 10.0)))
+    cues = tracks.cues(T)
+    assert len(cues) == 1
+    assert cues.hits[0] == 2
+    np.testing.assert_allclose(cues.velocities[0], [10.0, 0.0, 0.0], atol=1e-9)
+    # Missed in the next frame: still a cue (2 of the last 4), at p + v Δt.
+    tracks.update(2 * T, none)
+    np.testing.assert_allclose(tracks.cues(2 * T).positions[0], [102.0, 0.0, 10.0], atol=1e-9)
+    # Seen again: 3 of 4, confirmed, so no longer a cue.
+    assert len(tracks.update(3 * T, _found((103.0, 0.0, 10.0)))) == 1
+    assert len(tracks.cues(3 * T)) == 0
+
+
+def test_a_cue_drops_with_its_track() -> None:
+    tracks = TentativeTracks(ConfirmationSettings(hits=3, frames=4, cue_hits=2))
+    here, none = _found((40.0, 5.0, 8.0)), Detections.empty()
+    for k, f in enumerate([here, here, none, none]):
+        tracks.update(k * T, f)
+    assert len(tracks) == 0
+    assert len(tracks.cues(3 * T)) == 0
+
+
+def _cands(positions: np.ndarray) -> Candidates:
+    k = len(positions)
+    ids = np.arange(k, dtype=np.int64)
+    return Candidates(positions, np.zeros((k, 3)), np.full(k, 3), np.full(k, 0.4), ids)
+
+
+def test_within_reach_keeps_what_the_target_could_reach_in_order() -> None:
+    c = _cands(np.array([[40.0, 0.0, 10.0], [12.0, 0.0, 10.0], [18.0, 0.0, 10.0], [9.0, 0, 10]]))
+    # Last fixed at (10, 0, 10) 1 s ago: reach 15 · 1 + 1 = 16 m; 40 m away is out.
+    out = within_reach(c, 1.0, np.array([10.0, 0, 10]), 15.0, 1.0)
+    assert out.ids.tolist() == [1, 2, 3]
+    # 2 s on: reach 31 m takes in the far one too.
+    assert within_reach(c, 2.0, np.array([10.0, 0, 10]), 15.0, 1.0).ids.tolist() == [0, 1, 2, 3]
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(0.0, 5.0))
+def test_within_reach_is_the_reachable_subset_in_order(seed: int, dt: float) -> None:
+    rng = np.random.default_rng(seed)
+    c = _cands(rng.uniform(-80.0, 80.0, (12, 3)))
+    p = rng.uniform(-20.0, 20.0, 3)
+    out = within_reach(c, dt, p, 15.0, 1.0)
+    near = np.linalg.norm(c.positions - p, axis=1) <= 15.0 * dt + 1.0
+    assert out.ids.tolist() == c.ids[near].tolist()

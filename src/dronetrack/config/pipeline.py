@@ -256,6 +256,9 @@ class ControllerConfig(StrictModel):
     search_pan_deg: float = Field(30.0, ge=0)
     search_lane_deg: float = Field(20.0, gt=0)
     search_rate_deg_s: float = Field(40.0, gt=0)
+    # A look at a cue (a tentative track seen in 2 of the last frames, detect.tentative)
+    # lasts at least this long, so the dense centre gets frames on it to confirm it.
+    cue_look_s: float = Field(0.5, ge=0)
     # Seed 003's scan strategies (pan only): the sweep's range and rate, and the fixed tilt.
     sweep_pan_deg: Pair = (-90.0, 90.0)
     sweep_rate_deg_s: float = Field(30.0, gt=0)

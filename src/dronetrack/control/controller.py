@@ -58,9 +58,11 @@ class Controller(Protocol):
         estimate: TrackEstimate,
         points: FloatArray | None = None,
         candidates: Candidates | None = None,
+        cues: Candidates | None = None,
     ) -> TurretCommand | None:
         """The command after a tracking step; ``points`` is the frame's foreground (world),
-        ``candidates`` the detect stage's confirmed candidates (None: acquisition off)."""
+        ``candidates`` the detect stage's confirmed candidates and ``cues`` its tentative
+        tracks worth a look (None: acquisition off)."""
         ...
 
 
@@ -80,6 +82,7 @@ class TurretController:
         search_lane: float = math.radians(20.0),
         search_rate: float = math.radians(40.0),
         search_area: tuple[tuple[float, float], tuple[float, float]] | None = None,
+        cue_look_s: float = 0.5,
         scan_pan: tuple[float, float] = (math.radians(-60.0), math.radians(60.0)),
         scan_tilt: tuple[float, float] = (math.radians(-25.0), math.radians(5.0)),
         scan_period_s: float = 4.0,
@@ -87,7 +90,8 @@ class TurretController:
         """``search_pan``: the first search sweep's half-width; ``search_lane``: the
         sensor's dense centre (the raster's lane width); ``search_rate``: the search's
         angular rate; ``search_area``: (pan, tilt) ranges to search [rad], default the
-        background scan's (all clipped to the joint limits)."""
+        background scan's (all clipped to the joint limits); ``cue_look_s``: how long a
+        look at a cue lasts at least."""
         self.mount = mount
         self.pan_limits = pan_limits
         self.tilt_limits = tilt_limits
@@ -98,6 +102,8 @@ class TurretController:
         area = search_area if search_area is not None else (scan_pan, scan_tilt)
         self.search_area = (_clip_range(area[0], pan_limits), _clip_range(area[1], tilt_limits))
         self.search = (search_pan, search_lane, search_rate)
+        self.cue_look_s = cue_look_s
+        self._look: tuple[float, tuple[float, float]] | None = None  # (until, aim) of a cue
         self.scan = (scan_pan, scan_tilt, scan_period_s)
         self._locked_once = False
         self._last_aim = self.home
@@ -121,6 +127,7 @@ class TurretController:
         estimate: TrackEstimate,
         points: FloatArray | None = None,
         candidates: Candidates | None = None,
+        cues: Candidates | None = None,
     ) -> TurretCommand | None:
         """The command after a tracking step whose result is ``estimate``; None to stay put.
 
@@ -137,13 +144,23 @@ class TurretController:
             self._locked_once = True
             self._lost_since = None
             self._path = None
+            self._look = None
             return self._aim(t, estimate.position, estimate.velocity)
         if candidates is not None and len(candidates):
             # A confirmed candidate: put the dense centre on it; a search resumes from it.
-            self._lost_since, self._path = t, None
+            self._lost_since, self._path, self._look = t, None, None
             return self._aim(t, candidates.positions[0], candidates.velocities[0])
         if self._lost_since is None:
             self._lost_since = t
+        if cues is not None and len(cues):
+            # A tentative track: a look, at least cue_look_s long, puts the dense centre on
+            # it, to confirm it or not.  No lead: two hits give a poor velocity.  The
+            # search's clock runs on, so a false cue delays the search by the look only.
+            aim = aim_angles(cues.positions[0], self.mount)
+            self._look = (t + self.cue_look_s, aim)
+        if self._look is not None and t < self._look[0]:
+            self._last_aim = self._look[1]
+            return self._command(t, *self._last_aim)
         lost_for = t - self._lost_since
         if lost_for < self.search_hold_s:
             if self._locked_once and np.all(np.isfinite(estimate.position)):

@@ -186,12 +186,13 @@ class ScanStrategyController:
         estimate: TrackEstimate | None,
         points: ArrayLike | None = None,
         candidates: Candidates | None = None,
+        cues: Candidates | None = None,
     ) -> TurretCommand | None:
         """The command for time t after a frame with foreground ``points`` (M, 3), world [m].
 
         ``estimate`` gives the target's velocity for ``adaptive`` when it is tracked.
-        Seed 003's strategies react to the foreground as published: ``candidates`` are
-        not used.
+        Seed 003's strategies react to the foreground as published: ``candidates`` and
+        ``cues`` are not used.
         """
         self._advance(t)
         pts = np.asarray(points if points is not None else (), dtype=np.float64).reshape(-1, 3)

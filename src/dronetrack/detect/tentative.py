@@ -21,6 +21,13 @@ when it was detected in at least M of the last N frames (M-of-N) and in this one
 It is dropped after N − M + 1 frames in a row without a detection, when it can no
 longer reach M of N.  So a single false return, or a flicker of foliage that does
 not come back at a plausible place, never confirms.
+
+A track not yet confirmed but detected in at least ``cue_hits`` of the last N frames
+is a **cue**: worth a look.  Far out, off the sensor's dense centre, a drone gives
+a return in some frames only, too few for M of N; a turret that turns to a cue puts
+the dense centre on it, and a real target then confirms within a few frames.  Two
+hits inside the speed gate, not one, make a cue: the sensor's random false returns
+(a few a frame) rarely fall twice within a gate of each other.
 """
 
 from __future__ import annotations
@@ -35,7 +42,7 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Candidates, Detections
 
-__all__ = ["ConfirmationSettings", "TentativeTracks", "gated_assignment"]
+__all__ = ["ConfirmationSettings", "TentativeTracks", "gated_assignment", "within_reach"]
 
 SMOOTHING = 0.5  # a: the weight of a new velocity measurement
 _INFEASIBLE = 1e12  # an assignment cost no feasible pair can reach [m]
@@ -55,6 +62,7 @@ class ConfirmationSettings:
     hits: int = 3
     frames: int = 4
     max_tracks: int = 64
+    cue_hits: int = 2
 
     def __post_init__(self) -> None:
         if not (self.v_max > 0 and self.gate_m >= 0):
@@ -64,6 +72,8 @@ class ConfirmationSettings:
                 f"need 1 ≤ hits ≤ frames ≤ 62 for M-of-N confirmation, got "
                 f"{self.hits} of {self.frames}"
             )
+        if not 1 <= self.cue_hits <= self.hits:
+            raise ConfigError(f"need 1 ≤ cue_hits ≤ hits, got {self.cue_hits} (hits {self.hits})")
         if self.max_tracks < 1:
             raise ConfigError(f"max_tracks must be positive, got {self.max_tracks}")
 
@@ -91,6 +101,23 @@ def gated_assignment(
     rows, cols = linear_sum_assignment(np.where(feasible, cost, _INFEASIBLE))
     keep = feasible[rows, cols]
     return rows[keep], cols[keep]
+
+
+def within_reach(
+    candidates: Candidates, dt: float, position: FloatArray, v_max: float, gate_m: float
+) -> Candidates:
+    """The candidates a target last fixed at ``position``, ``dt`` [s] ago, could have
+    reached, in their order (best first):
+
+        keep |c − p| ≤ v_max Δt + g
+
+    After a loss this keeps a new start on what the lost target could be, rather than
+    on a bird or a swaying crown elsewhere in view; the reach grows with the time lost,
+    so a target that reappears far away is still found once it could be there.
+    """
+    reach = v_max * max(dt, 0.0) + gate_m
+    inside = np.linalg.norm(candidates.positions - position, axis=1) <= reach
+    return candidates.take(np.flatnonzero(inside))
 
 
 def _popcount(history: NDArray[np.int64]) -> NDArray[np.int64]:
@@ -176,10 +203,23 @@ class TentativeTracks:
             self._drop(keep)
 
     def _confirmed(self, t: float) -> Candidates:
-        """Detected now and in M of the last N frames; best first (most detections in the
-        window, then over its life, then the older)."""
+        """Detected now and in M of the last N frames; best first."""
         hits = _popcount(self.history)
-        ok = (self.t_last == t) & (hits >= self.settings.hits)
-        idx = np.flatnonzero(ok)
-        idx = idx[np.lexsort((self.ids[idx], -self.detections[idx], -hits[idx]))]
+        idx = self._best(hits, (self.t_last == t) & (hits >= self.settings.hits))
         return Candidates(self.p[idx], self.v[idx], hits[idx], self.size[idx], self.ids[idx])
+
+    def cues(self, t: float) -> Candidates:
+        """The tracks worth a look at ``t``: in ``cue_hits`` of the last N frames, not
+        confirmed now; best first, at their predicted positions p + v Δt."""
+        hits = _popcount(self.history)
+        confirmed = (self.t_last == t) & (hits >= self.settings.hits)
+        idx = self._best(hits, ~confirmed & (hits >= self.settings.cue_hits))
+        dt = np.maximum(t - self.t_last[idx], 0.0)
+        predicted = self.p[idx] + self.v[idx] * dt[:, None]
+        return Candidates(predicted, self.v[idx], hits[idx], self.size[idx], self.ids[idx])
+
+    def _best(self, hits: NDArray[np.int64], ok: NDArray[np.bool_]) -> NDArray[np.intp]:
+        """The indices of the tracks where ``ok``, best first: most detections in the
+        window, then over its life, then the older."""
+        idx = np.flatnonzero(ok)
+        return idx[np.lexsort((self.ids[idx], -self.detections[idx], -hits[idx]))]

@@ -150,6 +150,7 @@ def _turret_controller(
         search_pan=math.radians(cfg.search_pan_deg),
         search_lane=math.radians(cfg.search_lane_deg),
         search_rate=math.radians(cfg.search_rate_deg_s),
+        cue_look_s=cfg.cue_look_s,
         search_area=None if field is None else (field.pan, field.tilt),
         scan_pan=(math.radians(pan[0]), math.radians(pan[1])),
         scan_tilt=(math.radians(tilt[0]), math.radians(tilt[1])),
@@ -234,6 +235,7 @@ def build_pipeline(
         latency_s=cfg.latency.sensor_s + cfg.latency.processing_s,
         hull=HullCrop(cfg.crop.hull_m) if cfg.crop.hull_m is not None else None,
         acquisition=build_acquisition(cfg.acquisition, cfg.tracker.v_max),
+        field=field_of_regard(cfg, mount.base),
     )
 
 
