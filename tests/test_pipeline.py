@@ -299,3 +299,52 @@ def test_after_a_loss_only_what_the_drone_could_reach_starts_a_track(
         near = float(np.linalg.norm(r.estimate.position - np.array(other))) < 1.0
         locked_on_other.append(r.estimate.tracked and near)
     assert any(locked_on_other) is taken
+
+
+@pytest.mark.parametrize("kind", ["ekf-cv", "aekf-ca"])
+def test_a_kalman_tracker_starts_on_the_drone_not_on_a_lone_false_return(kind: str) -> None:
+    """Half a second of a flicker of clutter per frame (a clump of 4 returns at a random
+    place, a cluster even for seed 002's detector, which needs 3 points), then a drone
+    90 m out and 40 m to the side flying at 12 m/s, with the clutter going on.  Started
+    by its confirmed candidates the filter waits, starts on the drone when it is
+    confirmed (its third frame) and stays on it; started on its own (acquisition off)
+    it starts on the first flicker."""
+    v = np.array([-12.0, 0.0, 0.0])
+
+    def run(acquisition: bool) -> tuple[list[bool], list[bool]]:
+        g = np.random.default_rng(5)
+        cfg = PipelineConfig(
+            background=BackgroundConfig(enabled=False),
+            tracker=TrackerConfig(kind=kind),  # type: ignore[arg-type]
+            acquisition=AcquisitionConfig(enabled=acquisition),
+        )
+        pipe = build_pipeline(
+            cfg,
+            0.1,
+            TURRET.mount,
+            (TURRET.pan.lower, TURRET.pan.upper),
+            (TURRET.tilt.lower, TURRET.tilt.upper),
+            np.random.default_rng(0),
+        )
+        tracked, good = [], []
+        for k in range(35):
+            place = g.uniform([5.0, -100.0, 2.0], [200.0, 100.0, 60.0])
+            false = place + g.normal(0.0, 0.1, (4, 3))
+            at = np.array([90.0, 40.0, 20.0]) + v * (0.1 * k + 0.1)
+            pts = false if k < 5 else np.vstack([_drone(g, tuple(at)), false])
+            r = pipe.step(_frame(0.1 * k, pts))
+            assert r.estimate is not None
+            tracked.append(r.estimate.tracked)
+            good.append(
+                r.estimate.tracked and float(np.linalg.norm(r.estimate.position - at)) < 1.0
+            )
+        return tracked, good
+
+    tracked, good = run(True)
+    assert not any(tracked[:5])
+    first = next(k for k, ok in enumerate(good) if ok)
+    assert first <= 5 + 3  # confirmed on the drone's third frame, started at that frame's end
+    assert all(good[first:])
+    tracked_alone, good_alone = run(False)
+    assert tracked_alone[0]
+    assert not good_alone[0]

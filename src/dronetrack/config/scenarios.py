@@ -266,6 +266,12 @@ _LIST = [
         40.0,
     ),
     _acquisition(
+        "outdoor-enter",
+        "enter",
+        "acquisition: the drone enters the field of regard from the side, 70 m out, at 15 m/s",
+        30.0,
+    ),
+    _acquisition(
         "outdoor-escape",
         "escape",
         "acquisition: away at 12 m/s beyond reach from 30 m out, back in on a bearing 40° round",

@@ -42,7 +42,7 @@ from dronetrack.jobs.background import load_model
 from dronetrack.pipeline import Acquisition, OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
-from dronetrack.track.base import Tracker
+from dronetrack.track.base import SelfStart, Tracker
 from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
 from dronetrack.track.particle import (
     MotionModel,
@@ -205,6 +205,8 @@ def build_pipeline(
     tracking starts at once.
     """
     tracker = build_tracker(cfg.tracker, period, rng, home=mount.base_vec)
+    if cfg.acquisition.enabled and isinstance(tracker, SelfStart):
+        tracker.self_start = False  # confirmed candidates start it (track.kalman_base)
     bg_cfg = cfg.background
     background: VoxelBackground | None = None
     if bg_cfg.enabled:

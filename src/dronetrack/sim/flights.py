@@ -258,6 +258,16 @@ def _incoming(hold: float, duration: float, rng: np.random.Generator) -> Traject
     return fly_waypoints(_polar(170.0, 25.0, 25.0), route, hold=hold)
 
 
+def _enter(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
+    # Waits 70 m out at a bearing of 130°, outside a ±90° field of regard and so outside
+    # its background scan, then flies in at 15 m/s: it enters the field at 90° within
+    # the Avia's reach, sweeps round to the home bearing and on past it.
+    route = _route(
+        [_polar(70.0, 60.0, 20.0), _polar(60.0, 0.0, 15.0), _polar(50.0, -60.0, 20.0)], 15.0, 5.0
+    )
+    return fly_waypoints(_polar(70.0, 130.0, 20.0), route, hold=hold)
+
+
 def _escape(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
     # Takes off 30 m out, flies away at 12 m/s to 200 m (beyond reach), moves 40° round
     # out there and comes back in on that bearing.
@@ -349,6 +359,10 @@ FLIGHTS: dict[str, Flight] = {
     "incoming": Flight(
         "enters from 170 m out, 25° off the home bearing, at 15 m/s; then crosses at 8 m/s",
         _incoming,
+    ),
+    "enter": Flight(
+        "from 70 m out at 130°, outside a ±90° field, in across it at 15 m/s to 50 m at −60°",
+        _enter,
     ),
     "escape": Flight(
         "from 30 m out away at 12 m/s to 200 m, 40° round out there, and back in on that bearing",

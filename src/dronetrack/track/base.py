@@ -8,7 +8,7 @@ from typing import Protocol, runtime_checkable
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Candidates, TrackEstimate
 
-__all__ = ["CandidateStart", "PositionStart", "Tracker"]
+__all__ = ["CandidateStart", "PositionStart", "SelfStart", "Tracker"]
 
 
 class Tracker(Protocol):
@@ -48,3 +48,12 @@ class CandidateStart(Protocol):
         pipeline calls it only while the tracker is not locked, before ``step``, which
         applies them at the frame's end."""
         ...
+
+
+@runtime_checkable
+class SelfStart(Protocol):
+    """A tracker that can also start by itself on the first non-empty frame (the
+    Kalman filters, as the seeds run them); off when the detect stage's candidates
+    start it, so that a lone false return cannot."""
+
+    self_start: bool

@@ -65,6 +65,9 @@ class _TimedKalman(_KalmanTracker):
     def _overdue(self) -> bool:
         return False
 
+    def _fixed(self, t: float) -> None:
+        self._check_lost(t)  # a start is a fix: not lost, the clock from t
+
 
 SEED003_P0 = (1.0, 1.0, 1.0, 16.0, 16.0, 16.0)
 
@@ -116,10 +119,10 @@ class CentroidEKF(_TimedKalman):
         if self.initialised:
             for _ in range(steps):
                 self.x, self.P = kf_predict(self.x, self.P, self.F, self.Q)
-        if len(found) and not self.tracked:
+        if len(found) and not self.tracked and self.self_start:
             self._z = found.centroids[found.largest()]
             self._start(self._z)
-        elif len(found):
+        elif len(found) and self.tracked:
             distance = [float(np.sum((c - self.x[0:3]) ** 2)) for c in found.centroids]
             self._z = found.centroids[int(np.argmin(distance))]
             u = kf_update(self.x, self.P, self._z, self.H, self.R)
@@ -190,10 +193,11 @@ class ConstantAccelerationKF(_TimedKalman):
         if self.initialised and not (self.lost and self.reinitialises):
             for _ in range(steps):
                 self.x, self.P = kf_predict(self.x, self.P, self.F, self.Q)
-        if len(found) and (not self.initialised or (self.lost and self.reinitialises)):
+        ended = not self.initialised or (self.lost and self.reinitialises)
+        if len(found) and ended and self.self_start:
             self._z = found.centroids[found.largest()]
             self._start(self._z)
-        elif len(found):
+        elif len(found) and not ended:
             # eq. (9): D_M = dᵀ S⁻¹ d, S = H P⁻ Hᵀ + R; the nearest is accepted if D_M < τ
             S = symmetrise(self.H @ self.P @ self.H.T) + self.R
             self.distances = [mahalanobis_sq(c - self.x[0:3], S) for c in found.centroids]

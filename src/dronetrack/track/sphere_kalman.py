@@ -57,12 +57,15 @@ class _SphereKalman(_KalmanTracker):
     def _predict(self) -> None:
         raise NotImplementedError
 
+    def _set_velocity(self, velocity: FloatArray) -> None:
+        """The CTRV state starts at rest, as on its own first frame."""
+
     def _radius(self) -> float:
         raise NotImplementedError
 
     def _advance(self, t: float, points: FloatArray, steps: int) -> None:
         if not self.initialised:
-            if len(points):
+            if len(points) and self.self_start:
                 self._z = points.mean(axis=0)
                 self._start(self._z)
             return

@@ -317,6 +317,7 @@ _LIST.append(
         methods=get_args(TrackerKind),
         cases=(
             Case("default", "default", "tracking"),
+            Case("enter", "outdoor-enter", "tracking"),
             Case("incoming", "outdoor-incoming", "tracking"),
             Case("escape", "outdoor-escape", "tracking"),
             Case("hide", "outdoor-hide", "tracking"),
