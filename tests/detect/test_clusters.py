@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from dronetrack.detect.clusters import (
     cluster_features,
+    cluster_features_reference,
     connected_components,
     cylinder_mask,
     dbscan,
@@ -179,3 +180,33 @@ def test_a_single_return_is_a_cluster_without_spread() -> None:
     np.testing.assert_array_equal(two.covariance, one.covariance)
     np.testing.assert_array_equal(two.extent, one.extent)
     assert two.planarity == one.planarity
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 12), st.integers(0, 40))
+def test_batched_statistics_equal_the_per_cluster_definition(seed: int, k: int, extra: int) -> None:
+    """All clusters at once (compiled moments, batched eigh) give each cluster's own
+    statistics: clusters of 1 to 1 + extra points, anisotropic, with noise labels."""
+    rng = np.random.default_rng(seed)
+    sizes = 1 + rng.integers(0, extra + 1, k)
+    pts = np.concatenate(
+        [
+            rng.uniform(-100, 100, 3) + rng.normal(0.0, rng.uniform(0.01, 1.0, 3), (m, 3))
+            for m in sizes
+        ]
+    )
+    labels = np.repeat(np.arange(k), sizes)
+    labels[rng.random(len(labels)) < 0.1] = -1  # some noise
+    order = rng.permutation(len(labels))
+    pts, labels = pts[order], labels[order]
+    kept = labels >= 0
+    labels[kept] = np.unique(labels[kept], return_inverse=True)[1]  # 0..k'−1, no gaps
+    got = cluster_features(pts, labels)
+    want = cluster_features_reference(pts, labels)
+    assert len(got) == len(want)
+    for g, w in zip(got, want, strict=True):
+        assert g.n == w.n
+        np.testing.assert_allclose(g.centroid, w.centroid, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(g.covariance, w.covariance, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(g.extent, w.extent, rtol=1e-9, atol=1e-9)
+        assert g.planarity == pytest.approx(w.planarity, rel=1e-6, abs=1e-9)

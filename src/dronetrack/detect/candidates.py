@@ -16,7 +16,7 @@ import numpy as np
 
 from dronetrack.detect.clusters import (
     Cluster,
-    cluster_features,
+    cluster_statistics,
     cylinder_mask,
     dbscan,
     voxel_centroids,
@@ -74,8 +74,13 @@ class CandidateDetector:
         """The candidates in ``points`` (M, 3) [m], in DBSCAN's label order."""
         pts = voxel_centroids(points, self.voxel_size) if self.voxel_size > 0 else points
         pts = pts[cylinder_mask(pts, self.roi_center_xy, self.roi_radius, self.z_min, self.z_max)]
-        clusters = cluster_features(pts, dbscan(pts, self.eps, self.min_points))
-        return detections([c for c in clusters if c.extent[0] <= self.max_extent])
+        st = cluster_statistics(pts, dbscan(pts, self.eps, self.min_points))
+        ok = st.extents[:, 0] <= self.max_extent
+        if not ok.any():
+            return Detections.empty()
+        return Detections(
+            st.centroids[ok], st.counts[ok], st.extents[ok], st.covariances[ok], st.planarity[ok]
+        )
 
 
 SEED002_DETECTOR = CandidateDetector()

@@ -27,7 +27,9 @@ from dronetrack.geometry.transforms import FloatArray
 
 __all__ = [
     "Cluster",
+    "ClusterStatistics",
     "cluster_features",
+    "cluster_statistics",
     "connected_components",
     "cylinder_mask",
     "dbscan",
@@ -138,8 +140,96 @@ def _features(pts: FloatArray) -> Cluster:
     return Cluster(centroid, cov, extent, planarity, len(pts))
 
 
+@dataclass(frozen=True, slots=True)
+class ClusterStatistics:
+    """The statistics of K clusters at once, as ``Cluster`` holds one's: centroids (K, 3),
+    covariances (K, 3, 3), extents (K, 3), planarity (K,), counts (K,)."""
+
+    centroids: FloatArray
+    covariances: FloatArray
+    extents: FloatArray
+    planarity: FloatArray
+    counts: IntArray
+
+
+@nb.njit(cache=True)
+def _moments(pts: FloatArray, lab: IntArray, k: int) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Counts n_j (K,), centroids p̄_j (K, 3) and covariances Σ_j (K, 3, 3) of the labelled
+    points (labels 0..k−1), two passes over the points."""
+    n = np.zeros(k, dtype=np.int64)
+    mean = np.zeros((k, 3))
+    for i in range(len(lab)):  # p̄_j = (1/n_j) Σ_{i ∈ j} pᵢ
+        j = lab[i]
+        n[j] += 1
+        for a in range(3):
+            mean[j, a] += pts[i, a]
+    for j in range(k):
+        for a in range(3):
+            mean[j, a] /= n[j]
+    cov = np.zeros((k, 3, 3))
+    for i in range(len(lab)):  # Σ_j = (1/n_j) Σ_{i ∈ j} (pᵢ − p̄_j)(pᵢ − p̄_j)ᵀ
+        j = lab[i]
+        for a in range(3):
+            da = pts[i, a] - mean[j, a]
+            for b in range(3):
+                cov[j, a, b] += da * (pts[i, b] - mean[j, b])
+    for j in range(k):
+        cov[j] /= n[j]
+    return n, mean, cov
+
+
+@nb.njit(cache=True)
+def _extents(pts: FloatArray, lab: IntArray, mean: FloatArray, axes: FloatArray) -> FloatArray:
+    """Lengths along each cluster's principal axes (K, 3): max − min over its points of
+    the projections (pᵢ − p̄_j)ᵀ e_{j,c}, with axes (K, 3, 3) holding e_{j,c} as columns."""
+    k = len(mean)
+    lo = np.full((k, 3), np.inf)
+    hi = np.full((k, 3), -np.inf)
+    for i in range(len(lab)):
+        j = lab[i]
+        for c in range(3):
+            q = 0.0
+            for a in range(3):
+                q += (pts[i, a] - mean[j, a]) * axes[j, a, c]
+            lo[j, c] = min(lo[j, c], q)
+            hi[j, c] = max(hi[j, c], q)
+    length: FloatArray = hi - lo
+    return length
+
+
+def cluster_statistics(points: FloatArray, labels: IntArray) -> ClusterStatistics:
+    """The statistics of every cluster 0..k−1 (noise skipped), all clusters at once:
+    the moments in one compiled pass, one batched ``eigh`` on the (K, 3, 3) stack.
+    Frames hold a dozen clusters of a few points, where a loop over clusters spends
+    its time in numpy's per-call overhead."""
+    pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    keep = labels >= 0
+    pts, lab = pts[keep], np.ascontiguousarray(labels[keep], dtype=np.int64)
+    k = int(lab.max()) + 1 if len(lab) else 0
+    if k == 0:
+        z = np.empty((0, 3))
+        return ClusterStatistics(z, np.empty((0, 3, 3)), z, np.empty(0), np.empty(0, np.int64))
+    n, centroids, cov = _moments(pts, lab, k)
+    eigval, eigvec = np.linalg.eigh(cov)  # ascending, per cluster
+    lam = np.clip(eigval[:, ::-1], 0.0, None)  # λ₁ ≥ λ₂ ≥ λ₃
+    axes = np.ascontiguousarray(eigvec[:, :, ::-1])
+    extents = _extents(pts, lab, centroids, axes)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        planarity = np.where(lam[:, 0] > 0, (lam[:, 1] - lam[:, 2]) / lam[:, 0], 0.0)
+    return ClusterStatistics(centroids, cov, extents, planarity, n)
+
+
 def cluster_features(points: FloatArray, labels: IntArray) -> list[Cluster]:
     """One Cluster per label 0..k−1, in label order (noise is skipped)."""
+    st = cluster_statistics(points, labels)
+    return [
+        Cluster(st.centroids[j], st.covariances[j], st.extents[j], float(st.planarity[j]), int(n))
+        for j, n in enumerate(st.counts)
+    ]
+
+
+def cluster_features_reference(points: FloatArray, labels: IntArray) -> list[Cluster]:
+    """``cluster_features`` one cluster at a time (the definition; for tests)."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     k = int(labels.max()) + 1 if len(labels) else 0
     if k <= 0:

@@ -141,9 +141,10 @@ def _particle_filters() -> None:
 
 def _detection() -> None:
     """The detect stage's clustering."""
-    from dronetrack.detect.clusters import dbscan
+    from dronetrack.detect.clusters import cluster_statistics, dbscan
 
-    dbscan(_frame().points, 1.0, 1)
+    points = _frame().points
+    cluster_statistics(points, dbscan(points, 1.0, 1))
 
 
 def _replay() -> None:
