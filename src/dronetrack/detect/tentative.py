@@ -176,16 +176,21 @@ class TentativeTracks:
         window = (1 << s.frames) - 1
         self.history = ((self.history << 1) | hit.astype(np.int64)) & window
         self._drop(self.misses < s.max_misses)
-        new = np.setdiff1d(np.arange(len(found)), cols)
-        self._add(t, found, new)
+        unmatched = np.ones(len(found), dtype=bool)
+        unmatched[cols] = False
+        self._add(t, found, np.flatnonzero(unmatched))
         return self._confirmed(t)
 
     def _drop(self, keep: NDArray[np.bool_]) -> None:
+        if keep.all():
+            return
         for name in ("p", "v", "t_last", "history", "detections", "misses", "size", "ids"):
             setattr(self, name, getattr(self, name)[keep])
 
     def _add(self, t: float, found: Detections, new: NDArray[np.intp]) -> None:
         k = len(new)
+        if k == 0:
+            return
         self.p = np.concatenate([self.p, found.centroids[new]])
         self.v = np.concatenate([self.v, np.zeros((k, 3))])
         self.t_last = np.concatenate([self.t_last, np.full(k, t)])
