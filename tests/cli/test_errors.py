@@ -249,3 +249,12 @@ def test_tracker_names_are_the_configs_list(
     offered = line.split("is not one of", 1)[1]
     assert tuple(re.findall(r"'([^']+)'", offered)) == get_args(TrackerKind)
     assert not (tmp_path / "o").exists()
+
+
+def test_compare_help_names_every_suite(capsys: pytest.CaptureFixture[str]) -> None:
+    from dronetrack.experiments.compare.suites import SUITES
+
+    text = _help(["compare"], capsys)
+    assert "acquisition" in SUITES
+    for name in SUITES:
+        assert name in text, name

@@ -2,23 +2,15 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 from rich.console import Console
 
-from dronetrack.cli.options import (
-    RunDirOption,
-)
-from dronetrack.cli.output import (
-    progress_bar,
-)
-
-if TYPE_CHECKING:
-    pass
-
-
 from dronetrack.cli.app import app
+from dronetrack.cli.options import RunDirOption
+from dronetrack.cli.output import progress_bar
+from dronetrack.experiments.compare.suites import SUITES
 
 __all__ = ["compare"]
 
@@ -29,7 +21,7 @@ def compare(
         str,
         typer.Option(
             "--suite",
-            help="seed000-outdoor, seed000-ablation, seed000-indoor, seed002 or seed003.",
+            help=f"{', '.join(list(SUITES)[:-1])} or {list(SUITES)[-1]}.",
         ),
     ],
     runs: Annotated[int, typer.Option("--runs", min=1, help="Seeded runs per method.")] = 5,
@@ -43,7 +35,8 @@ def compare(
         typer.Option("--methods", help="Comma-separated subset of the suite's methods."),
     ] = None,
 ) -> None:
-    """Run every method of a seed's table on the same seeded scenarios, side by side.
+    """Run every method of a suite (a seed's table, or acquisition) on the same seeded
+    scenarios, side by side.
 
     Writes table.csv (scenario,method,metric,mean,std,paper), table.md and, for
     seed003, the seed's CSV logs of every run.
