@@ -9,6 +9,7 @@ from __future__ import annotations
 __all__ = [
     "ConfigError",
     "DecodeError",
+    "DeviceError",
     "DronetrackError",
     "InputError",
     "MissingExtraError",
@@ -49,6 +50,11 @@ class RecordingError(InputError):
 
 class DecodeError(InputError):
     """One message's bytes do not decode (bad layout, counts that disagree with the length)."""
+
+
+class DeviceError(DronetrackError):
+    """A device (LiDAR, servo, pan-tilt unit) cannot be reached, stops answering, or
+    answers against its protocol; the message names the device."""
 
 
 class MissingExtraError(DronetrackError):
