@@ -1,0 +1,195 @@
+"""Live streams into frames: points cut into integration periods by their own times,
+and the sensor's pose during each frame from the turret's measured joint angles.
+
+A LiDAR streams packets of a few dozen to a hundred points, each point with its
+time.  A frame is every point whose time falls in one integration period:
+
+    k(t) = ⌊(t − t₀) / T⌋                  the frame of a point at time t [ns]
+
+with t₀ the first point's time and T the integration time (100 ms by default).
+Frames are cut by the points' times, not by when packets arrive, so a late or
+bunched packet still lands in its own frame.  A frame is complete once a point of
+a later frame arrives; the stream is in time order, so nothing more can join it.
+A point older than the open frame (a packet delivered out of order after its
+frame was handed on) is dropped and counted, and so are the periods that passed
+with no point at all (every packet of a frame lost).
+
+The turret's joints are read as the frames come in.  ``PoseHistory`` keeps the
+recent time-stamped readings and gives the sensor's pose at any time in the frame
+by the mount kinematics (``geometry.mount.sensor_poses``), the joint angles
+interpolated linearly between readings (held constant beyond the newest one).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dronetrack.errors import ConfigError, InputError
+from dronetrack.geometry.mount import MountGeometry, sensor_poses
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import Frame, TurretState
+
+__all__ = ["FrameAssembler", "PointBatch", "PoseHistory", "StreamFrame"]
+
+NS = 1_000_000_000  # nanoseconds per second
+
+
+@dataclass(frozen=True, slots=True)
+class PointBatch:
+    """Points as a decoder gives them, in time order: xyz (N, 3) [m] in the sensor
+    frame, t_ns (N,) int64 [ns], reflectivity (N,) and line (N,) uint8."""
+
+    xyz: FloatArray
+    t_ns: NDArray[np.int64]
+    reflectivity: NDArray[np.uint8]
+    line: NDArray[np.uint8]
+
+    def __post_init__(self) -> None:
+        n = len(self.t_ns)
+        if self.xyz.shape != (n, 3) or self.reflectivity.shape != (n,) or self.line.shape != (n,):
+            raise InputError(
+                f"a point batch needs xyz (N, 3) and N times, reflectivities and lines; got "
+                f"{self.xyz.shape}, {self.t_ns.shape}, {self.reflectivity.shape}, {self.line.shape}"
+            )
+
+    def __len__(self) -> int:
+        return len(self.t_ns)
+
+    def take(self, sel: slice | NDArray[np.intp] | NDArray[np.bool_]) -> PointBatch:
+        return PointBatch(self.xyz[sel], self.t_ns[sel], self.reflectivity[sel], self.line[sel])
+
+
+@dataclass(frozen=True, slots=True)
+class StreamFrame:
+    """One integration period of the stream: frame ``index`` k covers
+    [start_ns, start_ns + period_ns)."""
+
+    index: int
+    start_ns: int
+    period_ns: int
+    points: PointBatch
+
+
+def _concat(parts: list[PointBatch]) -> PointBatch:
+    return PointBatch(
+        np.concatenate([p.xyz for p in parts]).reshape(-1, 3),
+        np.concatenate([p.t_ns for p in parts]).astype(np.int64),
+        np.concatenate([p.reflectivity for p in parts]).astype(np.uint8),
+        np.concatenate([p.line for p in parts]).astype(np.uint8),
+    )
+
+
+class FrameAssembler:
+    """Cuts a time-ordered point stream into frames of ``period_s`` by the points' times.
+
+    ``t0_ns``: the time of frame 0's start; the first point's time if None.
+    Counters: ``late_points`` (dropped, older than the open frame) and
+    ``empty_periods`` (periods with no point between two frames handed on).
+    """
+
+    def __init__(self, period_s: float, t0_ns: int | None = None) -> None:
+        if not period_s > 0:
+            raise ConfigError(f"the integration time must be positive, got {period_s} s")
+        self.period_ns = round(period_s * NS)
+        self.t0_ns = t0_ns
+        self.late_points = 0
+        self.empty_periods = 0
+        self._open: int | None = None  # index of the frame being filled
+        self._parts: list[PointBatch] = []
+        self._last_done: int | None = None
+
+    def push(self, batch: PointBatch) -> list[StreamFrame]:
+        """Add ``batch``; the frames it completes, in order."""
+        if len(batch) == 0:
+            return []
+        if self.t0_ns is None:
+            self.t0_ns = int(batch.t_ns[0])
+        # k(t) = ⌊(t − t₀) / T⌋
+        k = (batch.t_ns - self.t0_ns) // self.period_ns
+        if self._open is not None:
+            late = k < self._open
+            if late.any():
+                self.late_points += int(late.sum())
+                batch, k = batch.take(~late), k[~late]
+                if len(batch) == 0:
+                    return []
+        done: list[StreamFrame] = []
+        # The batch is in time order: split it where k changes.
+        cuts = np.flatnonzero(np.diff(k)) + 1
+        for sel, kk in zip(
+            np.split(np.arange(len(k)), cuts), k[np.r_[0, cuts]].tolist(), strict=True
+        ):
+            if self._open is not None and kk != self._open:
+                done.append(self._close())
+            self._open = kk
+            self._parts.append(batch.take(sel))
+        return done
+
+    def flush(self) -> list[StreamFrame]:
+        """The open frame, if any (at the end of the stream)."""
+        return [self._close()] if self._open is not None else []
+
+    def _close(self) -> StreamFrame:
+        k, t0 = self._open, self.t0_ns
+        if k is None or t0 is None:
+            raise InputError("no open frame to close")
+        if self._last_done is not None:
+            self.empty_periods += max(k - self._last_done - 1, 0)
+        frame = StreamFrame(k, t0 + k * self.period_ns, self.period_ns, _concat(self._parts))
+        self._last_done, self._open, self._parts = k, None, []
+        return frame
+
+
+class PoseHistory:
+    """The turret's recent measured joint states, and the sensor pose at any time.
+
+    ``keep_s``: how far back readings are kept [s].  Times are seconds on the run's
+    clock.  Readings must come in time order; an older one is ignored.
+    """
+
+    def __init__(self, mount: MountGeometry, keep_s: float = 2.0) -> None:
+        self.mount = mount
+        self.keep_s = keep_s
+        self._states: deque[TurretState] = deque()
+
+    def __len__(self) -> int:
+        return len(self._states)
+
+    def add(self, state: TurretState) -> None:
+        if self._states and state.stamp <= self._states[-1].stamp:
+            return
+        self._states.append(state)
+        while len(self._states) > 2 and self._states[1].stamp < state.stamp - self.keep_s:
+            self._states.popleft()
+
+    def angles(self, t: NDArray[np.float64]) -> tuple[FloatArray, FloatArray]:
+        """Pan and tilt [rad] at times ``t`` [s]: linear between readings, held beyond them."""
+        if not self._states:
+            raise InputError("no turret reading yet: the sensor pose is unknown")
+        s = np.array([x.stamp for x in self._states])
+        pan = np.array([x.pan for x in self._states])
+        tilt = np.array([x.tilt for x in self._states])
+        return np.interp(t, s, pan), np.interp(t, s, tilt)
+
+    def frame(self, frame: StreamFrame, t0_ns: int, samples: int = 5) -> Frame:
+        """``frame`` as the pipeline's Frame on the run's clock (seconds since ``t0_ns``),
+        with ``samples`` sensor poses spread over its period."""
+        pts = frame.points
+        start = (frame.start_ns - t0_ns) / NS
+        duration = frame.period_ns / NS
+        pose_t = start + duration * np.linspace(0.0, 1.0, max(samples, 2))
+        pan, tilt = self.angles(pose_t)
+        return Frame(
+            stamp=start,
+            duration=duration,
+            points=pts.xyz.astype(np.float64),
+            t=(pts.t_ns - t0_ns) / NS,
+            line=pts.line,
+            intensity=pts.reflectivity.astype(np.float32),
+            pose_t=pose_t,
+            poses=sensor_poses(pan, tilt, self.mount),
+        )
