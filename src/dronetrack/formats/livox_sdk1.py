@@ -24,6 +24,7 @@ from __future__ import annotations
 import ipaddress
 import struct
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, date, datetime
 
@@ -298,7 +299,7 @@ def _group_decoder(point_interval_ns: int) -> GroupDecoder:
     return decode
 
 
-def decode_packets(packets: list[Bytes], point_interval_ns: int) -> tuple[DecodedPackets, int]:
+def decode_packets(packets: Sequence[Bytes], point_interval_ns: int) -> tuple[DecodedPackets, int]:
     """Points and IMU samples of many point/IMU packets (vectorised per data type), and
     the number of malformed packets skipped (wrong length, version, type, timestamp)."""
     return decode_batch(packets, _inspect, _group_decoder(point_interval_ns))

@@ -30,7 +30,7 @@ import binascii
 import ipaddress
 import struct
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -322,7 +322,7 @@ def _decode_group(
     return read_records(body.view(LAYOUTS[data_type].dtype), LAYOUTS[data_type], t), None
 
 
-def decode_packets(packets: list[Bytes], check_crc: bool = False) -> tuple[DecodedPackets, int]:
+def decode_packets(packets: Sequence[Bytes], check_crc: bool = False) -> tuple[DecodedPackets, int]:
     """Points and IMU samples of many packets (vectorised per data type and size), and the
     number of malformed packets skipped (length, version, type, time type, CRC if asked)."""
     return decode_batch(packets, _inspector(check_crc), _decode_group)
