@@ -106,8 +106,9 @@ Clock = Callable[[], float]
 class JointModel(Protocol):
     """The joint a servo drives: takes goals, reports where it is; angles [rad], t [s]."""
 
-    def profile(self, rate: float, accel: float) -> None:
-        """The profile's velocity [rad/s] and acceleration [rad/s²] limits; 0 = unlimited."""
+    def profile(self, rate: float, accel: float, t: float) -> None:
+        """From time ``t`` on, the profile's velocity [rad/s] and acceleration [rad/s²]
+        limits; 0 = unlimited."""
         ...
 
     def goal(self, angle: float, t: float) -> None:
@@ -129,7 +130,8 @@ class RateLimitedJoint:
         self.target = angle  # q* [rad]
         self.rate = 0.0  # ω [rad/s], 0 = unlimited
 
-    def profile(self, rate: float, accel: float) -> None:
+    def profile(self, rate: float, accel: float, t: float) -> None:
+        self.q0, self.t0 = self.position(t), t  # the move so far keeps its old rate
         self.rate = max(rate, 0.0)
 
     def goal(self, angle: float, t: float) -> None:
@@ -308,6 +310,7 @@ class EmulatedXM430:
             self.joint.profile(
                 units_to_rate(self.values[ADDR.PROFILE_VELOCITY]),
                 units_to_accel(self.values[ADDR.PROFILE_ACCELERATION]),
+                t,
             )
         elif address == ADDR.GOAL_POSITION:
             self.goals.append(value)
@@ -323,7 +326,7 @@ class EmulatedXM430:
                 self.values[item.address] = item.initial
         self.values[ADDR.GOAL_POSITION] = here
         self.joint.goal(self.joint.position(t), t)
-        self.joint.profile(0.0, 0.0)
+        self.joint.profile(0.0, 0.0, t)
 
 
 class ServoBus:
