@@ -24,6 +24,7 @@ ahead of the measured position: q* = q + ω T.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
@@ -135,6 +136,19 @@ def axis_tick_limits(axis: AxisSpec) -> tuple[int, int]:
     return lo, hi
 
 
+def _io_errors() -> tuple[type[BaseException], ...]:
+    """What the SDK's serial layer raises when the line fails: OSError (pyserial's
+    SerialException is one) and, on POSIX, termios.error (not an OSError)."""
+    try:
+        import termios
+    except ImportError:
+        return (OSError,)
+    return (OSError, termios.error)
+
+
+_IO_ERRORS = _io_errors()
+
+
 def _sdk() -> Any:
     try:
         import dynamixel_sdk
@@ -188,7 +202,7 @@ class DynamixelTurret:
         self._closed = True
         try:
             opened = bool(self._port.openPort()) and bool(self._port.setBaudRate(baud))
-        except OSError as exc:
+        except _IO_ERRORS as exc:
             raise DeviceError(f"Dynamixel turret on {device}: cannot open the port: {exc}") from exc
         if not opened:
             raise DeviceError(f"Dynamixel turret on {device}: cannot open the port at {baud} baud")
@@ -241,7 +255,7 @@ class DynamixelTurret:
             raise DeviceError(f"{self._who(ident)}: {what}: the port is closed")
         try:
             *value, result, error = call()
-        except OSError as exc:
+        except _IO_ERRORS as exc:
             raise DeviceError(f"{self._who(ident)}: {what}: {exc}") from exc
         if result != self._ok:
             raise DeviceError(f"{self._who(ident)}: {what}: {self._ph.getTxRxResult(result)}")
@@ -309,7 +323,7 @@ class DynamixelTurret:
             self._goal_write.addParam(ident, _le32(value))
         try:
             result = self._goal_write.txPacket()
-        except OSError as exc:
+        except _IO_ERRORS as exc:
             raise DeviceError(
                 f"Dynamixel turret on {self.device}: servo IDs {self.ids[0]}, {self.ids[1]}: "
                 f"sync write of goal positions: {exc}"
@@ -354,7 +368,7 @@ class DynamixelTurret:
         t0 = self.clock()
         try:
             result = self._present_read.txRxPacket()
-        except OSError as exc:
+        except _IO_ERRORS as exc:
             raise DeviceError(
                 f"Dynamixel turret on {self.device}: servo IDs {self.ids[0]}, {self.ids[1]}: "
                 f"sync read of present position: {exc}"
@@ -388,11 +402,9 @@ class DynamixelTurret:
 
     def _close_port(self) -> None:
         self._closed = True
-        try:
-            if getattr(self._port, "ser", None) is not None:
+        if getattr(self._port, "ser", None) is not None:
+            with contextlib.suppress(*_IO_ERRORS):
                 self._port.closePort()
-        except OSError:
-            pass
 
     def close(self) -> None:
         """Hold the present position (goal = present, torque stays on) and close the port.
