@@ -300,7 +300,11 @@ class DynamixelTurret:
         v_limit = self._read(ident, ADDR.VELOCITY_LIMIT, 4, "velocity limit")
         velocity = max(1, min(rate_to_units(axis.rate), v_limit))
         self._write(
-            ident, ADDR.PROFILE_ACCELERATION, 4, max(1, accel_to_units(axis.accel)), "accel"
+            ident,
+            ADDR.PROFILE_ACCELERATION,
+            4,
+            max(1, accel_to_units(axis.accel)),
+            "profile acceleration",
         )
         self._write(ident, ADDR.PROFILE_VELOCITY, 4, velocity, "profile velocity")
         self._write(ident, ADDR.TORQUE_ENABLE, 1, 1, "torque on")
