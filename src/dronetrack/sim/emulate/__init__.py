@@ -1,0 +1,1 @@
+"""Emulated devices behind their real wire protocols, for the live drivers to talk to."""
