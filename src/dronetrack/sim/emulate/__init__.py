@@ -1,0 +1,1 @@
+"""Emulated devices: simulated sensors and actuators that speak the real wire protocols."""
