@@ -484,6 +484,8 @@ class LivoxClient:
         DeviceError if the link is dead or no packet came for ``stall_s``."""
         if self._sampling_since is None:
             raise DeviceError(f"{self.name}: not sampling (call open)")
+        if self._dead is not None:
+            raise DeviceError(f"{self.name}: {self._dead}")
         until = time.monotonic() + timeout_s
         with self._lock:
             while not self._queue:
