@@ -201,9 +201,11 @@ def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:
 
 
 def test_the_queue_keeps_the_newest_packets_and_counts_the_dropped() -> None:
-    with linked(GridSource(DT[7], 5.0), max_packets=10) as (client, _dev):
+    with linked(GridSource(DT[7], 5.0), max_packets=10) as (client, dev):
         client.open(timeout_s=2.0)
         time.sleep(0.2)  # 0.2 s of an Avia: about 500 packets
+        dev.paused = True
+        time.sleep(0.1)  # the packets on their way arrive; then nothing more comes
         packets = client.packets(0.1)
         assert len(packets) == 10
         assert client.queue_dropped == client.packets_received - 10 > 0

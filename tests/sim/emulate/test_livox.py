@@ -15,7 +15,14 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, PointChunk, grid_points
+from dronetrack.sim.emulate.livox import (
+    EmulatedLivox,
+    GridSource,
+    PointChunk,
+    frame_chunks,
+    grid_points,
+)
+from dronetrack.types import Frame
 
 LOOP = "127.0.0.1"
 # device type → (data type, firings per packet, bytes per firing, Δt ns): livox_def.h
@@ -236,3 +243,42 @@ def test_close_stops_the_device_within_a_bounded_time() -> None:
     assert time.monotonic() - t0 < 0.5
     assert dev._thread is not None
     assert not dev._thread.is_alive()
+
+
+def test_simulator_frames_become_time_ordered_chunks() -> None:
+    pts = np.array([[5.0, 0, 0], [6.0, 0, 0], [7.0, 0, 0]])
+    frame = Frame(
+        stamp=1.0,
+        duration=0.1,
+        points=pts,
+        t=np.array([1.05, 1.0, 1.000004167]),
+        line=np.zeros(3, np.uint8),
+        intensity=np.array([10.4, 300.0, -2.0], np.float32),
+        pose_t=np.array([1.0]),
+        poses=np.eye(4)[None],
+    )
+    (chunk,) = frame_chunks([frame], t0_s=1.0)
+    # t_ns = round((t − t0)·10⁹), sorted by time; intensity clipped to 0-255
+    np.testing.assert_array_equal(chunk.t_ns, [0, 4_167, 50_000_000])
+    np.testing.assert_array_equal(chunk.xyz, pts[[1, 2, 0]])
+    np.testing.assert_array_equal(chunk.reflectivity, [255, 0, 10])
+
+
+def test_a_callable_source_is_called_afresh_at_each_start(
+    host: tuple[socket.socket, socket.socket],
+) -> None:
+    cmd, data = host
+    calls: list[int] = []
+
+    def source() -> list[PointChunk]:
+        calls.append(1)
+        one = np.array([len(calls) * 1.0, 0.0, 0.0])[None]  # x = 1 m, then 2 m
+        return [PointChunk(one, np.zeros(1, np.int64), np.zeros(1, np.uint8))]
+
+    with EmulatedLivox(source, device_port=0) as dev:
+        _ask(cmd, dev, _handshake(cmd, data))
+        for seq, x_mm in ((2, 1000), (4, 2000)):
+            _ask(cmd, dev, frame(0, seq, 0x04, b"\x01"))
+            assert struct.unpack_from("<i", data.recv(2048), 18)[0] == x_mm
+            _ask(cmd, dev, frame(0, seq + 1, 0x04, b"\x00"))
+    assert len(calls) == 2

@@ -39,7 +39,7 @@ import socket
 import threading
 import time
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from types import TracebackType
 
@@ -49,8 +49,16 @@ from numpy.typing import NDArray
 from dronetrack.errors import ConfigError, DecodeError, DeviceError, InputError
 from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import Frame
 
-__all__ = ["EmulatedLivox", "GridSource", "PointChunk", "grid_points"]
+__all__ = [
+    "EmulatedLivox",
+    "GridSource",
+    "PointChunk",
+    "PointSource",
+    "frame_chunks",
+    "grid_points",
+]
 
 AVIA, MID40 = 7, 1
 DATA_TYPE = {AVIA: 2, MID40: 0}  # the Avia's extended Cartesian points; the Mid-40's Cartesian
@@ -75,6 +83,22 @@ class PointChunk:
                 f"a point chunk needs xyz (N, 3), N times and N reflectivities; got "
                 f"{self.xyz.shape}, {self.t_ns.shape}, {self.reflectivity.shape}"
             )
+
+
+# An iterable of chunks (iterated anew at each sampling start: a list or GridSource
+# restarts, a generator goes on), or a callable giving a fresh one at each start.
+PointSource = Iterable[PointChunk] | Callable[[], Iterable[PointChunk]]
+
+
+def frame_chunks(frames: Iterable[Frame], t0_s: float = 0.0) -> Iterator[PointChunk]:
+    """Simulator frames as point chunks: the sensor-frame points, their times as ns
+    since ``t0_s`` (t_ns = round((t − t0)·10⁹)), in time order, and their intensity
+    (already in the Livox reflectivity scale) clipped to 0-255."""
+    for frame in frames:
+        order = np.argsort(frame.t, kind="stable")
+        t_ns = np.rint((frame.t[order] - t0_s) * 1e9).astype(np.int64)
+        refl = np.clip(np.rint(frame.intensity[order]), 0, 255).astype(np.uint8)
+        yield PointChunk(np.asarray(frame.points[order], np.float64), t_ns, refl)
 
 
 def grid_points(k: NDArray[np.int64]) -> FloatArray:
@@ -126,7 +150,7 @@ class _Host:
 
 class EmulatedLivox:
     """A Livox SDK 1 device on (ip, device_port) streaming the points of ``source``
-    (an iterable of PointChunk, iterated anew at each sampling start).
+    (see PointSource).
 
     ``dev_type`` 7 (Avia, data type 2) or 1 (Mid-40, data type 0); ``device_port`` 0
     takes a free port (``address`` tells which).  ``start`` runs it in a background
@@ -138,7 +162,7 @@ class EmulatedLivox:
 
     def __init__(
         self,
-        source: Iterable[PointChunk],
+        source: PointSource,
         *,
         dev_type: int = AVIA,
         ip: str = "127.0.0.1",
@@ -359,7 +383,8 @@ class EmulatedLivox:
     def _pull(self, until_slot: int) -> None:
         """Take source chunks until a point at or beyond ``until_slot`` is held."""
         if self._iter is None:
-            self._iter = iter(self.source)
+            src = self.source
+            self._iter = iter(src() if callable(src) else src)
         dt = self.point_interval_ns
         while not self._exhausted and (len(self._slots) == 0 or self._slots[-1] < until_slot):
             chunk = next(self._iter, None)
