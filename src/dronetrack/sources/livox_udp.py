@@ -31,8 +31,9 @@ lost packet).  Only nanosecond stamps (types 0, 1, 4) are checked; a stamp that 
 back (the device resynchronised) restarts the check.  Lost packets at the very end
 of a stream cannot be seen.
 
-Threads: a control thread answers nothing but receives the command ACKs, sends the
-heartbeat and watches its ACKs; a reader thread receives point packets into a
+Threads: a control thread receives the command ACKs, sends the heartbeat and
+watches its ACKs (it is the heartbeat thread: one thread owns the command socket);
+a reader thread receives point packets into a
 bounded queue (the oldest packet is dropped and counted when the consumer falls
 behind).  Both wake at least every 50 ms to see a stop request, so ``close`` joins
 them within a bounded time.
