@@ -1,1 +1,2 @@
-"""Emulated devices behind their real wire protocols, for the live drivers to talk to."""
+"""Emulated devices: the simulator behind the real wire protocols, for the live drivers to
+talk to (Livox LiDARs over UDP, Dynamixel servos on a pseudo-terminal)."""

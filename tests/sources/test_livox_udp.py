@@ -1,0 +1,284 @@
+"""The Livox SDK 1 client against the emulated device on loopback: discovery,
+handshake, heartbeat, sampling; every point of a known source arriving once with its
+time; loss inferred from the timestamp gaps; a silent device and a dead heartbeat
+raising DeviceError; a clean close; and the livox:// URI.
+
+Sockets are on 127.0.0.1 with ports the kernel picks; every wait is bounded."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from dronetrack.errors import ConfigError, DeviceError
+from dronetrack.formats import livox_sdk1 as s1
+from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
+from dronetrack.sources.assembly import PointBatch
+from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint, parse_livox_uri
+
+LOOP = "127.0.0.1"
+DT = {7: 4_167, 1: 10_000}  # ns between firings (livox_ros_driver lds.h)
+N = {7: 96, 1: 100}  # firings per packet of data types 2 and 0
+
+
+@contextmanager
+def linked(
+    source: GridSource, dev_type: int = 7, broadcast: bool = True, **client_kw: object
+) -> Iterator[tuple[LivoxClient, EmulatedLivox]]:
+    """An emulated device and a bound client that knows its port, both closed after."""
+    dev = EmulatedLivox(source, dev_type=dev_type, device_port=0, broadcast_period_s=0.05)
+    ep = LivoxEndpoint(LOOP, None, 0, 0, 0, dev.address[1])
+    kw: dict[str, object] = {"heartbeat_period_s": 0.2, "discover_s": 1.0} | client_kw
+    client = LivoxClient(ep, **kw)  # type: ignore[arg-type]
+    try:
+        client.bind()
+        if broadcast:
+            dev.broadcast_to = (LOOP, client.broadcast_port)
+        dev.start()
+        yield client, dev
+    finally:
+        client.close()
+        dev.close()
+
+
+def collect(client: LivoxClient, count: int, limit_s: float = 4.0) -> PointBatch:
+    """Read until ``count`` points came or ``limit_s`` passed."""
+    parts: list[PointBatch] = []
+    got, t0 = 0, time.monotonic()
+    while got < count and time.monotonic() - t0 < limit_s:
+        batch = client.read(0.1)
+        parts.append(batch)
+        got += len(batch)
+    return PointBatch(
+        np.concatenate([p.xyz for p in parts]).reshape(-1, 3),
+        np.concatenate([p.t_ns for p in parts]),
+        np.concatenate([p.reflectivity for p in parts]),
+        np.concatenate([p.line for p in parts]),
+    )
+
+
+def read_for(client: LivoxClient, seconds: float) -> None:
+    """Read (and discard) for ``seconds``."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        client.read(0.05)
+
+
+def assert_points_are(batch: PointBatch, k: np.ndarray, dev_type: int) -> None:
+    """``batch`` holds exactly the grid points of firings ``k``, each at k·Δt."""
+    np.testing.assert_array_equal(batch.t_ns, k * DT[dev_type])
+    np.testing.assert_allclose(batch.xyz, grid_points(k), rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(batch.reflectivity, k % 251)
+    # line: the firing's index in its packet modulo 6 for the Avia (lds.cpp), 0 for a Mid-40
+    lines = 6 if dev_type == 7 else 1
+    np.testing.assert_array_equal(batch.line, k % N[dev_type] % lines)
+
+
+@pytest.mark.parametrize("dev_type", [7, 1])
+def test_discovery_handshake_and_heartbeat(dev_type: int) -> None:
+    with linked(GridSource(DT[dev_type], 3.0), dev_type) as (client, dev):
+        client.open(timeout_s=2.0)
+        assert client.dev_type == dev_type
+        assert client.broadcast_code == "0EMULATEDLIVOX1"
+        assert dev.host is not None
+        assert (dev.host.ip, dev.host.cmd_port, dev.host.data_port) == (
+            LOOP,
+            client.cmd_port,
+            client.data_port,
+        )
+        assert dev.sampling
+        read_for(client, 0.9)
+        # a heartbeat every 0.2 s for 0.9 s: 4 or 5 sent, each answered
+        assert client.heartbeats_sent >= 4
+        assert client.heartbeats_missed == 0
+        assert dev.heartbeats_answered >= client.heartbeats_sent - 1
+
+
+@pytest.mark.parametrize("dev_type", [7, 1])
+def test_every_point_arrives_once_with_its_time(dev_type: int) -> None:
+    source = GridSource(DT[dev_type], 1.0, stride=3)
+    k = source.firing_indices()
+    with linked(source, dev_type) as (client, dev):
+        client.open(timeout_s=2.0)
+        batch = collect(client, len(k))
+        assert_points_are(batch, k, dev_type)
+        assert client.packets_lost == 0
+        assert client.packets_malformed == 0
+        assert client.queue_dropped == 0
+        assert dev.points_dropped == 0
+        assert client.packets_received == dev.packets_sent == -(-int(k[-1] + 1) // N[dev_type])
+
+
+def test_without_a_broadcast_the_handshake_goes_straight_to_the_device() -> None:
+    """No discovery: the Mid-40's 10 µs firing interval comes from its data type 0."""
+    source = GridSource(DT[1], 0.5, stride=2)
+    k = source.firing_indices()
+    with linked(source, 1, broadcast=False, discover_s=0.2) as (client, dev):
+        client.open(timeout_s=2.0)
+        assert client.dev_type is None
+        assert dev.broadcasts_sent == 0
+        assert_points_are(collect(client, len(k)), k, 1)
+        assert client.packets_lost == 0
+
+
+def test_lost_packets_are_counted_from_the_timestamp_gaps() -> None:
+    source = GridSource(DT[7], 0.5)
+    k = source.firing_indices()
+    n_packets = -(-len(k) // N[7])
+    every = 7
+    assert n_packets % every != 0  # the last packet arrives, so every gap shows
+    with linked(source) as (client, dev):
+        dev.drop_every = every
+        client.open(timeout_s=2.0)
+        kept = k[(k // N[7] + 1) % every != 0]  # packet p = ⌊k/n⌋ is dropped if (p+1) mod 7 = 0
+        batch = collect(client, len(kept))
+        assert dev.packets_dropped == n_packets // every
+        assert client.packets_lost == dev.packets_dropped
+        assert_points_are(batch, kept, 7)
+
+
+def test_a_device_that_stops_sending_raises_device_error_within_1_5_s() -> None:
+    with linked(GridSource(DT[7], 5.0)) as (client, dev):
+        client.open(timeout_s=2.0)
+        assert len(client.read(0.5)) > 0
+        dev.paused = True
+        t0 = time.monotonic()
+        with pytest.raises(DeviceError, match=r"Livox Avia at 127\.0\.0\.1: no point packet"):
+            read_for(client, 3.0)
+        # stall_s = 1 s after the last packet, seen within one 50 ms wait
+        assert 0.9 < time.monotonic() - t0 < 1.5
+
+
+def test_a_dead_heartbeat_raises_device_error() -> None:
+    with linked(GridSource(DT[7], 5.0), heartbeat_period_s=0.1, heartbeat_timeout_s=0.5) as (
+        client,
+        dev,
+    ):
+        client.open(timeout_s=2.0)
+        dev.answer_heartbeats = False
+        t0 = time.monotonic()
+        with pytest.raises(DeviceError, match=r"127\.0\.0\.1: no heartbeat ACK for 0\.5 s"):
+            read_for(client, 3.0)
+        assert time.monotonic() - t0 < 1.0
+        assert client.heartbeats_missed >= 3  # 0.5 s of beats every 0.1 s, none answered
+
+
+def test_close_is_clean_and_idempotent() -> None:
+    with linked(GridSource(DT[7], 5.0)) as (client, dev):
+        with client:
+            client.open(timeout_s=2.0)
+            assert len(client.read(0.3)) > 0
+        t0 = time.monotonic()
+        client.close()  # again: nothing to do
+        assert time.monotonic() - t0 < 0.1
+        assert dev.host is None
+        assert not dev.sampling
+        assert not any(t.is_alive() for t in client._threads)
+        with pytest.raises(DeviceError, match="not sampling"):
+            client.read(0.1)
+        with pytest.raises(DeviceError, match="not bound"):
+            _ = client.data_port
+
+
+def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:
+    silent = EmulatedLivox(GridSource(DT[7], 1.0), device_port=0)  # bound, never started
+    try:
+        ep = LivoxEndpoint(LOOP, None, 0, 0, 0, silent.address[1])
+        client = LivoxClient(ep, discover_s=0.1)
+        t0 = time.monotonic()
+        with pytest.raises(DeviceError, match=r"127\.0\.0\.1: no handshake ACK"):
+            client.open(timeout_s=0.6)
+        assert time.monotonic() - t0 < 1.0
+        assert not any(t.is_alive() for t in client._threads)
+    finally:
+        silent.close()
+
+
+def test_the_queue_keeps_the_newest_packets_and_counts_the_dropped() -> None:
+    with linked(GridSource(DT[7], 5.0), max_packets=10) as (client, dev):
+        client.open(timeout_s=2.0)
+        time.sleep(0.2)  # 0.2 s of an Avia: about 500 packets
+        dev.paused = True
+        time.sleep(0.1)  # the packets on their way arrive; then nothing more comes
+        packets = client.packets(0.1)
+        assert len(packets) == 10
+        assert client.queue_dropped == client.packets_received - 10 > 0
+        stamps = [int.from_bytes(p[10:18], "little") for p in packets]
+        newest = (client.packets_received - 1) * N[7] * DT[7]
+        assert stamps == [newest - (9 - i) * N[7] * DT[7] for i in range(10)]
+
+
+def test_decode_skips_and_counts_malformed_packets() -> None:
+    client = LivoxClient(LivoxEndpoint(LOOP))
+    client.dev_type = 7
+    good = s1.encode_point_packets(
+        grid_points(np.arange(96)),
+        np.zeros(96, np.uint8),
+        data_type=2,
+        t0_ns=0,
+        point_interval_ns=DT[7],
+    )[0]
+    batch = client.decode([good, b"junk", good[:-1]])
+    assert client.packets_malformed == 2
+    np.testing.assert_array_equal(batch.t_ns, np.arange(96) * DT[7])
+    assert len(client.decode([])) == 0
+
+
+# --- livox:// URIs ---------------------------------------------------------------
+
+
+def test_a_uri_with_only_the_ip_takes_the_sdk_defaults() -> None:
+    assert parse_livox_uri("livox://192.168.1.3") == LivoxEndpoint(
+        "192.168.1.3", None, 55501, 56001, 55000, 65000
+    )
+
+
+def test_a_uri_sets_every_port_and_the_host() -> None:
+    uri = "livox://10.0.0.2?host=10.0.0.9&cmd_port=0&data_port=7000&broadcast_port=0&device_port=1"
+    assert parse_livox_uri(uri) == LivoxEndpoint("10.0.0.2", "10.0.0.9", 0, 7000, 0, 1)
+
+
+@given(
+    ports=st.fixed_dictionaries(
+        {}, optional={k: st.integers(0, 65535) for k in ("cmd_port", "data_port", "broadcast_port")}
+    ),
+    device=st.integers(1, 65535),
+    ip=st.ip_addresses(v=4).map(str),
+)
+def test_any_valid_ports_round_trip(ports: dict[str, int], device: int, ip: str) -> None:
+    query = "&".join([f"{k}={v}" for k, v in ports.items()] + [f"device_port={device}"])
+    ep = parse_livox_uri(f"livox://{ip}?{query}")
+    assert ep.device_ip == ip
+    assert ep.device_port == device
+    for key, value in ports.items():
+        assert getattr(ep, key) == value
+
+
+@pytest.mark.parametrize(
+    ("uri", "problem"),
+    [
+        ("udp://192.168.1.3", "livox://IP"),
+        ("livox://", "no device IP"),
+        ("livox://lidar.local", "not an IPv4 address"),
+        ("livox://192.168.1.300", "not an IPv4 address"),
+        ("livox://192.168.1.3:65000", "device_port"),
+        ("livox://192.168.1.3/points", "no path"),
+        ("livox://192.168.1.3?port=1", "unknown query key 'port'"),
+        ("livox://192.168.1.3?cmd_port=abc", "cmd_port='abc' is not a port"),
+        ("livox://192.168.1.3?data_port=70000", "is not a port in 0..65535"),
+        ("livox://192.168.1.3?device_port=0", "is not a port in 1..65535"),
+        ("livox://192.168.1.3?data_port=1&data_port=2", "given twice"),
+        ("livox://192.168.1.3?host=me", "host 'me' is not an IPv4"),
+        ("livox://192.168.1.3?host", "not key=value"),
+    ],
+)
+def test_bad_uris_name_the_problem(uri: str, problem: str) -> None:
+    with pytest.raises(ConfigError, match=problem.replace(".", r"\.").replace("?", r"\?")) as info:
+        parse_livox_uri(uri)
+    assert "\n" not in str(info.value)
