@@ -108,3 +108,13 @@ def test_no_reading_means_no_pose_and_old_readings_are_forgotten() -> None:
     history.add(TurretState(1.0, pan=1.0, tilt=0.0))  # older than the newest: ignored
     assert len(history) <= 12  # readings of the last 1 s (10 Hz), and one before
     np.testing.assert_allclose(history.angles(np.array([4.9]))[0], [0.0])
+
+
+def test_a_batch_out_of_time_order_is_put_in_order() -> None:
+    t_ns = T0 + np.array([150, 20, 120, 10], dtype=np.int64) * 1_000_000
+    a = FrameAssembler(0.1, t0_ns=T0)
+    frames = a.push(_batch(t_ns)) + a.flush()
+    assert [f.index for f in frames] == [0, 1]
+    np.testing.assert_array_equal(frames[0].points.t_ns - T0, [10_000_000, 20_000_000])
+    np.testing.assert_array_equal(frames[1].points.t_ns - T0, [120_000_000, 150_000_000])
+    assert a.late_points == 0

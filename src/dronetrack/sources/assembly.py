@@ -9,7 +9,8 @@ time.  A frame is every point whose time falls in one integration period:
 with t₀ the first point's time and T the integration time (100 ms by default).
 Frames are cut by the points' times, not by when packets arrive, so a late or
 bunched packet still lands in its own frame.  A frame is complete once a point of
-a later frame arrives; the stream is in time order, so nothing more can join it.
+a later frame arrives; the stream is in time order (each batch is sorted by time
+first), so nothing more can join it.
 A point older than the open frame (a packet delivered out of order after its
 frame was handed on) is dropped and counted, and so are the periods that passed
 with no point at all (every packet of a frame lost).
@@ -106,6 +107,8 @@ class FrameAssembler:
         """Add ``batch``; the frames it completes, in order."""
         if len(batch) == 0:
             return []
+        if np.any(np.diff(batch.t_ns) < 0):  # a batch out of order: put it in time order
+            batch = batch.take(np.argsort(batch.t_ns, kind="stable"))
         if self.t0_ns is None:
             self.t0_ns = int(batch.t_ns[0])
         # k(t) = ⌊(t − t₀) / T⌋
