@@ -319,24 +319,28 @@ class DynamixelTurret:
         lo, hi = self.limits[axis]
         return min(max(rad_to_ticks(angle), lo), hi)
 
-    def _send_goals(self, ticks: tuple[int, int]) -> None:
+    @property
+    def _both(self) -> str:
+        return f"Dynamixel turret on {self.device}: servo IDs {self.ids[0]}, {self.ids[1]}"
+
+    def _group_exchange(self, what: str, call: Callable[[], int]) -> int:
+        """Run one sync read or write of both servos; the SDK's result code, or
+        DeviceError naming both servos when the port is closed or the line fails."""
         if self._closed:
             raise DeviceError(f"Dynamixel turret on {self.device}: the port is closed")
+        try:
+            return call()
+        except _IO_ERRORS as exc:
+            raise DeviceError(f"{self._both}: {what}: {exc}") from exc
+
+    def _send_goals(self, ticks: tuple[int, int]) -> None:
+        what = "sync write of goal positions"
         self._goal_write.clearParam()
         for ident, value in zip(self.ids, ticks, strict=True):
             self._goal_write.addParam(ident, _le32(value))
-        try:
-            result = self._goal_write.txPacket()
-        except _IO_ERRORS as exc:
-            raise DeviceError(
-                f"Dynamixel turret on {self.device}: servo IDs {self.ids[0]}, {self.ids[1]}: "
-                f"sync write of goal positions: {exc}"
-            ) from exc
+        result = self._group_exchange(what, self._goal_write.txPacket)
         if result != self._ok:
-            raise DeviceError(
-                f"Dynamixel turret on {self.device}: servo IDs {self.ids[0]}, {self.ids[1]}: "
-                f"sync write of goal positions: {self._ph.getTxRxResult(result)}"
-            )
+            raise DeviceError(f"{self._both}: {what}: {self._ph.getTxRxResult(result)}")
         self.goals = list(ticks)
 
     def command(self, command: TurretCommand) -> None:
@@ -367,26 +371,15 @@ class DynamixelTurret:
 
     def state(self) -> TurretState:
         """Present positions [rad] and velocities [rad/s] of both servos, in one sync read."""
-        if self._closed:
-            raise DeviceError(f"Dynamixel turret on {self.device}: the port is closed")
+        what = "sync read of present position"
         t0 = self.clock()
-        try:
-            result = self._present_read.txRxPacket()
-        except _IO_ERRORS as exc:
-            raise DeviceError(
-                f"Dynamixel turret on {self.device}: servo IDs {self.ids[0]}, {self.ids[1]}: "
-                f"sync read of present position: {exc}"
-            ) from exc
+        result = self._group_exchange(what, self._present_read.txRxPacket)
         t1 = self.clock()
         if result != self._ok:
             reason = self._ph.getTxRxResult(result)
             failing = self._which_fails()
-            who = (
-                self._who(failing)
-                if failing >= 0
-                else f"Dynamixel turret on {self.device}: servo IDs {self.ids[0]}, {self.ids[1]}"
-            )
-            raise DeviceError(f"{who}: sync read of present position: {reason}")
+            who = self._who(failing) if failing >= 0 else self._both
+            raise DeviceError(f"{who}: {what}: {reason}")
         q, w = [], []
         for ident in self.ids:
             try:
