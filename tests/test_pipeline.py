@@ -24,6 +24,18 @@ from dronetrack.types import Frame
 TURRET = make_turret("widowx")
 
 
+def _build(cfg: PipelineConfig) -> Pipeline:
+    """``cfg``'s pipeline at 10 Hz on the test turret, seeded."""
+    return build_pipeline(
+        cfg,
+        0.1,
+        TURRET.mount,
+        (TURRET.pan.lower, TURRET.pan.upper),
+        (TURRET.tilt.lower, TURRET.tilt.upper),
+        np.random.default_rng(0),
+    )
+
+
 def _pipeline(scan_s: float = 0.0, particles: int = 2000) -> Pipeline:
     cfg = PipelineConfig(
         background=BackgroundConfig(
@@ -36,14 +48,7 @@ def _pipeline(scan_s: float = 0.0, particles: int = 2000) -> Pipeline:
             cylinder_height_m=5.0,
         ),
     )
-    return build_pipeline(
-        cfg,
-        0.1,
-        TURRET.mount,
-        (TURRET.pan.lower, TURRET.pan.upper),
-        (TURRET.tilt.lower, TURRET.tilt.upper),
-        np.random.default_rng(0),
-    )
+    return _build(cfg)
 
 
 def _frame(stamp: float, points: np.ndarray) -> Frame:
@@ -206,14 +211,7 @@ def _pipeline_with(acquisition: bool) -> Pipeline:
         ),
         acquisition=AcquisitionConfig(enabled=acquisition),
     )
-    return build_pipeline(
-        cfg,
-        0.1,
-        TURRET.mount,
-        (TURRET.pan.lower, TURRET.pan.upper),
-        (TURRET.tilt.lower, TURRET.tilt.upper),
-        np.random.default_rng(0),
-    )
+    return _build(cfg)
 
 
 def test_a_drone_far_from_the_start_cylinder_is_acquired_from_detections() -> None:
@@ -260,14 +258,7 @@ def test_points_beyond_the_field_of_regard_are_no_target() -> None:
             pan_deg=(-45.0, 45.0), tilt_deg=(-40.0, 5.0), range_m=100
         ),
     )
-    pipe = build_pipeline(
-        cfg,
-        0.1,
-        TURRET.mount,
-        (TURRET.pan.lower, TURRET.pan.upper),
-        (TURRET.tilt.lower, TURRET.tilt.upper),
-        np.random.default_rng(0),
-    )
+    pipe = _build(cfg)
     far = np.array([[90.0, 60.0, 20.0]])
     near = np.array([[60.0, 30.0, 10.0]])
     assert pipe.step(_frame(0.0, far)).n_points == 0
@@ -318,14 +309,7 @@ def test_a_kalman_tracker_starts_on_the_drone_not_on_a_lone_false_return(kind: s
             tracker=TrackerConfig(kind=kind),  # type: ignore[arg-type]
             acquisition=AcquisitionConfig(enabled=acquisition),
         )
-        pipe = build_pipeline(
-            cfg,
-            0.1,
-            TURRET.mount,
-            (TURRET.pan.lower, TURRET.pan.upper),
-            (TURRET.tilt.lower, TURRET.tilt.upper),
-            np.random.default_rng(0),
-        )
+        pipe = _build(cfg)
         tracked, good = [], []
         for k in range(35):
             place = g.uniform([5.0, -100.0, 2.0], [200.0, 100.0, 60.0])
