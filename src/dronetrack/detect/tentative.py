@@ -59,7 +59,7 @@ class ConfirmationSettings:
 
     v_max: float = 15.0
     gate_m: float = 1.0
-    hits: int = 3
+    hits: int = 2
     frames: int = 4
     max_tracks: int = 64
     cue_hits: int = 2
