@@ -338,6 +338,10 @@ def run(
             result = pipeline.step(frame)
             if actuator is not None and result.command is not None:
                 actuator.command(result.command)
+            if sample.received is not None:
+                # latency: the frame's last point's arrival to its command being sent
+                latency = 1000.0 * (time.perf_counter() - sample.received)
+                result = replace(result, latency_ms=latency)
             for sink in sinks:
                 sink.write(sample, result)
             for stage, stage_sinks in followers:

@@ -7,6 +7,7 @@ are radians.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
@@ -253,11 +254,14 @@ class Sample:
 
     turret: the turret's measured joint state at the frame's end, if the source knows it
         (a recording knows only the sensor pose, which is in the frame).
+    received: a live source's ``time.perf_counter()`` when the frame's last point
+        arrived, from which the run loop measures the latency to the turret command.
     """
 
     frame: Frame
     truth: Truth | None = None
     turret: TurretState | None = None
+    received: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -280,3 +284,6 @@ class StepResult:
     # among its tentative tracks (None when acquisition is off, and while scanning)
     detections: Detections | None = None
     candidates: Candidates | None = None
+    # A live frame's time from its last point's arrival to its turret command being
+    # sent [ms] (``pipeline.run``); NaN for sources that are not live.
+    latency_ms: float = math.nan

@@ -51,6 +51,7 @@ EXTRA_COLUMNS = (
     "meas_error_m",
     "n_candidates",
     "n_confirmed",
+    "latency_ms",
 )
 
 
@@ -79,6 +80,7 @@ _ROW = np.dtype(
         ("meas_error", np.float64),
         ("n_candidates", np.int64),  # clusters the detect stage found (-1: not run)
         ("n_confirmed", np.int64),  # confirmed candidates among them (-1: not run)
+        ("latency_ms", np.float64),  # a live frame's last point to its command (NaN)
     ]
 )
 _INITIAL_ROWS = 128
@@ -132,6 +134,7 @@ class TrackLog:
         meas_error: float = float("nan"),
         n_candidates: int = -1,
         n_confirmed: int = -1,
+        latency_ms: float = float("nan"),
     ) -> None:
         if self._n == len(self._rows):
             grown = np.zeros(2 * len(self._rows), dtype=_ROW)
@@ -156,6 +159,7 @@ class TrackLog:
         row["meas_error"] = meas_error
         row["n_candidates"] = int(n_candidates)
         row["n_confirmed"] = int(n_confirmed)
+        row["latency_ms"] = latency_ms
         self._n += 1
 
     def __len__(self) -> int:
@@ -186,6 +190,7 @@ class TrackLog:
     meas_error = _Column()
     n_candidates = _Column()
     n_confirmed = _Column()
+    latency_ms = _Column()
 
     def arrays(self) -> dict[str, NDArray[Any]]:
         """The log as arrays keyed by the frames.csv column names (read-only views)."""
@@ -212,6 +217,7 @@ class TrackLog:
             "meas_error_m": self.meas_error,
             "n_candidates": self.n_candidates,
             "n_confirmed": self.n_confirmed,
+            "latency_ms": self.latency_ms,
             "flags": self.flags,
         }
 
@@ -234,6 +240,10 @@ class TrackLog:
         out: dict[str, Any] = {"frames": len(self)}
         steps = timing(a["step_ms"])
         out.update({f"step_ms_{k}": v for k, v in steps.items()})
+        latency = a["latency_ms"][np.isfinite(a["latency_ms"])]
+        if len(latency):  # a live run: the frame's last point to its turret command
+            out["latency_ms_p50"] = float(np.percentile(latency, 50))
+            out["latency_ms_p99"] = float(np.percentile(latency, 99))
         tracked = a["tracked"]
         out["tracked_pct"] = 100.0 * float(tracked.mean()) if len(self) else 0.0
         out["first_lock_s"] = float(a["t"][np.argmax(tracked)]) if tracked.any() else None

@@ -65,6 +65,7 @@ def frame_row(log: TrackLog, i: int) -> list[str]:
         _number(float(r["meas_error"])),
         str(int(r["n_candidates"])),
         str(int(r["n_confirmed"])),
+        _number(float(r["latency_ms"])),
     ]
 
 

@@ -85,4 +85,5 @@ def log_result(log: TrackLog, sample: Sample, result: StepResult) -> None:
         meas_error=measurement_error(result, gt),
         n_candidates=-1 if result.detections is None else len(result.detections),
         n_confirmed=-1 if result.candidates is None else len(result.candidates),
+        latency_ms=result.latency_ms,
     )

@@ -1,0 +1,225 @@
+"""A live LiDAR as a Source: packets to frames in real time, with the turret's pose.
+
+A reader thread takes the decoded point batches of a point stream (``livox://``,
+``livox2://``), cuts them into frames by the points' own times
+(``assembly.FrameAssembler``) and queues each frame as it completes, with the moment
+its last packet arrived.  The run loop takes frames from the queue as fast as it can
+process them.  The queue holds ``max_frames`` frames: when processing falls behind,
+the oldest whole frame is dropped and counted (``frames_dropped``), so the pipeline
+always works on the newest data and memory stays bounded.
+
+Time.  Every time in the run is the sensor's, in seconds since the first point (the
+run's clock, as ``seams`` says).  The turret's readings are stamped on the host's
+monotonic clock and moved onto the sensor's by the offset
+
+    δ = max over batches (t_last point − t_host at its arrival)
+
+the smallest delay seen between a point's time and its arrival, so δ follows the
+sensor's clock to within the shortest transport delay (a fraction of a millisecond
+on a wired link).  The turret is read once per frame, before the frame is handed
+on; ``assembly.PoseHistory`` interpolates the readings to each pose time of the
+frame, so the per-point sensor pose follows the measured joint angles.
+
+Liveness.  The stream raises ``DeviceError`` when its device falls silent (the
+Livox clients: no point packet for ``stall_s``); the reader thread hands the error
+to the run loop, which re-raises it, so the run ends with the device named.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Protocol
+
+from dronetrack.errors import ConfigError, DeviceError, DronetrackError
+from dronetrack.geometry.mount import MountGeometry
+from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, PoseHistory, StreamFrame
+from dronetrack.types import Sample, Truth, TurretState
+
+__all__ = ["LiveSource", "PointStream", "TurretReader"]
+
+POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
+
+
+class PointStream(Protocol):
+    """A live point stream: decoded batches in time order, and loss counters."""
+
+    @property
+    def name(self) -> str: ...
+
+    packets_lost: int
+    packets_malformed: int
+
+    def read(self, timeout_s: float = 0.1) -> PointBatch: ...
+
+    def close(self) -> None: ...
+
+
+class TurretReader(Protocol):
+    """What the source needs of a turret: its measured state (seams.Actuator.state)."""
+
+    def state(self) -> TurretState | None: ...
+
+
+@dataclass(frozen=True, slots=True)
+class _Done:
+    frame: StreamFrame
+    received: float  # perf_counter when its last batch arrived [s]
+
+
+class LiveSource:
+    """Frames of a live ``stream`` as they complete (see the module docstring).
+
+    ``mount``: the sensor's mount on the turret; ``turret``: read once a frame for
+    the sensor pose (None: a fixed sensor at pan = tilt = 0); ``period_s``: the
+    integration time; ``max_frames``: the queue bound; ``duration_s``: stop after
+    this much sensor time (None: until the stream ends or the run is stopped);
+    ``truth``: the target's truth as a function of the frame end on the run's clock
+    (``--truth``).
+    """
+
+    def __init__(
+        self,
+        stream: PointStream,
+        mount: MountGeometry,
+        turret: TurretReader | None = None,
+        *,
+        period_s: float = 0.1,
+        max_frames: int = 2,
+        duration_s: float | None = None,
+        truth: Callable[[float], Truth | None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        if max_frames < 1:
+            raise ConfigError(f"the frame queue needs room for 1 frame, got {max_frames}")
+        self.stream = stream
+        self.turret = turret
+        self.max_frames = max_frames
+        self.duration_s = duration_s
+        self.truth = truth
+        self.clock = clock
+        self.assembler = FrameAssembler(period_s)
+        self.poses = PoseHistory(mount, keep_s=max(2.0, 4 * period_s))
+        self._period = period_s
+        self.frames_dropped = 0
+        self.frames_delivered = 0
+        self._offset: float | None = None  # δ [s] (module docstring)
+        self._queue: deque[_Done] = deque()
+        self._cond = threading.Condition()
+        self._error: DronetrackError | None = None
+        self._ended = False
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @property
+    def period(self) -> float:
+        return self._period
+
+    @property
+    def packets_lost(self) -> int:
+        return int(self.stream.packets_lost)
+
+    @property
+    def packets_malformed(self) -> int:
+        return int(self.stream.packets_malformed)
+
+    # -- the reader thread -------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start reading (``__iter__`` does it if not yet done)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._read_loop, name="live-reader", daemon=True)
+            self._thread.start()
+
+    def _read_loop(self) -> None:
+        try:
+            while not self._stop.is_set():
+                batch = self.stream.read(POLL_S)
+                if len(batch) == 0:
+                    continue
+                arrived = time.perf_counter()
+                host = self.clock()
+                # δ = max (t_last point − t_host at arrival)
+                delta = int(batch.t_ns[-1]) / NS - host
+                self._offset = delta if self._offset is None else max(self._offset, delta)
+                for frame in self.assembler.push(batch):
+                    self._hand_on(_Done(frame, arrived))
+        except DronetrackError as exc:
+            with self._cond:
+                self._error = exc
+                self._cond.notify_all()
+        finally:
+            with self._cond:
+                self._ended = True
+                self._cond.notify_all()
+
+    def _hand_on(self, done: _Done) -> None:
+        with self._cond:
+            if len(self._queue) >= self.max_frames:
+                self._queue.popleft()  # the oldest whole frame goes
+                self.frames_dropped += 1
+            self._queue.append(done)
+            self._cond.notify_all()
+
+    def _next(self) -> _Done | None:
+        """The oldest queued frame; None once the stream has ended or stop() was called."""
+        with self._cond:
+            while not self._queue:
+                if self._error is not None:
+                    raise self._error
+                if self._ended or self._stop.is_set():
+                    return None
+                self._cond.wait(POLL_S)
+            return self._queue.popleft()
+
+    # -- the Source ---------------------------------------------------------------------
+
+    def sensor_time(self) -> float:
+        """The host's clock now on the run's clock (seconds since the first frame's
+        start); NaN before the first point."""
+        t0 = self.assembler.t0_ns
+        if self._offset is None or t0 is None:
+            return float("nan")
+        return self.clock() + self._offset - t0 / NS
+
+    def _read_turret(self) -> TurretState:
+        t = self.sensor_time()
+        if self.turret is None:
+            return TurretState(t, 0.0, 0.0)
+        state = self.turret.state()
+        if state is None:
+            raise DeviceError("the turret reports no joint state")
+        # Its stamp is on the host clock (self.clock): move it onto the run's.
+        assert self._offset is not None
+        assert self.assembler.t0_ns is not None
+        stamp = state.stamp + self._offset - self.assembler.t0_ns / NS
+        return TurretState(stamp, state.pan, state.tilt, state.pan_rate, state.tilt_rate)
+
+    def __iter__(self) -> Iterator[Sample]:
+        self.start()
+        try:
+            while True:
+                done = self._next()
+                if done is None:
+                    return
+                t0_ns = self.assembler.t0_ns
+                assert t0_ns is not None
+                state = self._read_turret()
+                self.poses.add(state)
+                frame = self.poses.frame(done.frame, t0_ns)
+                truth = None if self.truth is None else self.truth(frame.end)
+                self.frames_delivered += 1
+                yield Sample(frame, truth, state, received=done.received)
+                if self.duration_s is not None and frame.end >= self.duration_s:
+                    return
+        finally:
+            self.stop()
+
+    def stop(self) -> None:
+        """Stop the reader thread (the stream is closed by whoever opened it)."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=1.0)

@@ -1,0 +1,149 @@
+"""The live source on loopback: the emulated Avia streams a known grid, the Livox
+client decodes it, and ``LiveSource`` cuts it into frames by the points' times, drops
+whole frames when its consumer falls behind, ends on a silent device, and gives the
+run loop what it needs to measure the latency.
+
+Every wait is bounded: the grid lasts 2 s at most, and each test stops by itself."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+
+from dronetrack.errors import ConfigError, DeviceError
+from dronetrack.geometry.mount import MountGeometry
+from dronetrack.pipeline import run
+from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
+from dronetrack.sources.live import LiveSource
+from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
+from dronetrack.types import Frame, Sample, StepResult, TurretCommand, TurretState
+
+LOOP = "127.0.0.1"
+DT = 4_167  # ns between an Avia's firings
+STRIDE = 10  # every 10th firing holds a point: 24,000 points/s
+
+
+@contextmanager
+def avia(duration_s: float, **client_kw: object) -> Iterator[tuple[LivoxClient, EmulatedLivox]]:
+    """An emulated Avia streaming the grid for ``duration_s``, and an open client."""
+    dev = EmulatedLivox(GridSource(DT, duration_s, stride=STRIDE), device_port=0)
+    ep = LivoxEndpoint(LOOP, None, 0, 0, 0, dev.address[1])
+    client = LivoxClient(ep, discover_s=0.0, **client_kw)  # type: ignore[arg-type]
+    try:
+        dev.start()
+        client.open(timeout_s=2.0)
+        yield client, dev
+    finally:
+        client.close()
+        dev.close()
+
+
+def test_frames_are_cut_by_the_points_times_with_the_turrets_pose() -> None:
+    """Each frame holds exactly the grid's points of its 100 ms, on the run's clock
+    (seconds since the first point); a fixed sensor's pose is the mount's."""
+    with avia(1.0) as (client, _):
+        source = LiveSource(client, MountGeometry(), period_s=0.1, duration_s=0.5)
+        samples = list(source)
+    assert [round(s.frame.stamp, 9) for s in samples] == pytest.approx([0.0, 0.1, 0.2, 0.3, 0.4])
+    for s in samples:
+        f = s.frame
+        # the firings k = 10 j whose time k Δt falls in [stamp, stamp + T)
+        k = np.arange(0, 10**6, STRIDE)
+        t = k * DT * 1e-9
+        k = k[(t >= f.stamp - 1e-12) & (t < f.end - 1e-12)]
+        np.testing.assert_allclose(f.t, k * DT * 1e-9, atol=1e-12)
+        np.testing.assert_allclose(f.points, grid_points(k), atol=1e-9)
+        assert s.received is not None
+        assert s.turret is not None
+        assert s.turret.pan == s.turret.tilt == 0.0
+        np.testing.assert_allclose(f.poses[:, :3, 3], np.tile([0.0, 0.0, 1.0], (len(f.poses), 1)))
+    assert source.frames_dropped == 0
+    assert source.packets_lost == 0
+    assert source.packets_malformed == 0
+
+
+def test_a_slow_consumer_loses_whole_frames_never_parts_of_them() -> None:
+    """The consumer takes 0.25 s a frame against frames of 0.1 s: with room for one,
+    the older frames go whole, and each frame handed on is complete."""
+    with avia(1.5) as (client, _):
+        source = LiveSource(client, MountGeometry(), period_s=0.1, max_frames=1, duration_s=1.2)
+        stamps = []
+        for s in source:
+            stamps.append(s.frame.stamp)
+            assert len(s.frame) == pytest.approx(0.1 / (DT * 1e-9) / STRIDE, abs=2)
+            time.sleep(0.25)
+    assert source.frames_dropped >= 3
+    assert np.all(np.diff(stamps) > 0.15)  # frames were skipped, in order
+    assert source.frames_dropped + source.frames_delivered <= 13
+
+
+def test_a_silent_device_ends_the_run_with_its_name() -> None:
+    with avia(2.0, stall_s=0.3) as (client, dev):
+        source = LiveSource(client, MountGeometry(), period_s=0.1)
+        frames = iter(source)
+        for _ in range(2):
+            next(frames)
+        dev.paused = True
+        t0 = time.monotonic()
+        with pytest.raises(DeviceError, match="Livox"):
+            list(frames)
+        assert time.monotonic() - t0 < 2.0
+
+
+class _Turret:
+    """A turret that reports a fixed pan on the host's clock and records commands."""
+
+    def __init__(self) -> None:
+        self.commands: list[TurretCommand] = []
+
+    def state(self) -> TurretState:
+        return TurretState(time.monotonic(), 0.5, -0.1)
+
+    def command(self, command: TurretCommand) -> None:
+        self.commands.append(command)
+
+
+class _Stage:
+    """Commands the turret every frame, after ``delay_s`` of work."""
+
+    def __init__(self, delay_s: float) -> None:
+        self.delay_s = delay_s
+
+    def step(self, frame: Frame) -> StepResult:
+        time.sleep(self.delay_s)
+        cmd = TurretCommand(frame.end, "position", 0.0, 0.0)
+        return StepResult(frame.end, "track", None, len(frame), len(frame), cmd, 0.0)
+
+
+class _Keep:
+    def __init__(self) -> None:
+        self.results: list[tuple[Sample, StepResult]] = []
+
+    def write(self, sample: Sample, result: StepResult) -> None:
+        self.results.append((sample, result))
+
+
+def test_the_run_loop_measures_the_latency_to_the_command() -> None:
+    """latency: the frame's last packet's arrival to its command; at least the stage's
+    20 ms of work, and the turret's readings place the sensor at its pan."""
+    turret, keep = _Turret(), _Keep()
+    with avia(1.0) as (client, _):
+        source = LiveSource(client, MountGeometry(), turret, period_s=0.1, duration_s=0.4)
+        run(source, _Stage(0.02), turret, [keep])
+    assert len(keep.results) == 4
+    assert len(turret.commands) == 4
+    latency = np.array([r.latency_ms for _, r in keep.results])
+    assert np.all(latency >= 20.0)
+    assert np.all(latency < 200.0)
+    for sample, _ in keep.results:
+        axis = sample.frame.poses[-1, :3, 0]  # the sensor's x axis in the world
+        assert np.arctan2(axis[1], axis[0]) == pytest.approx(0.5, abs=1e-9)
+
+
+def test_the_queue_needs_room() -> None:
+    with pytest.raises(ConfigError, match="room"):
+        LiveSource(None, MountGeometry(), max_frames=0)  # type: ignore[arg-type]
