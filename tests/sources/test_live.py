@@ -18,6 +18,7 @@ from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.pipeline import run
 from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
+from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.live import LiveSource
 from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
 from dronetrack.types import Frame, Sample, StepResult, TurretCommand, TurretState
@@ -147,3 +148,33 @@ def test_the_run_loop_measures_the_latency_to_the_command() -> None:
 def test_the_queue_needs_room() -> None:
     with pytest.raises(ConfigError, match="room"):
         LiveSource(None, MountGeometry(), max_frames=0)  # type: ignore[arg-type]
+
+
+class _Broken:
+    """A stream whose socket fails on the second read."""
+
+    name = "test stream"
+    packets_lost = 0
+    packets_malformed = 0
+
+    def __init__(self) -> None:
+        self.reads = 0
+
+    def read(self, timeout_s: float = 0.1) -> PointBatch:
+        self.reads += 1
+        if self.reads > 1:
+            raise OSError("network is unreachable")
+        time.sleep(0.01)
+        return PointBatch(
+            np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros(0, np.uint8)
+        )
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_socket_error_ends_the_run_naming_the_stream() -> None:
+    """Not a silent end: the error reaches the run loop as a device error."""
+    source = LiveSource(_Broken(), MountGeometry())
+    with pytest.raises(DeviceError, match="test stream: network is unreachable"):
+        list(source)

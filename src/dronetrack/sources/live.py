@@ -148,13 +148,18 @@ class LiveSource:
                 for frame in self.assembler.push(batch):
                     self._hand_on(_Done(frame, arrived))
         except DronetrackError as exc:
-            with self._cond:
-                self._error = exc
-                self._cond.notify_all()
+            self._fail(exc)
+        except OSError as exc:  # a socket error the stream did not name: name it here
+            self._fail(DeviceError(f"{self.stream.name}: {exc}"))
         finally:
             with self._cond:
                 self._ended = True
                 self._cond.notify_all()
+
+    def _fail(self, exc: DronetrackError) -> None:
+        with self._cond:
+            self._error = exc
+            self._cond.notify_all()
 
     def _hand_on(self, done: _Done) -> None:
         with self._cond:
