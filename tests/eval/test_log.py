@@ -76,3 +76,28 @@ def test_an_empty_log_has_empty_columns() -> None:
     assert len(log) == 0
     assert log.gt.shape == (0, 3)
     assert log.summary()["frames"] == 0
+
+
+def _timed(latencies: list[float]) -> TrackLog:
+    log = TrackLog()
+    for k, ms in enumerate(latencies):
+        log.append(
+            t=0.1 * k, gt=np.full(3, np.nan), est=np.zeros(3), tracked=False, sigma=1.0,
+            n_points=0, n_target_points=-1, range_m=np.nan, pan=0.0, tilt=0.0, step_ms=1.0,
+            latency_ms=ms,
+        )  # fmt: skip
+    return log
+
+
+def test_a_live_runs_latency_percentiles() -> None:
+    """1, 2, ..., 100 ms: the median is 50.5 ms and the 99th percentile (linear between
+    ranks) 99.01 ms; NaN rows (frames without a live arrival) are left out."""
+    m = _timed([*map(float, range(1, 101)), float("nan")]).summary()
+    assert m["latency_ms_p50"] == pytest.approx(50.5)
+    assert m["latency_ms_p99"] == pytest.approx(99.01)
+
+
+def test_a_run_that_is_not_live_has_no_latency_figures() -> None:
+    m = _timed([float("nan")] * 5).summary()
+    assert "latency_ms_p50" not in m
+    assert "latency_ms_p99" not in m
