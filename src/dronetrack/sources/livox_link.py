@@ -66,11 +66,13 @@ def parse_device_uri(
     scheme: str,
     sdk: str,
     port_keys: Mapping[str, int],
-    flag_keys: Sequence[str] = (),
+    choice_keys: Mapping[str, Mapping[str, object]] | None = None,
 ) -> dict[str, object]:
     """``SCHEME://IP[?host=IP&KEY=N…]`` as keyword fields: ``device_ip``, ``host_ip``
     if given, each port key given (an integer from its lowest value in ``port_keys``
-    to 65535) and each flag key given (0 or 1, as bool); ConfigError naming the problem."""
+    to 65535) and each choice key given (its text's value in ``choice_keys[key]``);
+    ConfigError naming the problem."""
+    choices = choice_keys or {}
     try:
         parts = urlsplit(uri)
     except ValueError as exc:
@@ -102,12 +104,13 @@ def parse_device_uri(
             if not value.isdigit() or not low <= int(value) <= 65535:
                 raise ConfigError(f"{uri!r}: {key}={value!r} is not a port in {low}..65535")
             fields[key] = int(value)
-        elif key in flag_keys:
-            if value not in ("0", "1"):
-                raise ConfigError(f"{uri!r}: {key}={value!r} is not 0 or 1")
-            fields[key] = value == "1"
+        elif key in choices:
+            if value not in choices[key]:
+                allowed = ", ".join(choices[key])
+                raise ConfigError(f"{uri!r}: {key}={value!r} is not one of {allowed}")
+            fields[key] = choices[key][value]
         else:
-            known = ", ".join(("host", *port_keys, *flag_keys))
+            known = ", ".join(("host", *port_keys, *choices))
             raise ConfigError(f"{uri!r}: unknown query key {key!r} (known: {known})")
     return fields
 
