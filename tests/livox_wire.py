@@ -1,0 +1,80 @@
+"""Test helpers for the Livox wire protocols: Livox SDK 2 (Mid-360) command frames and
+point packets built by hand from the protocol document (livox_wiki_en
+``livox_eth_protocol_mid360.md``) with ``struct.pack`` and a bitwise CRC-16 written
+from its definition, never with dronetrack's encoders; and the hypothesis strategy of
+damaged packets both SDKs' fuzz tests feed their decoders."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Sequence
+
+from hypothesis import strategies as st
+
+T0 = 1_700_000_000_123_456_789  # ns: a PTP-like device time
+
+
+def ccitt_false(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE: polynomial 0x1021, init 0xFFFF, not reflected, no final xor."""
+    reg = 0xFFFF
+    for b in data:
+        reg ^= b << 8
+        for _ in range(8):
+            reg = ((reg << 1) ^ 0x1021) & 0xFFFF if reg & 0x8000 else (reg << 1) & 0xFFFF
+    return reg
+
+
+def sdk2_frame(cmd_id: int, cmd_type: int, seq: int, data: bytes, sender: int = 0) -> bytes:
+    """A command frame: sof 0xAA, version 0, length, seq u32, cmd_id u16, cmd_type,
+    sender, 6 reserved bytes, CRC-16 of bytes 0-17, CRC-32 of the data (0 without
+    data; the document's CRC-32 is zlib's), data."""
+    head = struct.pack(
+        "<BBHIHBB6s", 0xAA, 0, 24 + len(data), seq, cmd_id, cmd_type, sender, bytes(6)
+    )
+    data_crc = zlib.crc32(data) if data else 0
+    return head + struct.pack("<HI", ccitt_false(head), data_crc) + data
+
+
+def sdk2_packet(
+    data_type: int,
+    records: bytes,
+    dot_num: int,
+    interval: int = 950,
+    time_type: int = 0,
+    udp_cnt: int = 3,
+    frame_cnt: int = 1,
+    stamp: int = T0,
+) -> bytes:
+    """A point/IMU packet: version 0, length, time_interval (0.1 µs), dot_num, udp_cnt,
+    frame_cnt, data_type, time_type, 12 reserved bytes, CRC-32 of timestamp and data,
+    timestamp u64 ns, records."""
+    head = struct.pack(
+        "<BHHHHBBB12s",
+        0,
+        36 + len(records),
+        interval,
+        dot_num,
+        udp_cnt,
+        frame_cnt,
+        data_type,
+        time_type,
+        bytes(12),
+    )
+    body = struct.pack("<Q", stamp) + records
+    return head + struct.pack("<I", zlib.crc32(body)) + body
+
+
+@st.composite
+def damaged_packets(draw: st.DrawFn, good: Sequence[bytes], header_bytes: int) -> bytes:
+    """A good packet truncated, extended, with one header byte changed, or random bytes."""
+    packet = draw(st.sampled_from(list(good)))
+    kind = draw(st.sampled_from(["truncate", "extend", "random", "flip"]))
+    if kind == "truncate":
+        return packet[: draw(st.integers(0, len(packet) - 1))]
+    if kind == "extend":
+        return packet + draw(st.binary(min_size=1, max_size=40))
+    if kind == "flip":  # any header byte changed
+        i = draw(st.integers(0, header_bytes - 1))
+        return packet[:i] + bytes([draw(st.integers(0, 255))]) + packet[i + 1 :]
+    return draw(st.binary(max_size=1400))
