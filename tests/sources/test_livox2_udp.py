@@ -253,7 +253,9 @@ def test_discovery_configuration_and_keep_alive() -> None:
 SPHERICAL_TOL_M = 0.0005 + 11.2 * math.radians(0.005) * math.sqrt(2)
 
 
-@pytest.mark.parametrize(("data_type", "tol_m"), [(None, 1e-9), (2, 0.005 + 1e-9), (3, SPHERICAL_TOL_M)])
+@pytest.mark.parametrize(
+    ("data_type", "tol_m"), [(None, 1e-9), (2, 0.005 + 1e-9), (3, SPHERICAL_TOL_M)]
+)
 def test_every_point_arrives_once_with_its_time(data_type: int | None, tol_m: float) -> None:
     source = GridSource(DT, 1.0, stride=3)
     k = source.firing_indices()
