@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from dronetrack.errors import DecodeError, InputError
 from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.formats.livox_common import DecodedPackets
-from livox_wire import damaged_packets
+from livox_helpers import damaged_packets
 
 DT = 4_167  # ns between firings of an Avia (lds.h)
 T0 = 1_700_000_000_123_456_789

@@ -17,10 +17,10 @@ from hypothesis import strategies as st
 from dronetrack.errors import DecodeError, InputError
 from dronetrack.formats import livox_sdk2 as s2
 from dronetrack.formats.livox_common import DecodedPackets, ImuSamples, LivoxPoints
-from livox_wire import T0, damaged_packets
-from livox_wire import ccitt_false as _ccitt_false
-from livox_wire import sdk2_frame as _frame_by_hand
-from livox_wire import sdk2_packet as _packet
+from livox_helpers import T0, damaged_packets
+from livox_helpers import ccitt_false as _ccitt_false
+from livox_helpers import sdk2_frame as _frame_by_hand
+from livox_helpers import sdk2_packet as _packet
 
 FORMATS = {1: "<iiiBB", 2: "<hhhBB", 3: "<IHHBB", 0: "<6f"}
 KNOWN = {

@@ -1,5 +1,5 @@
 """The Livox SDK 2 (Mid-360) client: its decoding and loss count against packets
-built by hand from the Mid-360 protocol document (``tests/livox_wire.py``), a fuzz
+built by hand from the Mid-360 protocol document (``tests/livox_helpers.py``), a fuzz
 of damaged packets, the livox2:// URI, and the client against the emulated device on
 loopback: discovery, configuration, keep-alive, every point arriving once with its
 time, loss from the udp_cnt sequence, a silent device and a dead keep-alive raising
@@ -23,11 +23,9 @@ from hypothesis import strategies as st
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.sim.emulate.livox import GridSource, grid_points
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
-from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox2_udp import Livox2Client, Livox2Endpoint, parse_livox2_uri
-from livox_wire import T0, damaged_packets, sdk2_packet
+from livox_helpers import LOOP, T0, collect, damaged_packets, read_for, sdk2_packet
 
-LOOP = "127.0.0.1"
 DT = 5_000  # ns between points at 200,000 points/s
 N = 96  # points per packet (protocol document, "Data Types")
 P = N * DT  # ns a packet spans
@@ -203,28 +201,6 @@ def linked(
     finally:
         client.close()
         dev.close()
-
-
-def collect(client: Livox2Client, count: int, limit_s: float = 4.0) -> PointBatch:
-    """Read until ``count`` points came or ``limit_s`` passed."""
-    parts: list[PointBatch] = []
-    got, t0 = 0, time.monotonic()
-    while got < count and time.monotonic() - t0 < limit_s:
-        batch = client.read(0.1)
-        parts.append(batch)
-        got += len(batch)
-    return PointBatch(
-        np.concatenate([p.xyz for p in parts]).reshape(-1, 3),
-        np.concatenate([p.t_ns for p in parts]),
-        np.concatenate([p.reflectivity for p in parts]),
-        np.concatenate([p.line for p in parts]),
-    )
-
-
-def read_for(client: Livox2Client, seconds: float) -> None:
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < seconds:
-        client.read(0.05)
 
 
 def test_discovery_configuration_and_keep_alive() -> None:

@@ -56,6 +56,7 @@ import struct
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Unpack
 
 import numpy as np
 from numpy.typing import NDArray
@@ -65,6 +66,7 @@ from dronetrack.formats import livox_sdk2 as s2
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox_link import (
     MAX_DATAGRAM,
+    LinkOptions,
     LivoxLink,
     SocketPlan,
     hits_in_time_order,
@@ -128,12 +130,8 @@ class Livox2Client(LivoxLink):
     ``packets`` and ``decode``) repeatedly, then ``close`` (or use it as a context
     manager).
 
-    ``max_packets``: the queue bound between the reader thread and the consumer
-    (5000 packets: 2.4 s of a Mid-360).  ``heartbeat_period_s`` /
-    ``heartbeat_timeout_s``: the work-state query and how long without an answer or a
-    status push the link counts as dead (1 s and 3 s).  ``stall_s``: how long without
-    a point packet after sampling started counts as a failure.  ``discover_s``: how
-    long ``open`` looks for the device before it configures it anyway.
+    Options (``LinkOptions``) as LivoxLink says; the keep-alive is the work-state
+    query, and a status push answers it as well.
 
     Counters: ``packets_received``, ``packets_malformed`` (counted when decoded),
     ``packets_lost`` (from ``udp_cnt``, see the module docstring), ``queue_dropped``,
@@ -145,28 +143,11 @@ class Livox2Client(LivoxLink):
     keepalive_name = "work-state"
     ack_wait_s = ACK_WAIT_S
 
-    def __init__(
-        self,
-        endpoint: Livox2Endpoint | str,
-        *,
-        max_packets: int = 5000,
-        heartbeat_period_s: float = 1.0,
-        heartbeat_timeout_s: float = 3.0,
-        stall_s: float = 1.0,
-        discover_s: float = 1.0,
-    ) -> None:
+    def __init__(self, endpoint: Livox2Endpoint | str, **options: Unpack[LinkOptions]) -> None:
         self.endpoint = parse_livox2_uri(endpoint) if isinstance(endpoint, str) else endpoint
         if self.endpoint.data_type not in (None, *s2.LAYOUTS):
             raise ConfigError(f"point data type {self.endpoint.data_type} is not 1, 2 or 3")
-        super().__init__(
-            self.endpoint.device_ip,
-            self.endpoint.host_ip,
-            max_packets=max_packets,
-            heartbeat_period_s=heartbeat_period_s,
-            heartbeat_timeout_s=heartbeat_timeout_s,
-            stall_s=stall_s,
-            discover_s=discover_s,
-        )
+        super().__init__(self.endpoint.device_ip, self.endpoint.host_ip, **options)
         self.dev_type: int | None = None
         self.serial: str | None = None
         self.work_state: int | None = None

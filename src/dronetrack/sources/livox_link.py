@@ -31,8 +31,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from types import TracebackType
-from typing import Self
+from typing import Self, TypedDict
 from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
@@ -43,6 +42,7 @@ from dronetrack.formats.livox_common import LivoxPoints
 from dronetrack.sources.assembly import PointBatch
 
 __all__ = [
+    "LinkOptions",
     "LivoxLink",
     "hits_in_time_order",
     "parse_device_uri",
@@ -163,8 +163,25 @@ def hits_in_time_order(
 SocketPlan = list[tuple[str, int, str, int]]
 
 
+class LinkOptions(TypedDict, total=False):
+    """The keyword options of every Livox client (see LivoxLink)."""
+
+    max_packets: int
+    heartbeat_period_s: float
+    heartbeat_timeout_s: float
+    stall_s: float
+    discover_s: float
+
+
 class LivoxLink:
     """The protocol-independent part of a Livox host client (see the module docstring).
+
+    ``max_packets``: the queue bound between the reader thread and the consumer
+    (5000 packets: 2 s of an Avia, 2.4 s of a Mid-360).  ``heartbeat_period_s`` /
+    ``heartbeat_timeout_s``: the keep-alive and how long without an answer the link
+    counts as dead (1 s and 3 s, as the SDK 1 heartbeat).  ``stall_s``: how long
+    without a point packet after sampling started counts as a failure.
+    ``discover_s``: how long ``open`` looks for the device before it connects anyway.
 
     Counters: ``packets_received``, ``packets_malformed`` (counted when decoded),
     ``packets_lost`` (by the protocol's rule), ``queue_dropped``, ``heartbeats_sent``
@@ -186,11 +203,11 @@ class LivoxLink:
         device_ip: str,
         host_ip: str | None,
         *,
-        max_packets: int,
-        heartbeat_period_s: float,
-        heartbeat_timeout_s: float,
-        stall_s: float,
-        discover_s: float,
+        max_packets: int = 5000,
+        heartbeat_period_s: float = 1.0,
+        heartbeat_timeout_s: float = 3.0,
+        stall_s: float = 1.0,
+        discover_s: float = 1.0,
     ) -> None:
         if max_packets < 1:
             raise ConfigError(f"the packet queue needs room for 1 packet, got {max_packets}")
@@ -498,10 +515,5 @@ class LivoxLink:
     def __enter__(self) -> Self:
         return self
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

@@ -42,6 +42,7 @@ import struct
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Unpack
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,6 +53,7 @@ from dronetrack.formats.livox_common import LivoxPoints
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox_link import (
     MAX_DATAGRAM,
+    LinkOptions,
     LivoxLink,
     SocketPlan,
     hits_in_time_order,
@@ -101,12 +103,8 @@ class LivoxClient(LivoxLink):
     """Host side of one Livox SDK 1 device: ``open``, then ``read`` (or ``packets`` and
     ``decode``) repeatedly, then ``close`` (or use it as a context manager).
 
-    ``max_packets``: the queue bound between the reader thread and the consumer
-    (5000 packets: 2 s of an Avia).  ``heartbeat_period_s`` / ``heartbeat_timeout_s``:
-    the heartbeat and how long without its ACK the link counts as dead (1 s and 3 s,
-    as the SDK).  ``stall_s``: how long without a point packet after sampling
-    started counts as a failure.  ``discover_s``: how long ``open`` waits for the
-    device's broadcast before it sends the handshake anyway.
+    Options (``LinkOptions``) as LivoxLink says; the keep-alive is the heartbeat, its
+    period and time-out 1 s and 3 s as the SDK's.
 
     Counters: ``packets_received``, ``packets_malformed`` (counted when decoded),
     ``packets_lost`` (from the timestamp gaps, see the module docstring),
@@ -118,26 +116,9 @@ class LivoxClient(LivoxLink):
     keepalive_name = "heartbeat"
     ack_wait_s = ACK_WAIT_S
 
-    def __init__(
-        self,
-        endpoint: LivoxEndpoint | str,
-        *,
-        max_packets: int = 5000,
-        heartbeat_period_s: float = 1.0,
-        heartbeat_timeout_s: float = 3.0,
-        stall_s: float = 1.0,
-        discover_s: float = 1.0,
-    ) -> None:
+    def __init__(self, endpoint: LivoxEndpoint | str, **options: Unpack[LinkOptions]) -> None:
         self.endpoint = parse_livox_uri(endpoint) if isinstance(endpoint, str) else endpoint
-        super().__init__(
-            self.endpoint.device_ip,
-            self.endpoint.host_ip,
-            max_packets=max_packets,
-            heartbeat_period_s=heartbeat_period_s,
-            heartbeat_timeout_s=heartbeat_timeout_s,
-            stall_s=stall_s,
-            discover_s=discover_s,
-        )
+        super().__init__(self.endpoint.device_ip, self.endpoint.host_ip, **options)
         self.dev_type: int | None = None
         self.broadcast_code: str | None = None
         self._last_stamp: dict[int, int] = {}

@@ -1,5 +1,5 @@
 """The emulated Livox Mid-360 against command frames built here by hand from the
-Mid-360 protocol document (``tests/livox_wire.py``: ``struct.pack`` and a bitwise
+Mid-360 protocol document (``tests/livox_helpers.py``: ``struct.pack`` and a bitwise
 CRC-16/CCITT-FALSE, never the codec's encoder); its replies and point packets are
 read back with ``struct`` and their CRCs checked the same way.
 
@@ -11,16 +11,14 @@ import socket
 import struct
 import time
 import zlib
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
 
 from dronetrack.sim.emulate.livox import GridSource, PointChunk, grid_points
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
-from livox_wire import ccitt_false, sdk2_frame
+from livox_helpers import LOOP, ccitt_false, loopback_udp, port_of, sdk2_frame
 
-LOOP = "127.0.0.1"
 DT, N = 5_000, 96  # 200,000 points/s; 96 points a packet
 P = DT * N  # ns a packet spans: 480 µs, 2083 packets/s
 
@@ -33,26 +31,6 @@ def parse(buf: bytes) -> tuple[int, int, int, int, bytes]:
     assert crc16 == ccitt_false(buf[:18])
     assert crc32 == (zlib.crc32(buf[24:]) if len(buf) > 24 else 0)
     return seq, cmd_id, cmd_type, sender, buf[24:]
-
-
-def _udp() -> socket.socket:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind((LOOP, 0))
-    s.settimeout(1.0)
-    return s
-
-
-def _port(s: socket.socket) -> int:
-    return int(s.getsockname()[1])
-
-
-@pytest.fixture
-def host() -> Iterator[tuple[socket.socket, socket.socket]]:
-    """The test's command (and status) socket and its point socket."""
-    cmd, points = _udp(), _udp()
-    yield cmd, points
-    cmd.close()
-    points.close()
 
 
 def _device(source: object = None, **kw: object) -> EmulatedLivox2:
@@ -81,7 +59,7 @@ def _set(*items: tuple[int, bytes]) -> bytes:
 
 def _host(sock: socket.socket, lidar_port: int) -> bytes:
     # ip[4] dotted order, host port u16, LiDAR port u16
-    return socket.inet_aton(LOOP) + struct.pack("<HH", _port(sock), lidar_port)
+    return socket.inet_aton(LOOP) + struct.pack("<HH", port_of(sock), lidar_port)
 
 
 def _configure(cmd: socket.socket, points: socket.socket, dev: EmulatedLivox2) -> None:
@@ -89,8 +67,8 @@ def _configure(cmd: socket.socket, points: socket.socket, dev: EmulatedLivox2) -
     assert _ask(cmd, dev.address, sdk2_frame(0x0100, 0, 7, data))[4] == b"\0\0\0"
 
 
-def test_discovery_answers_type_serial_ip_and_command_port() -> None:
-    probe = _udp()
+def test_discovery_answers_type_serial_ip_and_commandport_of() -> None:
+    probe = loopback_udp()
     with probe, _device() as dev:
         seq, cmd_id, cmd_type, sender, data = _ask(
             probe, dev.discovery_address, sdk2_frame(0x0000, 0, 41, b"")

@@ -1,16 +1,25 @@
-"""Test helpers for the Livox wire protocols: Livox SDK 2 (Mid-360) command frames and
-point packets built by hand from the protocol document (livox_wiki_en
+"""Test helpers for the Livox links: Livox SDK 2 (Mid-360) command frames and point
+packets built by hand from the protocol document (livox_wiki_en
 ``livox_eth_protocol_mid360.md``) with ``struct.pack`` and a bitwise CRC-16 written
-from its definition, never with dronetrack's encoders; and the hypothesis strategy of
-damaged packets both SDKs' fuzz tests feed their decoders."""
+from its definition, never with dronetrack's encoders; the hypothesis strategy of
+damaged packets both SDKs' fuzz tests feed their decoders; loopback sockets; and
+reading a client for a bounded time."""
 
 from __future__ import annotations
 
+import socket
 import struct
+import time
 import zlib
 from collections.abc import Sequence
+from typing import Protocol
 
+import numpy as np
 from hypothesis import strategies as st
+
+from dronetrack.sources.assembly import PointBatch
+
+LOOP = "127.0.0.1"
 
 T0 = 1_700_000_000_123_456_789  # ns: a PTP-like device time
 
@@ -78,3 +87,42 @@ def damaged_packets(draw: st.DrawFn, good: Sequence[bytes], header_bytes: int) -
         i = draw(st.integers(0, header_bytes - 1))
         return packet[:i] + bytes([draw(st.integers(0, 255))]) + packet[i + 1 :]
     return draw(st.binary(max_size=1400))
+
+
+def loopback_udp() -> socket.socket:
+    """A UDP socket on 127.0.0.1 at a port the kernel picks, waiting up to 1 s."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind((LOOP, 0))
+    s.settimeout(1.0)
+    return s
+
+
+def port_of(s: socket.socket) -> int:
+    return int(s.getsockname()[1])
+
+
+class Reader(Protocol):
+    def read(self, timeout_s: float = 0.1) -> PointBatch: ...
+
+
+def collect(client: Reader, count: int, limit_s: float = 4.0) -> PointBatch:
+    """Read until ``count`` points came or ``limit_s`` passed."""
+    parts: list[PointBatch] = []
+    got, t0 = 0, time.monotonic()
+    while got < count and time.monotonic() - t0 < limit_s:
+        batch = client.read(0.1)
+        parts.append(batch)
+        got += len(batch)
+    return PointBatch(
+        np.concatenate([p.xyz for p in parts]).reshape(-1, 3),
+        np.concatenate([p.t_ns for p in parts]),
+        np.concatenate([p.reflectivity for p in parts]),
+        np.concatenate([p.line for p in parts]),
+    )
+
+
+def read_for(client: Reader, seconds: float) -> None:
+    """Read (and discard) for ``seconds``."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        client.read(0.05)
