@@ -101,6 +101,31 @@ def port_of(s: socket.socket) -> int:
     return int(s.getsockname()[1])
 
 
+def drain_then_silence(sock: socket.socket, most: int = 2000) -> bool:
+    """Receive the datagrams already on their way (at most ``most``, each within
+    0.2 s of the last); True if none came for 0.2 s after them."""
+    sock.settimeout(0.2)
+    for _ in range(most):
+        try:
+            sock.recv(2048)
+        except TimeoutError:
+            return True
+    return False
+
+
+def assert_no_reply(sock: socket.socket, to: tuple[str, int], requests: Sequence[bytes]) -> None:
+    """Each request sent to ``to`` gets no reply within 0.2 s."""
+    sock.settimeout(0.2)
+    for buf in requests:
+        sock.sendto(buf, to)
+        try:
+            reply = sock.recv(2048)
+        except TimeoutError:
+            continue
+        raise AssertionError(f"{buf.hex()} got the reply {reply.hex()}")
+    sock.settimeout(1.0)
+
+
 class Reader(Protocol):
     def read(self, timeout_s: float = 0.1) -> PointBatch: ...
 

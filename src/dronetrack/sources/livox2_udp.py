@@ -68,7 +68,6 @@ from dronetrack.sources.livox_link import (
     MAX_DATAGRAM,
     LinkOptions,
     LivoxLink,
-    SocketPlan,
     hits_in_time_order,
     parse_device_uri,
 )
@@ -139,6 +138,7 @@ class Livox2Client(LivoxLink):
     """
 
     sdk = "SDK 2 device"
+    device_types = DEVICE_TYPES
     connect_name = "host configuration"
     keepalive_name = "work-state"
     ack_wait_s = ACK_WAIT_S
@@ -148,7 +148,6 @@ class Livox2Client(LivoxLink):
         if self.endpoint.data_type not in (None, *s2.LAYOUTS):
             raise ConfigError(f"point data type {self.endpoint.data_type} is not 1, 2 or 3")
         super().__init__(self.endpoint.device_ip, self.endpoint.host_ip, **options)
-        self.dev_type: int | None = None
         self.serial: str | None = None
         self.work_state: int | None = None
         self.pushes_received = 0
@@ -158,17 +157,8 @@ class Livox2Client(LivoxLink):
     # -- names and ports ------------------------------------------------------------
 
     @property
-    def name(self) -> str:
-        kind = DEVICE_TYPES.get(self.dev_type, "") if self.dev_type is not None else ""
-        return f"Livox {kind or self.sdk} at {self.endpoint.device_ip}"
-
-    @property
     def discovery_port(self) -> int:
         return self._port("discovery")
-
-    @property
-    def cmd_port(self) -> int:
-        return self._port("cmd")
 
     @property
     def point_port(self) -> int:
@@ -176,13 +166,8 @@ class Livox2Client(LivoxLink):
 
     # -- the protocol ---------------------------------------------------------------
 
-    def _socket_plan(self) -> SocketPlan:
-        ep = self.endpoint
-        return [
-            ("discovery", ep.discovery_port, "discovery", 0),
-            ("cmd", ep.cmd_port, "commands", 0),
-            ("data", ep.point_port, "point data", 4 << 20),
-        ]
+    def _ports(self) -> tuple[int, int, int]:
+        return self.endpoint.discovery_port, self.endpoint.cmd_port, self.endpoint.point_port
 
     def _device_address(self) -> tuple[str, int]:
         return self.endpoint.device_ip, self._device_cmd_port

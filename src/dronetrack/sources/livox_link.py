@@ -159,10 +159,6 @@ def hits_in_time_order(
     )
 
 
-# (socket slot, port, what it is for, receive buffer bytes or 0)
-SocketPlan = list[tuple[str, int, str, int]]
-
-
 class LinkOptions(TypedDict, total=False):
     """The keyword options of every Livox client (see LivoxLink)."""
 
@@ -193,6 +189,7 @@ class LivoxLink:
     """
 
     sdk = "device"
+    device_types: Mapping[int, str] = {}  # device type → model name
     connect_name = "connect"
     keepalive_name = "keep-alive"
     ack_wait_s = 0.5  # one try of a command
@@ -223,6 +220,7 @@ class LivoxLink:
         self.stall_s = stall_s
         self.discover_s = discover_s
         self.host_ip: str | None = host_ip
+        self.dev_type: int | None = None  # from discovery
         self.packets_received = 0
         self.packets_malformed = 0
         self.packets_lost = 0
@@ -251,9 +249,12 @@ class LivoxLink:
 
     @property
     def name(self) -> str:
-        return f"Livox {self.sdk} at {self.device_ip}"
+        """The model once discovery named it, else the SDK, and the IP."""
+        kind = self.device_types.get(self.dev_type, "") if self.dev_type is not None else ""
+        return f"Livox {kind or self.sdk} at {self.device_ip}"
 
-    def _socket_plan(self) -> SocketPlan:
+    def _ports(self) -> tuple[int, int, int]:
+        """The host's discovery, command and point-data ports (0: any free port)."""
         raise NotImplementedError
 
     def _device_address(self) -> tuple[str, int]:
@@ -302,6 +303,10 @@ class LivoxLink:
             raise DeviceError(f"{self.name}: the client's sockets are not bound (call bind)")
         return int(sock.getsockname()[1])
 
+    @property
+    def cmd_port(self) -> int:
+        return self._port("cmd")
+
     def bind(self) -> None:
         """Bind the sockets (``open`` does it if needed); with port 0 the kernel picks a
         free port, readable afterwards."""
@@ -309,9 +314,11 @@ class LivoxLink:
             raise DeviceError(f"{self.name}: the client is closed")
         if self._socks:
             return
+        discovery, cmd, data = self._ports()
         try:
-            for slot, port, what, rcvbuf in self._socket_plan():
-                self._socks[slot] = udp_socket(port, what, rcvbuf)
+            self._socks["discovery"] = udp_socket(discovery, "discovery")
+            self._socks["cmd"] = udp_socket(cmd, "commands")
+            self._socks["data"] = udp_socket(data, "point data", rcvbuf=4 << 20)
         except DeviceError:
             self._close_sockets()
             raise

@@ -55,7 +55,6 @@ from dronetrack.sources.livox_link import (
     MAX_DATAGRAM,
     LinkOptions,
     LivoxLink,
-    SocketPlan,
     hits_in_time_order,
     parse_device_uri,
 )
@@ -112,6 +111,7 @@ class LivoxClient(LivoxLink):
     """
 
     sdk = "SDK 1 device"
+    device_types = s1.DEVICE_TYPES
     connect_name = "handshake"
     keepalive_name = "heartbeat"
     ack_wait_s = ACK_WAIT_S
@@ -119,24 +119,14 @@ class LivoxClient(LivoxLink):
     def __init__(self, endpoint: LivoxEndpoint | str, **options: Unpack[LinkOptions]) -> None:
         self.endpoint = parse_livox_uri(endpoint) if isinstance(endpoint, str) else endpoint
         super().__init__(self.endpoint.device_ip, self.endpoint.host_ip, **options)
-        self.dev_type: int | None = None
         self.broadcast_code: str | None = None
         self._last_stamp: dict[int, int] = {}
 
     # -- names and ports ------------------------------------------------------------
 
     @property
-    def name(self) -> str:
-        kind = s1.DEVICE_TYPES.get(self.dev_type, "") if self.dev_type else ""
-        return f"Livox {kind or self.sdk} at {self.endpoint.device_ip}"
-
-    @property
     def broadcast_port(self) -> int:
-        return self._port("broadcast")
-
-    @property
-    def cmd_port(self) -> int:
-        return self._port("cmd")
+        return self._port("discovery")
 
     @property
     def data_port(self) -> int:
@@ -160,19 +150,14 @@ class LivoxClient(LivoxLink):
 
     # -- the protocol ---------------------------------------------------------------
 
-    def _socket_plan(self) -> SocketPlan:
-        ep = self.endpoint
-        return [
-            ("broadcast", ep.broadcast_port, "broadcasts", 0),
-            ("cmd", ep.cmd_port, "commands", 0),
-            ("data", ep.data_port, "point data", 4 << 20),
-        ]
+    def _ports(self) -> tuple[int, int, int]:
+        return self.endpoint.broadcast_port, self.endpoint.cmd_port, self.endpoint.data_port
 
     def _device_address(self) -> tuple[str, int]:
         return self.endpoint.device_ip, self.endpoint.device_port
 
     def _discover(self, until: float) -> None:
-        sock = self._socks["broadcast"]
+        sock = self._socks["discovery"]
         while time.monotonic() < until:
             try:
                 buf, (ip, _) = sock.recvfrom(MAX_DATAGRAM)
