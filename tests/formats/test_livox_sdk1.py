@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from dronetrack.errors import DecodeError, InputError
 from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.formats.livox_common import DecodedPackets
+from livox_helpers import damaged_packets
 
 DT = 4_167  # ns between firings of an Avia (lds.h)
 T0 = 1_700_000_000_123_456_789
@@ -365,21 +366,7 @@ def test_encoder_refuses_what_the_wire_cannot_hold() -> None:
 GOOD = [_packet(t) for t in (0, 3, 5, 8)] + [_header(6) + bytes(24)]
 
 
-@st.composite
-def damaged_packets(draw: st.DrawFn) -> bytes:
-    good = draw(st.sampled_from(GOOD))
-    kind = draw(st.sampled_from(["truncate", "extend", "random", "flip"]))
-    if kind == "truncate":
-        return good[: draw(st.integers(0, len(good) - 1))]
-    if kind == "extend":
-        return good + draw(st.binary(min_size=1, max_size=40))
-    if kind == "flip":  # any header byte changed
-        i = draw(st.integers(0, 17))
-        return good[:i] + bytes([draw(st.integers(0, 255))]) + good[i + 1 :]
-    return draw(st.binary(max_size=1400))
-
-
-@given(damaged_packets())
+@given(damaged_packets(GOOD, header_bytes=18))
 @settings(max_examples=300, deadline=None)
 def test_damaged_packets_give_decode_errors_or_a_malformed_count(buf: bytes) -> None:
     try:

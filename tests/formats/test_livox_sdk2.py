@@ -8,7 +8,6 @@ from __future__ import annotations
 import contextlib
 import math
 import struct
-import zlib
 
 import numpy as np
 import pytest
@@ -18,46 +17,10 @@ from hypothesis import strategies as st
 from dronetrack.errors import DecodeError, InputError
 from dronetrack.formats import livox_sdk2 as s2
 from dronetrack.formats.livox_common import DecodedPackets, ImuSamples, LivoxPoints
-
-T0 = 1_700_000_000_123_456_789
-
-
-def _ccitt_false(data: bytes) -> int:
-    # polynomial 0x1021, init 0xFFFF, not reflected, no final xor
-    reg = 0xFFFF
-    for b in data:
-        reg ^= b << 8
-        for _ in range(8):
-            reg = ((reg << 1) ^ 0x1021) & 0xFFFF if reg & 0x8000 else (reg << 1) & 0xFFFF
-    return reg
-
-
-def _frame_by_hand(cmd_id: int, cmd_type: int, seq: int, data: bytes, sender: int = 0) -> bytes:
-    head = struct.pack(
-        "<BBHIHBB6s", 0xAA, 0, 24 + len(data), seq, cmd_id, cmd_type, sender, bytes(6)
-    )
-    data_crc = zlib.crc32(data) if data else 0
-    return head + struct.pack("<HI", _ccitt_false(head), data_crc) + data
-
-
-def _packet(
-    data_type: int, records: bytes, dot_num: int, interval: int = 950, time_type: int = 0
-) -> bytes:
-    head = struct.pack(
-        "<BHHHHBBB12s",
-        0,
-        36 + len(records),
-        interval,
-        dot_num,
-        3,
-        1,
-        data_type,
-        time_type,
-        bytes(12),
-    )
-    body = struct.pack("<Q", T0) + records
-    return head + struct.pack("<I", zlib.crc32(body)) + body
-
+from livox_helpers import T0, damaged_packets
+from livox_helpers import ccitt_false as _ccitt_false
+from livox_helpers import sdk2_frame as _frame_by_hand
+from livox_helpers import sdk2_packet as _packet
 
 FORMATS = {1: "<iiiBB", 2: "<hhhBB", 3: "<IHHBB", 0: "<6f"}
 KNOWN = {
@@ -282,21 +245,7 @@ def test_encoder_refuses_what_the_wire_cannot_hold() -> None:
 GOOD = [_points_packet(1), _points_packet(3, n=10), _packet(0, bytes(24), 1)]
 
 
-@st.composite
-def damaged_packets(draw: st.DrawFn) -> bytes:
-    good = draw(st.sampled_from(GOOD))
-    kind = draw(st.sampled_from(["truncate", "extend", "random", "flip"]))
-    if kind == "truncate":
-        return good[: draw(st.integers(0, len(good) - 1))]
-    if kind == "extend":
-        return good + draw(st.binary(min_size=1, max_size=40))
-    if kind == "flip":
-        i = draw(st.integers(0, 35))
-        return good[:i] + bytes([draw(st.integers(0, 255))]) + good[i + 1 :]
-    return draw(st.binary(max_size=1400))
-
-
-@given(damaged_packets(), st.booleans())
+@given(damaged_packets(GOOD, header_bytes=36), st.booleans())
 @settings(max_examples=300, deadline=None)
 def test_damaged_packets_give_decode_errors_or_a_malformed_count(buf: bytes, check: bool) -> None:
     try:
@@ -322,3 +271,32 @@ def test_damaged_frames_and_payloads_give_only_decode_errors(buf: bytes) -> None
     for decode in decoders:
         with contextlib.suppress(DecodeError):
             decode(buf)
+
+
+def test_parameter_queries_and_their_acks_against_hand_built_bytes() -> None:
+    # query 0x0101: key_num u16, reserved u16, keys u16 (Livox-SDK2 command_impl.cpp)
+    query = struct.pack("<HHHH", 2, 0, 0x8006, 0x0000)
+    assert s2.encode_key_list([0x8006, 0x0000]) == query
+    assert s2.decode_key_list(query) == [0x8006, 0x0000]
+    # its ACK: ret_code u8, key_num u16, then {key, length, value} with no reserved field
+    ack = struct.pack("<BHHHBHHB", 0, 2, 0x8006, 1, 0x01, 0x0000, 1, 3)
+    assert s2.QueryAck.decode(ack) == s2.QueryAck(0, ((0x8006, b"\x01"), (0x0000, b"\x03")))
+    assert s2.QueryAck(0, ((0x8006, b"\x01"), (0x0000, b"\x03"))).encode() == ack
+    with pytest.raises(DecodeError, match="not 4"):
+        s2.decode_key_list(query[:-1])
+    with pytest.raises(DecodeError, match="does not hold 2 keys"):
+        s2.decode_key_list(query[:-2])
+    with pytest.raises(DecodeError, match="truncated"):
+        s2.QueryAck.decode(ack[:-1])
+
+
+def test_host_configuration_alone_leaves_out_the_work_mode() -> None:
+    data = s2.host_config_request("192.168.1.5", 1, 2, 3, work_mode=None)
+    assert struct.unpack_from("<H", data)[0] == 3
+    assert [k for k, _ in s2.decode_key_values(data)] == [5, 6, 7]
+
+
+def test_packet_problem_names_what_is_wrong_or_nothing() -> None:
+    assert s2.packet_problem(_points_packet(1)) is None
+    assert s2.packet_problem(_points_packet(1)[:-1]) == "length field 1380 != 1379 bytes"
+    assert s2.packet_problem(b"") == "0 bytes, shorter than the 36-byte header"

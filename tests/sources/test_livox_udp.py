@@ -21,8 +21,8 @@ from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint, parse_livox_uri
+from livox_helpers import LOOP, collect, read_for
 
-LOOP = "127.0.0.1"
 DT = {7: 4_167, 1: 10_000}  # ns between firings (livox_ros_driver lds.h)
 N = {7: 96, 1: 100}  # firings per packet of data types 2 and 0
 
@@ -45,29 +45,6 @@ def linked(
     finally:
         client.close()
         dev.close()
-
-
-def collect(client: LivoxClient, count: int, limit_s: float = 4.0) -> PointBatch:
-    """Read until ``count`` points came or ``limit_s`` passed."""
-    parts: list[PointBatch] = []
-    got, t0 = 0, time.monotonic()
-    while got < count and time.monotonic() - t0 < limit_s:
-        batch = client.read(0.1)
-        parts.append(batch)
-        got += len(batch)
-    return PointBatch(
-        np.concatenate([p.xyz for p in parts]).reshape(-1, 3),
-        np.concatenate([p.t_ns for p in parts]),
-        np.concatenate([p.reflectivity for p in parts]),
-        np.concatenate([p.line for p in parts]),
-    )
-
-
-def read_for(client: LivoxClient, seconds: float) -> None:
-    """Read (and discard) for ``seconds``."""
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < seconds:
-        client.read(0.05)
 
 
 def assert_points_are(batch: PointBatch, k: np.ndarray, dev_type: int) -> None:

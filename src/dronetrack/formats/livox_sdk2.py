@@ -62,22 +62,27 @@ __all__ = [
     "KEY_POINT_HOST",
     "KEY_STATE_HOST",
     "KEY_WORK_MODE",
+    "KEY_WORK_STATE",
     "LAYOUTS",
     "SET_PARAMS",
     "CommandFrame",
     "DiscoveryAck",
     "HostIpConfig",
     "ParamAck",
+    "QueryAck",
     "crc16",
     "decode_frame",
+    "decode_key_list",
     "decode_key_values",
     "decode_packet",
     "decode_packets",
     "encode_frame",
     "encode_imu_packets",
+    "encode_key_list",
     "encode_key_values",
     "encode_point_packets",
     "host_config_request",
+    "packet_problem",
 ]
 
 SOF = 0xAA
@@ -90,7 +95,11 @@ DEVICE_TYPE_MID360 = 9  # Livox-SDK2 livox_lidar_def.h LivoxLidarDeviceType
 DISCOVERY_PORT, CMD_PORT, PUSH_PORT, POINT_PORT, IMU_PORT = 56000, 56100, 56200, 56300, 56400
 KEY_DATA_TYPE, KEY_STATE_HOST, KEY_POINT_HOST, KEY_IMU_HOST = 0x0000, 0x0005, 0x0006, 0x0007
 KEY_WORK_MODE, KEY_IMU_ENABLE = 0x001A, 0x001C
+KEY_SERIAL, KEY_WORK_STATE = 0x8000, 0x8006  # read-only: serial number, current work state
 WORK_MODE_SAMPLING, WORK_MODE_IDLE = 0x01, 0x02
+# return codes (protocol document, "Return Code Description")
+RET_OK, RET_FAILURE, RET_NOT_PERMITTED, RET_OUT_OF_RANGE = 0x00, 0x01, 0x02, 0x03
+RET_KEY_UNSUPPORTED, RET_READ_ONLY, RET_BAD_LENGTH = 0x20, 0x22, 0x23
 CMD_HEADER = struct.Struct("<BBHIHBB6sHI")
 
 HEADER_BYTES = 36
@@ -252,7 +261,12 @@ def decode_key_values(data: Bytes) -> list[tuple[int, bytes]]:
     if len(b) < 4:
         raise DecodeError(f"Livox key/value list of {len(b)} bytes is shorter than 4")
     (count,) = struct.unpack_from("<H", b)
-    items, pos = [], 4
+    return _items(b, count, 4)
+
+
+def _items(b: bytes, count: int, pos: int) -> list[tuple[int, bytes]]:
+    """``count`` {key u16, length u16, value} items from ``b[pos:]``, filling it exactly."""
+    items = []
     for i in range(count):
         if pos + 4 > len(b):
             raise DecodeError(f"Livox key/value list truncated at item {i} of {count}")
@@ -267,18 +281,66 @@ def decode_key_values(data: Bytes) -> list[tuple[int, bytes]]:
 
 
 def host_config_request(
-    host_ip: str, state_port: int = 56201, point_port: int = 56301, imu_port: int = 56401
+    host_ip: str,
+    state_port: int = 56201,
+    point_port: int = 56301,
+    imu_port: int = 56401,
+    work_mode: int | None = WORK_MODE_SAMPLING,
 ) -> bytes:
-    """Data of a 0x0100 request that sends status, points and IMU to the host and sets
-    the LiDAR to sampling (work_tgt_mode 0x01)."""
-    return encode_key_values(
-        [
-            (KEY_STATE_HOST, HostIpConfig(host_ip, state_port, PUSH_PORT).encode()),
-            (KEY_POINT_HOST, HostIpConfig(host_ip, point_port, POINT_PORT).encode()),
-            (KEY_IMU_HOST, HostIpConfig(host_ip, imu_port, IMU_PORT).encode()),
-            (KEY_WORK_MODE, bytes([WORK_MODE_SAMPLING])),
-        ]
-    )
+    """Data of a 0x0100 request that sends status, points and IMU to the host and, unless
+    ``work_mode`` is None, sets the LiDAR's work mode (0x01 sampling).  Livox-SDK2 sends
+    the three addresses alone (``build_request.cpp`` BuildUpdateMid360LidarCfgRequest)
+    and the work mode in a request of its own."""
+    items = [
+        (KEY_STATE_HOST, HostIpConfig(host_ip, state_port, PUSH_PORT).encode()),
+        (KEY_POINT_HOST, HostIpConfig(host_ip, point_port, POINT_PORT).encode()),
+        (KEY_IMU_HOST, HostIpConfig(host_ip, imu_port, IMU_PORT).encode()),
+    ]
+    if work_mode is not None:
+        items.append((KEY_WORK_MODE, bytes([work_mode])))
+    return encode_key_values(items)
+
+
+def encode_key_list(keys: Sequence[int]) -> bytes:
+    """Data of a 0x0101 query: key_num u16, reserved u16, then the keys u16."""
+    return struct.pack(f"<HH{len(keys)}H", len(keys), 0, *keys)
+
+
+def decode_key_list(data: Bytes) -> list[int]:
+    b = bytes(data)
+    if len(b) < 4 or len(b) % 2:
+        raise DecodeError(f"Livox key list of {len(b)} bytes is not 4 + 2·N bytes")
+    (count,) = struct.unpack_from("<H", b)
+    if len(b) != 4 + 2 * count:
+        raise DecodeError(f"Livox key list of {len(b)} bytes does not hold {count} keys")
+    return list(struct.unpack_from(f"<{count}H", b, 4))
+
+
+@dataclass(frozen=True)
+class QueryAck:
+    """ACK of 0x0101: ret_code u8, key_num u16, then {key u16, length u16, value}."""
+
+    ret_code: int
+    items: tuple[tuple[int, bytes], ...] = ()
+
+    def encode(self) -> bytes:
+        return struct.pack("<BH", self.ret_code, len(self.items)) + b"".join(
+            struct.pack("<HH", key, len(value)) + value for key, value in self.items
+        )
+
+    @staticmethod
+    def decode(payload: Bytes) -> QueryAck:
+        b = bytes(payload)
+        if len(b) < 3:
+            raise DecodeError(f"Livox query ACK of {len(b)} bytes is shorter than 3")
+        ret_code, count = struct.unpack_from("<BH", b)
+        return QueryAck(ret_code, tuple(_items(b, count, 3)))
+
+
+def packet_problem(buf: Bytes, check_crc: bool = False) -> str | None:
+    """What makes a point/IMU packet malformed, or None if it decodes."""
+    found = _inspector(check_crc)(bytes(buf))
+    return found if isinstance(found, str) else None
 
 
 def _inspector(check_crc: bool) -> Callable[[bytes], tuple[int, object] | str]:
