@@ -8,7 +8,10 @@ cut off in the middle of a step, so no numba kernel or half-written row sees the
 interrupt.  A second Ctrl-C, or one outside a ``stoppable()`` block (loading,
 compiling, writing plots), raises ``KeyboardInterrupt`` at once.
 
-Library code never installs the handler: without it Ctrl-C raises
+``handling_sigterm`` makes SIGTERM (a service manager's stop, ``kill``) do what
+Ctrl-C does, for a command that must stop a device cleanly (``dronetrack live``).
+
+Library code never installs the handlers: without them Ctrl-C raises
 ``KeyboardInterrupt`` as usual and ``stop_requested`` is always False.
 """
 
@@ -21,7 +24,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from types import FrameType
 
-__all__ = ["handling_sigint", "stop_requested", "stoppable"]
+__all__ = ["handling_sigint", "handling_sigterm", "stop_requested", "stoppable"]
 
 
 @dataclass
@@ -56,6 +59,23 @@ def handling_sigint() -> Iterator[None]:
     finally:
         signal.signal(signal.SIGINT, previous)
         _state.installed, _state.requested, _state.loops = False, False, 0
+
+
+@contextmanager
+def handling_sigterm() -> Iterator[None]:
+    """Inside the block SIGTERM acts as Ctrl-C does under ``handling_sigint``: inside a
+    ``stoppable()`` loop the first one asks the loop to stop, otherwise it raises
+    ``KeyboardInterrupt`` (main thread only; elsewhere the block runs unchanged)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _on_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if not _state.installed:  # without the SIGINT handling nobody else resets it
+            _state.requested = False
 
 
 @contextmanager

@@ -135,6 +135,19 @@ def print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
         ),
         ("speed", fmt(metrics.get("realtime_factor"), "× real time", 1)),
     ]
+    if "frames_dropped" in metrics:  # a live run
+        rows += [
+            (
+                "latency p50 / p99",
+                " / ".join(fmt(metrics.get(k), "", 1) for k in ("latency_ms_p50", "latency_ms_p99"))
+                + " ms",
+            ),
+            ("frames dropped", fmt(metrics.get("frames_dropped"))),
+            (
+                "packets lost / malformed",
+                f"{fmt(metrics.get('packets_lost'))} / {fmt(metrics.get('packets_malformed'))}",
+            ),
+        ]
     for name, value in rows:
         table.add_row(name, value)
     Console().print(table)

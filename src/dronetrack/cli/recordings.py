@@ -207,11 +207,30 @@ def track(
 
 @app.command()
 def info(
-    recording: Annotated[Path, typer.Argument(help="A recording (see `dronetrack track --help`).")],
+    target: Annotated[
+        str,
+        typer.Argument(
+            metavar="RECORDING|DEVICE",
+            help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
+            "livox2://IP or dynamixel://DEVICE?baud=…&pan=…&tilt=….",
+        ),
+    ],
 ) -> None:
-    """List a recording's topics, message types, counts and duration."""
+    """List a recording's topics, message types, counts and duration; or what a live
+    device says of itself (a LiDAR's model, code or serial, firmware and a short
+    sample; the servos' model, firmware and present positions)."""
     from rich.markup import escape
 
+    if target.startswith(("livox://", "livox2://")):
+        from dronetrack.jobs.live import probe_lidar
+
+        for name, value in probe_lidar(target):
+            typer.echo(f"{name}: {value}")
+        return
+    if target.startswith("dynamixel://"):
+        _servo_info(target)
+        return
+    recording = Path(target)
     summary = recording_info(recording)
     start = datetime.fromtimestamp(summary.start, tz=UTC).isoformat(timespec="milliseconds")
     title = f"{summary.path} ({summary.kind}, {summary.duration_s:.3f} s from {start})"
@@ -222,6 +241,34 @@ def info(
     for topic in summary.topics:
         table.add_row(escape(topic.topic), escape(topic.msgtype), str(topic.count))
     Console().print(table)
+
+
+def _servo_info(uri: str) -> None:
+    """``info dynamixel://…``: one line per servo found; DeviceError if the turret's pan
+    or tilt servo does not answer (after the lines)."""
+    import math
+
+    from dronetrack.actuators.dynamixel import probe_servos
+    from dronetrack.errors import DeviceError
+
+    reports = probe_servos(uri)
+    missing = []
+    for r in reports:
+        head = f"servo ID {r.ident} ({r.role})"
+        if r.problem is not None:
+            typer.echo(f"{head}: {r.problem}")
+            if r.role != "other":
+                missing.append(f"ID {r.ident} ({r.role}): {r.problem}")
+            continue
+        line = f"{head}: model {r.model}, firmware {r.firmware}"
+        if r.angle is not None:
+            line += (
+                f", present position {r.position} ({math.degrees(r.angle):.1f}°), "
+                f"torque {'on' if r.torque else 'off'}, hardware error {r.hardware_error}"
+            )
+        typer.echo(line)
+    if missing:
+        raise DeviceError(f"Dynamixel turret {uri}: " + "; ".join(missing))
 
 
 class RecordFormatName(StrEnum):

@@ -61,6 +61,7 @@ __all__ = [
     "POINT_INTERVAL_NS",
     "Broadcast",
     "CommandFrame",
+    "DeviceInfoAck",
     "Handshake",
     "HeartbeatAck",
     "crc16",
@@ -235,6 +236,27 @@ class HeartbeatAck:
     @staticmethod
     def decode(payload: Bytes) -> HeartbeatAck:
         return HeartbeatAck(*struct.unpack("<BBBI", _payload(payload, 7, "heartbeat ACK")))
+
+
+@dataclass(frozen=True)
+class DeviceInfoAck:
+    """ACK of 0x02 (query device information; ``livox_def.h`` DeviceInformationResponse):
+    return code and the firmware version, four bytes."""
+
+    ret_code: int
+    firmware: tuple[int, int, int, int]
+
+    def encode(self) -> bytes:
+        return struct.pack("<B4B", self.ret_code, *self.firmware)
+
+    @staticmethod
+    def decode(payload: Bytes) -> DeviceInfoAck:
+        ret, *fw = struct.unpack("<B4B", _payload(payload, 5, "device information ACK"))
+        return DeviceInfoAck(ret, (fw[0], fw[1], fw[2], fw[3]))
+
+    @property
+    def version(self) -> str:
+        return ".".join(map(str, self.firmware))
 
 
 def encode_sampling(start: bool) -> bytes:

@@ -56,7 +56,7 @@ if TYPE_CHECKING:
         Timestamp,
     )
 
-__all__ = ["TOPICS", "FoxgloveWriter", "require_foxglove"]
+__all__ = ["TOPICS", "FoxgloveChannels", "FoxgloveWriter", "require_foxglove"]
 
 TOPICS = (
     "/lidar/points",
@@ -91,14 +91,12 @@ def _time_ns(start: float, t: float) -> int:
     return ns
 
 
-class FoxgloveWriter:
-    """Writes ``ViewFrame``s to an MCAP file.
+class FoxgloveChannels:
+    """The topics above on their own ``foxglove.Context``, fed ``ViewFrame``s: what the
+    MCAP writer and the live server (``sinks.foxglove_live``) share.  ``what`` names
+    the output in errors."""
 
-    An existing file is overwritten and missing parent folders are created.  Use
-    it as a context manager or call ``close``: only a closed file has its summary.
-    """
-
-    def __init__(self, path: Path, start: float = 0.0) -> None:
+    def __init__(self, start: float, what: str) -> None:
         require_foxglove()
         import foxglove
         from foxglove.channels import (
@@ -107,11 +105,9 @@ class FoxgloveWriter:
             SceneUpdateChannel,
         )
 
-        self.path = Path(path)
         self.start = float(start)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.what = what
         self._context = foxglove.Context()
-        self._writer = foxglove.open_mcap(self.path, allow_overwrite=True, context=self._context)
         ctx = self._context
         self._points = PointCloudChannel("/lidar/points", context=ctx)
         self._foreground = PointCloudChannel("/lidar/foreground", context=ctx)
@@ -121,13 +117,17 @@ class FoxgloveWriter:
         self._trail = EstimateTrail()
         self._closed = False
 
+    def _close_channels(self) -> None:
+        for channel in (self._points, self._foreground, self._particles, self._markers, self._tf):
+            channel.close()
+
     def log(self, frame: ViewFrame) -> None:
         """Add one frame: three point clouds, the markers and the transforms.
 
         The frame is checked whole first (``InputError``), so a bad frame writes nothing.
         """
         if self._closed:
-            raise ValueError(f"{self.path} is closed")
+            raise ValueError(f"{self.what} is closed")
         from foxglove.messages import Timestamp
 
         frame = checked(frame)
@@ -145,21 +145,6 @@ class FoxgloveWriter:
         self._markers.log(scene, log_time=ns)
         for transform in transforms:
             self._tf.log(transform, log_time=ns)
-
-    def close(self) -> None:
-        """Finish the file (summary and footer); closing twice does nothing."""
-        if self._closed:
-            return
-        self._closed = True
-        self._writer.close()
-        for channel in (self._points, self._foreground, self._particles, self._markers, self._tf):
-            channel.close()
-
-    def __enter__(self) -> FoxgloveWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def _scene(self, frame: ViewFrame, stamp: Timestamp) -> SceneUpdate:
         """The markers: what is known is drawn, what is not is deleted."""
@@ -186,6 +171,42 @@ class FoxgloveWriter:
             for name in gone
         ]
         return SceneUpdate(deletions=deletions, entities=entities)
+
+
+class FoxgloveWriter(FoxgloveChannels):
+    """Writes ``ViewFrame``s to an MCAP file.
+
+    An existing file is overwritten and missing parent folders are created.  Use
+    it as a context manager or call ``close``: only a closed file has its summary.
+    """
+
+    def __init__(self, path: Path, start: float = 0.0) -> None:
+        super().__init__(start, str(path))
+        import foxglove
+
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self._writer = foxglove.open_mcap(
+                self.path, allow_overwrite=True, context=self._context
+            )
+        except BaseException:
+            self._close_channels()
+            raise
+
+    def close(self) -> None:
+        """Finish the file (summary and footer); closing twice does nothing."""
+        if self._closed:
+            return
+        self._closed = True
+        self._writer.close()
+        self._close_channels()
+
+    def __enter__(self) -> FoxgloveWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def _cloud(points: FloatArray, stamp: Timestamp) -> PointCloud:

@@ -20,13 +20,26 @@ on a wired link).  The turret is read once per frame, before the frame is handed
 on; ``assembly.PoseHistory`` interpolates the readings to each pose time of the
 frame, so the per-point sensor pose follows the measured joint angles.
 
+Latency.  Each frame carries ``received``, the ``time.perf_counter()`` when the
+batch holding its last point was read off the stream: the batch that completed the
+frame if the frame's points reach into it, else the batch before.  A frame is known
+complete only when a later point arrives, and that wait is part of the latency
+``pipeline.run`` measures, as it is part of the delay on a rig.
+
+Truth.  ``--truth`` gives the target's positions in the sensor's time base (the
+points' own timestamps, in seconds); the run's clock starts at the first point, so
+the truth is shifted by that point's time before it is looked up.
+
 Liveness.  The stream raises ``DeviceError`` when its device falls silent (the
 Livox clients: no point packet for ``stall_s``); the reader thread hands the error
-to the run loop, which re-raises it, so the run ends with the device named.
+to the run loop, which re-raises it, so the run ends with the device named.  A stop
+request (Ctrl-C or SIGTERM, ``dronetrack.interrupt``) ends the iteration while it
+waits for a frame.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections import deque
@@ -36,8 +49,11 @@ from typing import Protocol
 
 from dronetrack.errors import ConfigError, DeviceError, DronetrackError
 from dronetrack.geometry.mount import MountGeometry
+from dronetrack.interrupt import stop_requested
 from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, PoseHistory, StreamFrame
-from dronetrack.types import Sample, Truth, TurretState
+from dronetrack.sources.playback import RecordedTruth
+from dronetrack.sources.recording import GroundTruth
+from dronetrack.types import Sample, TurretState
 
 __all__ = ["LiveSource", "PointStream", "TurretReader"]
 
@@ -77,8 +93,9 @@ class LiveSource:
     the sensor pose (None: a fixed sensor at pan = tilt = 0); ``period_s``: the
     integration time; ``max_frames``: the queue bound; ``duration_s``: stop after
     this much sensor time (None: until the stream ends or the run is stopped);
-    ``truth``: the target's truth as a function of the frame end on the run's clock
-    (``--truth``).
+    ``truth``: the target's positions in the sensor's time base (``--truth``), and
+    ``truth_radius``: a return within it of the true position counts as the
+    target's [m].
     """
 
     def __init__(
@@ -90,7 +107,8 @@ class LiveSource:
         period_s: float = 0.1,
         max_frames: int = 2,
         duration_s: float | None = None,
-        truth: Callable[[float], Truth | None] | None = None,
+        truth: GroundTruth | None = None,
+        truth_radius: float = 0.5,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         if max_frames < 1:
@@ -100,6 +118,8 @@ class LiveSource:
         self.max_frames = max_frames
         self.duration_s = duration_s
         self.truth = truth
+        self.truth_radius = truth_radius
+        self._run_truth: GroundTruth | None = None  # the truth on the run's clock
         self.clock = clock
         self.assembler = FrameAssembler(period_s)
         self.poses = PoseHistory(mount, keep_s=max(2.0, 4 * period_s))
@@ -135,6 +155,7 @@ class LiveSource:
             self._thread.start()
 
     def _read_loop(self) -> None:
+        before = float("nan")  # when the previous batch arrived (perf_counter)
         try:
             while not self._stop.is_set():
                 batch = self.stream.read(POLL_S)
@@ -145,8 +166,12 @@ class LiveSource:
                 # δ = max (t_last point − t_host at arrival)
                 delta = int(batch.t_ns[-1]) / NS - host
                 self._offset = delta if self._offset is None else max(self._offset, delta)
+                first = int(batch.t_ns.min())
                 for frame in self.assembler.push(batch):
-                    self._hand_on(_Done(frame, arrived))
+                    # its last point came in this batch if the batch reaches into it
+                    mine = first < frame.start_ns + frame.period_ns
+                    self._hand_on(_Done(frame, arrived if mine or math.isnan(before) else before))
+                before = arrived
         except DronetrackError as exc:
             self._fail(exc)
         except OSError as exc:  # a socket error the stream did not name: name it here
@@ -175,7 +200,7 @@ class LiveSource:
             while not self._queue:
                 if self._error is not None:
                     raise self._error
-                if self._ended or self._stop.is_set():
+                if self._ended or self._stop.is_set() or stop_requested():
                     return None
                 self._cond.wait(POLL_S)
             return self._queue.popleft()
@@ -215,13 +240,22 @@ class LiveSource:
                 state = self._read_turret()
                 self.poses.add(state)
                 frame = self.poses.frame(done.frame, t0_ns)
-                truth = None if self.truth is None else self.truth(frame.end)
                 self.frames_delivered += 1
-                yield Sample(frame, truth, state, received=done.received)
+                yield Sample(frame, self._truth_at(frame.end, t0_ns), state, done.received)
                 if self.duration_s is not None and frame.end >= self.duration_s:
                     return
         finally:
             self.stop()
+
+    def _truth_at(self, t: float, t0_ns: int) -> RecordedTruth | None:
+        """The truth at ``t`` on the run's clock (None without ``truth``)."""
+        if self.truth is None:
+            return None
+        if self._run_truth is None:
+            g = self.truth
+            self._run_truth = GroundTruth(g.t - t0_ns / NS, g.position, g.max_gap_s)
+        run_truth = self._run_truth
+        return RecordedTruth(run_truth, run_truth.at(t)[0], self.truth_radius)
 
     def stop(self) -> None:
         """Stop the reader thread (the stream is closed by whoever opened it)."""

@@ -332,19 +332,8 @@ class LivoxLink:
             return
         deadline = time.monotonic() + timeout_s
         try:
-            self.bind()
-            if self.host_ip is None:
-                self.host_ip = route_source_ip(*self._device_address())
-            self._discover(min(deadline, time.monotonic() + self.discover_s))
-            self._start_thread(self._control_loop, "livox-control")
-            cmd_id, payload, cmd_type = self._connect_command()
-            ret = self._request(cmd_id, payload, deadline, cmd_type)
-            if ret is None:
-                raise DeviceError(f"{self.name}: no {self.connect_name} ACK within {timeout_s} s")
-            if ret != 0:
-                raise DeviceError(f"{self.name}: {self.connect_name} refused with ret_code {ret}")
-            self._last_hb_ack = time.monotonic()
-            self._connected = True
+            if not self._connected:
+                self._connect(deadline, timeout_s)
             self._start_thread(self._read_loop, "livox-reader")
             ret = self._request(*self._sampling_command(True), deadline)
             if ret != 0:
@@ -355,6 +344,34 @@ class LivoxLink:
         except BaseException:
             self.close()
             raise
+
+    def connect(self, timeout_s: float = 3.0) -> None:
+        """Discover (optionally) and connect, with the keep-alive running, but do not
+        start sampling (``dronetrack info``: what the device says of itself)."""
+        if self._connected:
+            return
+        try:
+            self._connect(time.monotonic() + timeout_s, timeout_s)
+        except BaseException:
+            self.close()
+            raise
+
+    def _connect(self, deadline: float, timeout_s: float) -> None:
+        """Steps 1-3 of ``open`` and the connect command; DeviceError if refused or
+        unanswered by ``deadline``."""
+        self.bind()
+        if self.host_ip is None:
+            self.host_ip = route_source_ip(*self._device_address())
+        self._discover(min(deadline, time.monotonic() + self.discover_s))
+        self._start_thread(self._control_loop, "livox-control")
+        cmd_id, payload, cmd_type = self._connect_command()
+        ret = self._request(cmd_id, payload, deadline, cmd_type)
+        if ret is None:
+            raise DeviceError(f"{self.name}: no {self.connect_name} ACK within {timeout_s} s")
+        if ret != 0:
+            raise DeviceError(f"{self.name}: {self.connect_name} refused with ret_code {ret}")
+        self._last_hb_ack = time.monotonic()
+        self._connected = True
 
     def _start_thread(self, target: Callable[[], None], name: str) -> None:
         thread = threading.Thread(target=target, name=name, daemon=True)
@@ -382,6 +399,13 @@ class LivoxLink:
     ) -> int | None:
         """Send the command until its ACK comes (each try waits ``ack_wait_s``) or
         ``deadline`` passes; the ACK's ret_code, or None without an ACK."""
+        ack = self._ask(cmd_id, payload, deadline, cmd_type)
+        return None if ack is None else self._ret_code(ack)
+
+    def _ask(
+        self, cmd_id: int, payload: bytes, deadline: float, cmd_type: int | None = None
+    ) -> bytes | None:
+        """As ``_request``, but the ACK's whole payload (None without an ACK)."""
         while True:
             seq = self._send(cmd_id, payload, cmd_type)
             try_until = min(deadline, time.monotonic() + self.ack_wait_s)
@@ -390,7 +414,7 @@ class LivoxLink:
                     self._acked.wait(max(try_until - time.monotonic(), 0.0))
                 ack = self._acks.pop(seq, None)
             if ack is not None:
-                return self._ret_code(ack)
+                return ack
             if time.monotonic() >= deadline or self._dead:
                 return None
 

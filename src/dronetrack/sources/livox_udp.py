@@ -47,7 +47,7 @@ from typing import Unpack
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.errors import DecodeError, InputError
+from dronetrack.errors import DecodeError, DeviceError, InputError
 from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.formats.livox_common import LivoxPoints
 from dronetrack.sources.assembly import PointBatch
@@ -196,6 +196,22 @@ class LivoxClient(LivoxLink):
 
     def _goodbye_commands(self) -> list[tuple[int, bytes]]:
         return [(s1.DISCONNECT, b"")]
+
+    def query_firmware(self, timeout_s: float = 1.0) -> str | None:
+        """The firmware version the connected device reports (command 0x02), as
+        "a.b.c.d"; None if it does not answer within ``timeout_s``."""
+        if not self._connected:
+            raise DeviceError(f"{self.name}: not connected (call connect or open)")
+        ack = self._ask(s1.DEVICE_INFO, b"", time.monotonic() + timeout_s)
+        if ack is None:
+            return None
+        try:
+            info = s1.DeviceInfoAck.decode(ack)
+        except DecodeError as exc:
+            raise DeviceError(f"{self.name}: device information: {exc}") from exc
+        if info.ret_code != 0:
+            raise DeviceError(f"{self.name}: device information refused, ret_code {info.ret_code}")
+        return info.version
 
     def _send_keepalive(self) -> None:
         self._send(s1.HEARTBEAT, b"")

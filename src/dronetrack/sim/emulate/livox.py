@@ -11,7 +11,8 @@ The device side of the link ``sources.livox_udp`` drives (Livox-SDK
   address the command came from: handshake (0x01, accepted with cmd_type CMD or ACK,
   as the SDK sends it with ACK) stores the host's IP and ports, ret_code 0 (1 if
   another host holds the device); heartbeat (0x03) ret_code 0, state 1 (normal);
-  sampling (0x04) starts or stops the stream (ret_code 1 with no host); disconnect
+  sampling (0x04) starts or stops the stream (ret_code 1 with no host); device
+  information (0x02) ret_code 0 and ``firmware`` (four bytes); disconnect
   (0x06) forgets the host.  Frames that do not decode are ignored and counted;
 - it forgets a host that sent no heartbeat for ``host_timeout_s`` (3 s).
 
@@ -90,6 +91,7 @@ class EmulatedLivox(StreamingDevice):
         broadcast_code: str = "0EMULATEDLIVOX1",
         broadcast_period_s: float = 1.0,
         host_timeout_s: float = 3.0,
+        firmware: tuple[int, int, int, int] = (3, 0, 0, 0),
     ) -> None:
         if dev_type not in DATA_TYPE:
             raise ConfigError(f"the emulated Livox is an Avia (7) or a Mid-40 (1), not {dev_type}")
@@ -104,6 +106,7 @@ class EmulatedLivox(StreamingDevice):
         self.broadcast_code = broadcast_code
         self.broadcast_period_s = broadcast_period_s
         self.host_timeout_s = host_timeout_s
+        self.firmware = firmware
         self.answer_heartbeats = True  # test hook
         self.broadcasts_sent = 0
         self.heartbeats_answered = 0
@@ -171,6 +174,8 @@ class EmulatedLivox(StreamingDevice):
         if frame.cmd_type != s1.CMD:
             self.commands_unknown += 1
             return None
+        if cid == s1.DEVICE_INFO:
+            return s1.DeviceInfoAck(0, self.firmware).encode()
         if cid == s1.HEARTBEAT:
             if not self.answer_heartbeats:
                 return None

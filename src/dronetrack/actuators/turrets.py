@@ -1,0 +1,134 @@
+"""The turrets a live run drives, by URI, and the guard on their limits.
+
+``--turret`` takes ``dynamixel://DEVICE?baud=…&pan=…&tilt=…`` (``actuators.dynamixel``)
+or ``none``: a fixed sensor, whose pose is the mount's at pan = tilt = 0; its
+commands go nowhere.
+
+Whatever the tracker or controller says, a command reaches the turret only through
+``LimitGuard``: goal angles are clamped into the configured joint limits,
+
+    q* = min(max(q, q_lo), q_hi)
+
+and rates into ±ω_max of each axis; a non-finite value is passed as NaN, which the
+drivers take as "keep this axis's goal".  The Dynamixel driver clamps to the same
+limits again (written into the servos as their position limits), so the guard is
+the first of three.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Protocol
+
+from dronetrack.config.rig import TurretSpec
+from dronetrack.errors import ConfigError
+from dronetrack.seams import Actuator
+from dronetrack.types import TurretCommand, TurretState
+
+__all__ = [
+    "NONE_URI",
+    "FixedSensor",
+    "LimitGuard",
+    "LiveTurret",
+    "check_turret_uri",
+    "clamp_command",
+    "open_turret",
+]
+
+NONE_URI = "none"
+
+
+class LiveTurret(Actuator, Protocol):
+    """An actuator that holds its position and lets go of its device on ``close``."""
+
+    def close(self) -> None: ...
+
+
+class FixedSensor:
+    """The ``none`` turret: no joints; commands are counted and go nowhere."""
+
+    name = "no turret (fixed sensor)"
+
+    def __init__(self) -> None:
+        self.commands = 0
+
+    def command(self, command: TurretCommand) -> None:
+        self.commands += 1
+
+    def state(self) -> TurretState | None:
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    return min(max(x, lo), hi) if math.isfinite(x) else math.nan
+
+
+def clamp_command(command: TurretCommand, spec: TurretSpec) -> TurretCommand:
+    """``command`` inside ``spec``'s limits: goals into [lower, upper], rates into
+    [−rate, rate] of each axis; non-finite values become NaN."""
+    if command.mode == "position":
+        pan = _clamp(command.pan, spec.pan.lower, spec.pan.upper)
+        tilt = _clamp(command.tilt, spec.tilt.lower, spec.tilt.upper)
+    elif command.mode == "velocity":
+        pan = _clamp(command.pan, -spec.pan.rate, spec.pan.rate)
+        tilt = _clamp(command.tilt, -spec.tilt.rate, spec.tilt.rate)
+    else:
+        raise ConfigError(f"turret command mode must be position or velocity, got {command.mode!r}")
+    return TurretCommand(command.stamp, pan, tilt, command.mode)
+
+
+class LimitGuard:
+    """``turret`` behind ``clamp_command``; counts the commands it had to change."""
+
+    def __init__(self, turret: LiveTurret, spec: TurretSpec) -> None:
+        self.turret = turret
+        self.spec = spec
+        self.clamped = 0
+
+    @property
+    def name(self) -> str:
+        return str(getattr(self.turret, "name", type(self.turret).__name__))
+
+    def command(self, command: TurretCommand) -> None:
+        safe = clamp_command(command, self.spec)
+        if (safe.pan, safe.tilt) != (command.pan, command.tilt):
+            self.clamped += 1
+        self.turret.command(safe)
+
+    def state(self) -> TurretState | None:
+        return self.turret.state()
+
+    def close(self) -> None:
+        self.turret.close()
+
+
+def check_turret_uri(uri: str) -> None:
+    """ConfigError with one line unless ``uri`` is ``none`` or a valid dynamixel:// URI."""
+    if uri.strip().lower() == NONE_URI:
+        return
+    if uri.startswith("dynamixel://"):
+        from dronetrack.actuators.dynamixel import parse_dynamixel_uri
+
+        parse_dynamixel_uri(uri)
+        return
+    raise ConfigError(
+        f"--turret {uri!r}: give dynamixel://DEVICE?baud=1000000&pan=1&tilt=2 or none"
+    )
+
+
+def open_turret(
+    uri: str, spec: TurretSpec, clock: Callable[[], float] = time.monotonic
+) -> LimitGuard:
+    """The turret ``uri`` names, opened and behind its limit guard; ConfigError for a
+    URI that names none, DeviceError if it does not answer."""
+    check_turret_uri(uri)
+    if uri.strip().lower() == NONE_URI:
+        return LimitGuard(FixedSensor(), spec)
+    from dronetrack.actuators.dynamixel import DynamixelTurret
+
+    return LimitGuard(DynamixelTurret.from_uri(uri, turret=spec, clock=clock), spec)

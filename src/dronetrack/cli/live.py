@@ -1,0 +1,172 @@
+"""``dronetrack live``: the pipeline on a rig, a live LiDAR and a turret in the loop.
+
+Registered on the ``dronetrack`` app by ``cli``; it follows its conventions: one
+``error:`` line and exit code 2 for bad options and for a device that stops
+answering (the run folder is kept), one ``interrupted`` line and exit code 130 for
+Ctrl-C or SIGTERM (the turret holds, the files are written).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from dronetrack.cli.app import app, report_run, run_outputs
+from dronetrack.cli.options import ParticlesOption, RunDirOption, TrackerOption
+from dronetrack.cli.output import compile_reporter, err_console, progress_bar
+
+if TYPE_CHECKING:
+    from dronetrack.config.run import ScenarioConfig
+    from dronetrack.seams import Sink
+
+__all__ = ["live"]
+
+
+def _say(text: str) -> None:
+    err_console.print(text, markup=False, highlight=False, soft_wrap=True)
+
+
+@app.command()
+def live(
+    lidar: Annotated[
+        str,
+        typer.Option(
+            "--lidar",
+            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), or "
+            "file://RECORDING (any recording track reads, played at wall-clock speed).",
+        ),
+    ],
+    turret: Annotated[
+        str,
+        typer.Option(
+            "--turret",
+            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, or none (a fixed sensor).",
+        ),
+    ],
+    scenario: Annotated[
+        str | None,
+        typer.Argument(
+            help="A scenario name or a scenario/site .toml giving the rig and the pipeline "
+            "(default: 'default', or a file:// recording's own); its scene and flight are "
+            "ignored."
+        ),
+    ] = None,
+    background: Annotated[
+        Path | None,
+        typer.Option("--background", help="Load this background model (.npz) instead of scanning."),
+    ] = None,
+    scan_s: Annotated[
+        float | None,
+        typer.Option(
+            "--scan-s", min=0.0, help="Seconds of background scan (default: the scenario's)."
+        ),
+    ] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option(
+            "--duration",
+            "-d",
+            min=0.01,
+            help="Seconds of tracking after the background scan (default: until Ctrl-C, or "
+            "the end of a recording).",
+        ),
+    ] = None,
+    truth: Annotated[
+        Path | None,
+        typer.Option(
+            "--truth",
+            help="The target's true positions: CSV t,x,y,z, t in the sensor's time base; "
+            "scores the run as simulate does.",
+        ),
+    ] = None,
+    out: RunDirOption = None,
+    foxglove_port: Annotated[
+        int | None,
+        typer.Option(
+            "--foxglove-port",
+            min=1,
+            max=65535,
+            help="Serve the run live to the Foxglove app on this WebSocket port (extra: foxglove).",
+        ),
+    ] = None,
+    host_ip: Annotated[
+        str | None,
+        typer.Option(
+            "--host-ip",
+            help="This host's address the LiDAR sends to (default: the one routed to it).",
+        ),
+    ] = None,
+    tracker: TrackerOption = None,
+    particles: ParticlesOption = None,
+) -> None:
+    """Track live: scan the background with the turret, then detect, track and follow.
+
+    Writes the same run folder as simulate (config.toml, frames.csv with each
+    frame's latency_ms, metrics.json with the latency percentiles, frames dropped and
+    packets lost, and the plots) and prints the metrics.
+    """
+    from dronetrack.config.run import apply_overrides
+    from dronetrack.errors import ConfigError, DeviceError
+    from dronetrack.interrupt import handling_sigterm
+    from dronetrack.jobs.live import LiveSetup, base_config, live_config, run_live
+    from dronetrack.jobs.run import RunFolder
+    from dronetrack.sinks.run_folder import default_run_dir
+
+    if host_ip is not None:
+        try:
+            ipaddress.IPv4Address(host_ip)
+        except ValueError:
+            raise ConfigError(f"--host-ip {host_ip!r} is not an IPv4 address") from None
+    named = None
+    if scenario is not None:
+        from dronetrack.cli.options import scenario_from_options
+
+        named = scenario_from_options(scenario, None)
+    cfg = apply_overrides(base_config(named, lidar), tracker=tracker, particles=particles)
+    cfg = live_config(cfg, duration_s=duration, background_file=background, scan_s=scan_s)
+    setup = LiveSetup(lidar, turret, duration, truth, host_ip)
+    folder = RunFolder(out if out is not None else default_run_dir())
+    viewers = _live_viewers(foxglove_port, cfg)
+
+    def started(resolved: ScenarioConfig) -> None:
+        scan = resolved.pipeline.background
+        first = f"{scan.scan_s:g} s of background scan, then " if scan.file is None else ""
+        _say(f"live: {lidar} with turret {turret}: {first}tracking; Ctrl-C stops")
+
+    with handling_sigterm(), run_outputs(folder, None, None), progress_bar() as bar:
+        task = bar.add_task("live", total=None)
+        try:
+            result = run_live(
+                cfg,
+                setup,
+                progress=lambda i, n: bar.update(task, completed=i, total=None),
+                sinks=viewers,
+                compiling=compile_reporter(bar, task),
+                log_sink=folder.log_sink,
+                on_start=started,
+            )
+        finally:
+            for viewer in viewers:
+                close = getattr(viewer, "close", None)
+                if close is not None:
+                    close()
+    metrics = folder.finish(result.run, extra=result.metrics())
+    if result.error is not None:
+        raise DeviceError(
+            f"{result.error} (turret stopped; {len(result.run.log)} frames kept in "
+            f"{folder.out_dir})"
+        )
+    report_run(folder, result.run, metrics)
+
+
+def _live_viewers(port: int | None, cfg: ScenarioConfig) -> list[Sink]:
+    """The live viewer server ``--foxglove-port`` asks for (none without it)."""
+    if port is None:
+        return []
+    from dronetrack.config.rig import turret_spec
+    from dronetrack.sinks.foxglove_live import FoxgloveServer
+
+    return [FoxgloveServer(port, turret_spec(cfg.turret).mount)]
