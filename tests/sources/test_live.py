@@ -178,3 +178,85 @@ def test_a_socket_error_ends_the_run_naming_the_stream() -> None:
     source = LiveSource(_Broken(), MountGeometry())
     with pytest.raises(DeviceError, match="test stream: network is unreachable"):
         list(source)
+
+
+class _Scripted:
+    """A stream that hands out given batches (times in ns) 20 ms apart, noting when it
+    handed each one out, then nothing."""
+
+    name = "scripted stream"
+    packets_lost = 0
+    packets_malformed = 0
+
+    def __init__(self, times_ns: list[list[int]]) -> None:
+        self.batches = [np.array(t, np.int64) for t in times_ns]
+        self.handed: list[float] = []
+
+    def read(self, timeout_s: float = 0.1) -> PointBatch:
+        if len(self.handed) == len(self.batches):
+            time.sleep(timeout_s)
+            t = np.zeros(0, np.int64)
+        else:
+            time.sleep(0.02)
+            t = self.batches[len(self.handed)]
+            self.handed.append(time.perf_counter())
+        n = len(t)
+        return PointBatch(np.ones((n, 3)), t, np.zeros(n, np.uint8), np.zeros(n, np.uint8))
+
+    def close(self) -> None:
+        pass
+
+
+MS = 1_000_000  # ns
+
+
+def test_a_frame_arrived_with_the_batch_that_held_its_last_point() -> None:
+    """Frame 0 (5.00-5.10 s) is completed by a batch wholly of frame 1: its last point
+    came with the batch before.  Frame 1 is completed by a batch that reaches into
+    it: that batch.  Frame 2 by a batch of frame 3: the one before."""
+    base = 5_000 * MS
+    stream = _Scripted(
+        [
+            [base + k * 10 * MS for k in range(10)],  # 5.00-5.09 s: frame 0
+            [base + k * 10 * MS for k in range(10, 15)],  # 5.10-5.14 s: frame 1
+            [base + k * 10 * MS for k in range(15, 26)],  # 5.15-5.25 s: frames 1, 2
+            [base + k * 10 * MS for k in range(30, 36)],  # 5.30-5.35 s: frame 3
+        ]
+    )
+    source = LiveSource(stream, MountGeometry(), period_s=0.1, duration_s=0.3)
+    samples = list(source)
+    assert [round(s.frame.stamp, 9) for s in samples] == [0.0, 0.1, 0.2]
+    b1, _, b3, b4 = stream.handed
+    got = [s.received for s in samples]
+    assert all(r is not None for r in got)
+    # read off the stream after it was handed out, before the next one
+    assert b1 <= got[0] < stream.handed[1]  # type: ignore[operator]
+    assert b3 <= got[1] < b4  # type: ignore[operator]
+    assert b3 <= got[2] < b4  # type: ignore[operator]
+
+
+def test_the_truth_in_the_sensors_time_base_is_shifted_to_the_runs_clock() -> None:
+    """The points' clock starts at 5 s (a synchronised device); the truth x = t on that
+    clock, so at a frame's end e on the run's clock the target is at x = 5 + e."""
+    from dronetrack.sources.recording import GroundTruth
+
+    base = 5_000 * MS
+    stream = _Scripted([[base + k * 10 * MS for k in range(j, j + 10)] for j in (0, 10, 20, 30)])
+    truth = GroundTruth(np.array([5.0, 6.0]), np.array([[5.0, 0.0, 1.0], [6.0, 0.0, 1.0]]))
+    source = LiveSource(stream, MountGeometry(), period_s=0.1, duration_s=0.3, truth=truth)
+    samples = list(source)
+    assert len(samples) == 3
+    for s in samples:
+        assert s.truth is not None
+        assert s.truth.target_position[0] == pytest.approx(5.0 + s.frame.end, abs=1e-9)
+
+
+def test_a_stop_request_ends_the_wait_for_a_frame(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C or SIGTERM while no frame is complete: the iteration ends at once."""
+    import dronetrack.sources.live as live
+
+    monkeypatch.setattr(live, "stop_requested", lambda: True)
+    stream = _Scripted([[0, 1]])
+    t0 = time.monotonic()
+    assert list(LiveSource(stream, MountGeometry(), period_s=0.1)) == []
+    assert time.monotonic() - t0 < 1.0

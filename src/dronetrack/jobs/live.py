@@ -224,16 +224,22 @@ def _frame_period(period: float, where: str) -> float:
 
 
 @contextmanager
-def _turret(uri: str, cfg: ScenarioConfig) -> Iterator[LimitGuard]:
-    """The opened turret; on leaving, it holds its present position and lets go."""
+def _turret(uri: str, cfg: ScenarioConfig, failed: list[DeviceError]) -> Iterator[LimitGuard]:
+    """The opened turret; on leaving, it holds its present position and lets go.  When
+    the run already failed (an exception, or a device error in ``failed``), a failure to
+    hold is not raised over it: the turret may be what failed."""
     guard = open_turret(uri, turret_spec(cfg.turret))
     try:
         yield guard
     except BaseException:
-        with contextlib.suppress(DeviceError):  # the turret may be what failed
+        with contextlib.suppress(DeviceError):
             guard.close()
         raise
-    guard.close()
+    if failed:
+        with contextlib.suppress(DeviceError):
+            guard.close()
+    else:
+        guard.close()
 
 
 def run_live(
@@ -278,8 +284,8 @@ def run_live(
     scan_s = pipeline.scan_until
     total_s = None if setup.duration_s is None else scan_s + setup.duration_s
     log = TrackLogSink(on_row=log_sink)
-    error: DeviceError | None = None
-    with _turret(setup.turret, cfg) as turret:
+    failed: list[DeviceError] = []
+    with _turret(setup.turret, cfg, failed) as turret:
         source: LiveSource | PacedSource
         if stream is None:
             from dronetrack.sources.playback import RecordingSource
@@ -312,7 +318,8 @@ def run_live(
                 stats = run(source, pipeline, turret, [log, *sinks], progress=progress)
                 interrupted = stats.interrupted
             except DeviceError as exc:
-                error, interrupted = exc, False
+                failed.append(exc)
+                interrupted = False
             wall = time.perf_counter() - begin
         finally:
             if stream is not None:
@@ -329,7 +336,7 @@ def run_live(
         turret.clamped,
         lidar,
         setup.turret,
-        error,
+        failed[0] if failed else None,
     )
 
 
