@@ -178,6 +178,14 @@ def test_the_replay_job_imports_no_simulator_module() -> None:
     assert "dronetrack.sources.bag" in reached
 
 
+def test_the_live_job_imports_no_simulator_module() -> None:
+    """``dronetrack live`` on a rig loads no simulator: the emulators are for tests and
+    ``emulate`` only."""
+    reached = _closure("dronetrack.jobs.live") | _closure("dronetrack.cli.live")
+    assert sorted(m for m in reached if m.startswith("dronetrack.sim")) == []
+    assert "dronetrack.sources.live" in reached
+
+
 def _write_bag(path: Path) -> None:
     """A ROS 1 bag of 30 hand-made frames (no simulator): a 0.5 m cloud of 20 points
     moving at 2 m/s, 30 m in front of a fixed sensor, with its ground truth."""

@@ -1,0 +1,328 @@
+"""``dronetrack live`` and ``dronetrack info`` of live devices, on loopback: the emulated
+Avia and XM430s, a recording played at wall-clock speed, bad options, a device that
+falls silent, SIGTERM, and the live Foxglove server.  Every wait has a deadline."""
+
+from __future__ import annotations
+
+import base64
+import csv
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dronetrack.cli.main import run
+from dronetrack.formats.dynamixel import ADDR
+from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource
+from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
+
+LIVE_METRICS = {"latency_ms_p50", "latency_ms_p99", "frames_dropped", "packets_lost",
+                "packets_malformed"}  # fmt: skip
+
+
+def _write_bag(path: Path, frames: int) -> None:
+    """A ROS 1 bag of hand-made 0.1 s frames (no simulator): a 0.5 m cloud of 20 points
+    moving at 2 m/s, 30 m in front of a fixed sensor, with its ground truth."""
+    from dronetrack.geometry.mount import MountGeometry
+    from dronetrack.sinks.bag_writer import RecordingWriter
+    from dronetrack.types import Frame
+
+    rng = np.random.default_rng(5)
+    mount = MountGeometry((0.0, 0.0, 1.0), (0.0, 0.0, 0.05), (0.025, 0.0, 0.086))
+    writer = RecordingWriter(path, "ros1", mount)
+    pose = np.eye(4)
+    pose[:3, 3] = (0.025, 0.0, 1.136)
+    for k in range(frames):
+        t0 = 0.1 * k
+        target = np.array([30.0, -3.0 + 0.2 * k, 6.0])
+        points = target + rng.normal(0.0, 0.15, (20, 3)) - pose[:3, 3]
+        frame = Frame(
+            stamp=t0,
+            duration=0.1,
+            points=points,
+            t=np.linspace(t0, t0 + 0.099, 20),
+            line=np.zeros(20, dtype=np.uint8),
+            intensity=np.full(20, 50.0, dtype=np.float32),
+            pose_t=np.array([t0, t0 + 0.1]),
+            poses=np.stack([pose, pose]),
+        )
+        writer.frame(frame, target, np.eye(3))
+    writer.close()
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def _error_lines(err: str) -> list[str]:
+    assert "Traceback" not in err
+    return [line for line in err.splitlines() if line.startswith("error:")]
+
+
+@pytest.mark.parametrize(
+    ("args", "problem"),
+    [
+        (["--lidar", "http://192.168.1.3", "--turret", "none"], "livox://IP"),
+        (["--lidar", "livox://999.1.1.1", "--turret", "none"], "not an IPv4"),
+        (["--lidar", "livox://192.168.1.3", "--turret", "ptu://x"], "--turret"),
+        (["--lidar", "livox://192.168.1.3", "--turret", "none", "--host-ip", "x"], "--host-ip"),
+        (
+            [
+                "--lidar",
+                "livox://192.168.1.3",
+                "--turret",
+                "none",
+                "--background",
+                "b.npz",
+                "--scan-s",
+                "1",
+            ],
+            "not both",
+        ),
+        (["--turret", "none"], "--lidar"),
+        (["--lidar", "file:///no/such/flight.bag", "--turret", "none"], "no such recording"),
+    ],
+)
+def test_bad_options_are_one_error_line(
+    args: list[str], problem: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert run(["live", *args, "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: ")
+    assert problem in lines[0]
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_recording_plays_at_wall_clock_speed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """40 frames of 0.1 s take 4 s: each is handed on when its end is due; the run
+    folder is simulate's, with each frame's latency and the live metrics (served live
+    to Foxglove meanwhile, when foxglove-sdk is there)."""
+    bag = tmp_path / "flight.bag"
+    _write_bag(bag, 40)
+    out = tmp_path / "run"
+    t0 = time.monotonic()
+    args = ["live", "--lidar", f"file://{bag}", "--turret", "none", "--scan-s", "0.5"]
+    try:
+        import foxglove  # noqa: F401
+
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            args += ["--foxglove-port", str(s.getsockname()[1])]
+    except ImportError:
+        pass
+    assert run([*args, "--out", str(out)]) == 0
+    wall = time.monotonic() - t0
+    assert wall >= 4.0 - 0.05  # the last frame ends 4.0 s after the first's start
+    assert wall < 4.0 + 10.0  # loading, warming up (kernels cached) and writing
+    rows = _rows(out / "frames.csv")
+    assert len(rows) == 35  # after the 0.5 s scan
+    latency = np.array([float(r["latency_ms"]) for r in rows])
+    assert np.all(np.isfinite(latency))
+    assert np.all((latency >= 0.0) & (latency < 100.0))  # within its frame period
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics) >= LIVE_METRICS
+    assert (metrics["frames_dropped"], metrics["packets_lost"]) == (0, 0)
+    assert metrics["coverage_pct"] is not None  # the recording's truth scores it
+    for name in ("config.toml", "top_view.png"):
+        assert (out / name).stat().st_size > 0
+    assert "latency p50 / p99" in capsys.readouterr().out
+
+
+@pytest.fixture
+def servos() -> Iterator[tuple[ServoBus, PtyServoLink]]:
+    pytest.importorskip("dynamixel_sdk")
+    bus = turret_bus(1, 2)
+    link = PtyServoLink(bus, lifetime=120.0)
+    yield bus, link
+    link.close()
+
+
+def test_a_lidar_that_falls_silent_is_one_error_line_and_the_folder_is_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    lidar = EmulatedLivox(GridSource(4_167, 10.0, stride=10), device_port=0).start()
+    port = lidar.address[1]
+    uri = f"livox://127.0.0.1?device_port={port}&cmd_port=0&data_port=0&broadcast_port=0"
+
+    def pause_after_a_second() -> None:
+        deadline = time.monotonic() + 30.0
+        while lidar.packets_sent < 2_500 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        lidar.paused = True
+
+    threading.Thread(target=pause_after_a_second, daemon=True).start()
+    out = tmp_path / "run"
+    try:
+        code = run(["live", "--lidar", uri, "--turret", "none", "--scan-s", "0.3", "--out",
+                    str(out)])  # fmt: skip
+    finally:
+        lidar.close()
+    assert code == 2
+    lines = _error_lines(capsys.readouterr().err)
+    assert len(lines) == 1
+    assert "Livox" in lines[0]
+    assert "no point packet" in lines[0]
+    assert str(out) in lines[0]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert "no point packet" in metrics["error"]
+    assert len(_rows(out / "frames.csv")) >= 5
+
+
+def test_sigterm_holds_the_turret_keeps_the_files_and_exits_130(
+    tmp_path: Path, servos: tuple[ServoBus, PtyServoLink]
+) -> None:
+    """``live`` in its own process on a 10 s recording and the emulated servos: SIGTERM
+    after a few frames ends it with 130, the run folder written and the turret held."""
+    bus, link = servos
+    bag = tmp_path / "flight.bag"
+    _write_bag(bag, 100)
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "dronetrack", "live", "--lidar", f"file://{bag}", "--turret",
+           f"dynamixel://{link.device}", "--scan-s", "0.3", "--out", str(out)]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60.0
+        frames = out / "frames.csv"
+        while time.monotonic() < deadline and proc.poll() is None:
+            if frames.exists() and len(frames.read_text().splitlines()) > 5:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.communicate()[1]
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=20.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=5.0)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err
+    assert "Traceback" not in err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["interrupted"] is True
+    assert len(_rows(out / "frames.csv")) >= 5
+    assert (out / "config.toml").exists()
+    # held: torque on, and the last goal is where the servo was when it was stopped
+    assert bus.value(1, ADDR.TORQUE_ENABLE) == 1
+    assert len(bus.servo(1).goals) >= 5
+    assert abs(bus.value(1, ADDR.GOAL_POSITION) - bus.value(1, ADDR.PRESENT_POSITION)) <= 50
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_info_of_a_livox_device(capsys: pytest.CaptureFixture[str]) -> None:
+    listen = _free_udp_port()
+    lidar = EmulatedLivox(
+        GridSource(4_167, 5.0, stride=10),
+        device_port=0,
+        broadcast_to=("127.0.0.1", listen),
+        broadcast_period_s=0.1,
+        firmware=(3, 1, 2, 4),
+    ).start()
+    port = lidar.address[1]
+    uri = f"livox://127.0.0.1?device_port={port}&cmd_port=0&data_port=0&broadcast_port={listen}"
+    try:
+        assert run(["info", uri]) == 0
+    finally:
+        lidar.close()
+    out = capsys.readouterr().out
+    assert "device: Livox Avia at 127.0.0.1" in out
+    assert "device type: 7" in out
+    assert "broadcast code: 0EMULATEDLIVOX1" in out
+    assert "firmware: 3.1.2.4" in out
+    sampled = next(line for line in out.splitlines() if line.startswith("sampling"))
+    assert "0 lost, 0 malformed" in sampled
+    assert int(sampled.split(": ")[1].split()[0]) > 500  # packets in 0.5 s of 2,500/s
+
+
+def test_info_of_the_servos(
+    servos: tuple[ServoBus, PtyServoLink], capsys: pytest.CaptureFixture[str]
+) -> None:
+    bus, link = servos
+    assert run(["info", f"dynamixel://{link.device}"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("servo ID 1 (pan): model 1020, firmware 48, present position 2048")
+    assert out[1].startswith("servo ID 2 (tilt): model 1020")
+    bus.set_online(2, False)
+    assert run(["info", f"dynamixel://{link.device}"]) == 2
+    lines = _error_lines(capsys.readouterr().err)
+    assert len(lines) == 1
+    assert "ID 2 (tilt)" in lines[0]
+
+
+def _ws_messages(port: int, until_s: float) -> Iterator[dict[str, object]]:
+    """The JSON messages a Foxglove WebSocket server sends a new client (a WebSocket
+    handshake by hand, RFC 6455: unmasked server frames; binary frames skipped)."""
+    sock = socket.create_connection(("127.0.0.1", port), timeout=2.0)
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall(
+        (
+            "GET / HTTP/1.1\r\nHost: localhost\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+            f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
+            "Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
+        ).encode()
+    )
+    buf = b""
+    while b"\r\n\r\n" not in buf:
+        buf += sock.recv(4096)
+    head, buf = buf.split(b"\r\n\r\n", 1)
+    assert head.startswith(b"HTTP/1.1 101"), head
+
+    def need(n: int) -> bytes:
+        nonlocal buf
+        while len(buf) < n:
+            buf += sock.recv(65536)
+        out, buf = buf[:n], buf[n:]
+        return out
+
+    deadline = time.monotonic() + until_s
+    try:
+        while time.monotonic() < deadline:
+            b0, b1 = need(2)
+            size = b1 & 0x7F
+            if size == 126:
+                size = int.from_bytes(need(2), "big")
+            elif size == 127:
+                size = int.from_bytes(need(8), "big")
+            payload = need(size)
+            if b0 & 0x0F == 1:  # a text frame
+                yield json.loads(payload)
+    finally:
+        sock.close()
+
+
+def test_the_live_foxglove_server_advertises_the_runs_topics() -> None:
+    pytest.importorskip("foxglove")
+    from dronetrack.sinks.foxglove_live import FoxgloveServer
+    from dronetrack.sinks.foxglove_out import TOPICS
+
+    server = FoxgloveServer(0)
+    try:
+        advertised: set[str] = set()
+        for message in _ws_messages(server.port, 5.0):
+            if message.get("op") == "advertise":
+                channels = message["channels"]
+                assert isinstance(channels, list)
+                advertised |= {c["topic"] for c in channels}
+            if advertised >= set(TOPICS):
+                break
+        assert advertised >= set(TOPICS)
+    finally:
+        server.close()
