@@ -10,7 +10,7 @@ import sys
 
 import typer
 
-from dronetrack.cli import bench, compare, recordings, simulate, sweep  # noqa: F401  (they register on app)
+from dronetrack.cli import bench, compare, emulate, recordings, simulate, sweep  # noqa: F401  (they register on app)
 from dronetrack.cli.app import INTERRUPTED, RunInterruptedError, app
 from dronetrack.cli.output import err_console
 from dronetrack.errors import DronetrackError
