@@ -9,6 +9,7 @@ its returns are drawn differently, while the truth is the same path.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,8 @@ from dronetrack.jobs.run import run_seeds, turret_pipeline
 from dronetrack.jobs.simulate import flight_config, resolve_run, start_angles
 from dronetrack.sim.build import build_world
 from dronetrack.sim.emulate.rig import EmulatedRig, livox_device
-from dronetrack.sim.world import SimWorld
+from dronetrack.sim.world import FrameTruth, SimWorld
+from dronetrack.types import Frame
 
 __all__ = ["TAIL_FRAMES", "emulated_rig", "emulated_seconds"]
 
@@ -43,12 +45,14 @@ def emulated_rig(
     truth: Path | None = None,
     any_ports: bool = False,
     warm_up: bool = True,
+    on_slice: Callable[[Frame, FrameTruth], None] | None = None,
 ) -> EmulatedRig:
     """The rig of scenario ``cfg`` (resolved first), not yet started.
 
     ConfigError if the scenario's sensor is not a Livox the emulator knows;
     DeviceError if the device's ports cannot be bound or the truth file written.
-    ``warm_up`` compiles the simulator's kernels first, so the first slices are on time.
+    ``warm_up`` compiles the simulator's kernels first, so the first slices are on time;
+    ``any_ports`` and ``on_slice`` as ``livox_device`` and ``EmulatedRig`` say.
     """
     cfg = resolve_run(cfg)
     make_device = livox_device(cfg.sensor.model, lidar_ip, any_ports=any_ports)
@@ -83,4 +87,5 @@ def emulated_rig(
         duration_s=emulated_seconds(cfg),
         serial_link=serial_link,
         truth=truth,
+        on_slice=on_slice,
     )

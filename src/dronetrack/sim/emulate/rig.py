@@ -60,7 +60,8 @@ from dronetrack.sim.emulate.livox_stream import (
     frame_chunks,
 )
 from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
-from dronetrack.sim.world import SimWorld
+from dronetrack.sim.world import FrameTruth, SimWorld
+from dronetrack.types import Frame
 
 __all__ = [
     "DEVICES",
@@ -211,8 +212,11 @@ class EmulatedRig:
     pseudo-terminal; ``truth``: the truth CSV.  ``start`` opens the servo link and
     starts the device; ``close`` stops both and closes the truth file.
 
+    ``on_slice(frame, truth)`` sees each slice as it is made (in the device's thread).
+
     Events: ``started`` (a host started sampling), ``finished`` (the stream of
-    ``duration_s`` has been sent).  Counters: ``slices``, ``truth_rows``, ``starts``.
+    ``duration_s`` has been sent).  Counters: ``slices``, ``points`` (returns made),
+    ``truth_rows``, ``starts``.
     """
 
     def __init__(
@@ -226,6 +230,7 @@ class EmulatedRig:
         pan_id: int = 1,
         tilt_id: int = 2,
         clock: Callable[[], float] = time.monotonic,
+        on_slice: Callable[[Frame, FrameTruth], None] | None = None,
     ) -> None:
         if not duration_s > 0:
             raise ConfigError(f"the emulated run needs a positive duration, got {duration_s} s")
@@ -234,7 +239,9 @@ class EmulatedRig:
         self.truth_path = Path(truth) if truth is not None else None
         self.started = threading.Event()
         self.finished = threading.Event()
+        self.on_slice = on_slice
         self.slices = 0
+        self.points = 0
         self.truth_rows = 0
         self.starts = 0
         self._lock = threading.RLock()
@@ -404,7 +411,10 @@ class EmulatedRig:
                 if world.plant.last_path is not None:
                     self.timeline.add(*world.plant.last_path)
                 self.slices += 1
+                self.points += len(frame)
             self._write_truth(truth.t, truth.target_position)
+            if self.on_slice is not None:
+                self.on_slice(frame, truth)
             chunk = next(frame_chunks([frame]))
             yield replace(chunk, end_ns=round(truth.t * 1e9))
         # the device asks again once the last slice's packets have gone
