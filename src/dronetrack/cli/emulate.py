@@ -4,6 +4,7 @@ hardware."""
 
 from __future__ import annotations
 
+import gc
 import ipaddress
 import math
 import signal
@@ -105,6 +106,10 @@ def emulate(
     cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
     rig = emulated_rig(cfg, lidar_ip=lidar_ip, serial_link=serial_link, truth=truth)
     model = DEVICES[cfg.sensor.model]
+    # What is built stays: no full collection of it pauses a slice (measured 45 ms, once
+    # about every 2 s of stream, without this; under 10 ms with it).
+    gc.collect()
+    gc.freeze()
     stop = threading.Event()
     with rig, _sigterm_sets(stop), stoppable():
         ip, port = rig.address
@@ -127,7 +132,9 @@ def emulate(
             if rig.starts > announced:
                 announced = rig.starts
                 _say("sampling started: the scenario clock runs")
-            if rig.finished.wait(POLL_S) and linger_until == math.inf:
+            if linger_until < math.inf:
+                time.sleep(POLL_S)
+            elif rig.finished.wait(POLL_S):
                 # the host closes after its last frame: stop sampling, park the turret
                 linger_until = time.monotonic() + LINGER_S
     device = rig.device
