@@ -14,7 +14,7 @@ Points.  The world is stepped in slices of one device block (whole packets, abou
 device asks for a slice just before its first packet is due, and each slice says how
 far it covers (``PointChunk.end_ns``), so a slice is made at τ₀ + s₀ − one packet,
 with the turret's goals known then, and its points leave at their own times.  One
-slice takes about 2 ms to make for the Avia (the world's ray casting).
+slice takes 1-2 ms to make for the Avia (the world's ray casting; 1.1 ms median).
 
 Turret.  The two servos' joints (``SimJoint``, a ``servos.JointModel``) are the
 world's own turret plant (``sim.turret.TurretPlant``): a goal the host writes to a
