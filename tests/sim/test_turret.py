@@ -146,3 +146,30 @@ def test_aiming_reduces_to_seed_000_eq_10_at_the_pivot() -> None:
     pan, tilt = aim_angles((30.0, 40.0, 50.0), mount)
     assert pan == pytest.approx(math.atan2(40, 30))
     assert tilt == pytest.approx(-math.atan2(50, 50))
+
+
+def test_one_axis_command_moves_that_axis_alone_after_its_latency() -> None:
+    # A goal for the pan axis alone moves it exactly as a two-axis command whose
+    # tilt goal is where the tilt already is; the tilt never moves.
+    alone, both = TurretPlant(WIDOWX, tilt=0.3), TurretPlant(WIDOWX, tilt=0.3)
+    alone.command_axis("pan", 0.0, 0.8)
+    both.command(TurretCommand(0.0, 0.8, 0.3))
+    t, pan, tilt = alone.advance(1.0)
+    _, pan_both, _ = both.advance(1.0)
+    np.testing.assert_array_equal(pan, pan_both)
+    assert np.all(tilt == alone.state().tilt)
+    # nothing moves before the latency
+    assert np.all(pan[t < WIDOWX.pan.latency] == 0.0)
+    assert pan[-1] == pytest.approx(0.8, abs=WIDOWX.pan.resolution)
+    # the advance's path is kept
+    assert alone.last_path is not None
+    for kept, path in zip(alone.last_path, (t, pan, tilt), strict=True):
+        np.testing.assert_array_equal(kept, path)
+
+
+def test_one_axis_command_needs_an_axis_and_a_finite_angle() -> None:
+    plant = TurretPlant(WIDOWX)
+    with pytest.raises(ConfigError, match="'pan' or 'tilt'"):
+        plant.command_axis("roll", 0.0, 0.1)
+    with pytest.raises(ConfigError, match="finite"):
+        plant.command_axis("tilt", 0.0, math.nan)

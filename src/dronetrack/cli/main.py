@@ -10,7 +10,15 @@ import sys
 
 import typer
 
-from dronetrack.cli import bench, compare, live, recordings, simulate, sweep  # noqa: F401  (they register on app)
+from dronetrack.cli import (  # noqa: F401  (they register on app)
+    bench,
+    compare,
+    emulate,
+    live,
+    recordings,
+    simulate,
+    sweep,
+)
 from dronetrack.cli.app import INTERRUPTED, RunInterruptedError, app
 from dronetrack.cli.output import err_console
 from dronetrack.errors import DronetrackError

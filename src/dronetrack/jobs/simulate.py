@@ -25,15 +25,24 @@ from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import scan_duration
 from dronetrack.jobs.kernels import PIPELINE_WARM_UPS, CompileProgress, warm_up
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
-from dronetrack.pipeline import Stage, run
+from dronetrack.pipeline import Pipeline, Stage, run
 from dronetrack.seams import Sink
 from dronetrack.sim.build import build_world, resolve_scenario
 from dronetrack.sim.rig import SimSource, SimTurret, TruthAimer
+from dronetrack.sim.world import SimWorld
 from dronetrack.sinks.track_log import TrackLogSink
 from dronetrack.track.base import PositionStart
 from dronetrack.types import Sample, StepResult
 
-__all__ = ["CleanViewStart", "resolve_run", "run_lockstep", "run_simulation"]
+__all__ = [
+    "CleanViewStart",
+    "flight_config",
+    "place_at_start",
+    "resolve_run",
+    "run_lockstep",
+    "run_simulation",
+    "start_angles",
+]
 
 Progress = Callable[[int, int], None]
 LogSink = Callable[[TrackLog], None]
@@ -118,30 +127,15 @@ def run_lockstep(
     ]
     cfg = configs[0]
     scan_s = scan_duration(cfg.pipeline)
-    # The flight starts after the background scan: the target waits on the ground.
-    flight = cfg.model_copy(
-        update={
-            "trajectory": cfg.trajectory.model_copy(
-                update={"hold_s": cfg.trajectory.hold_s + scan_s}
-            )
-        }
-    )
     sim_seed, filter_seed = run_seeds(cfg.seed)
-    world = build_world(flight, np.random.default_rng(sim_seed))
+    world = build_world(flight_config(cfg), np.random.default_rng(sim_seed))
     period = cfg.sensor.integration_time_s
     pipelines = [
         turret_pipeline(c, period, world.plant.spec, np.random.default_rng(filter_seed))
         for c in configs
     ]
     lead = pipelines[0]
-    # Where the turret starts: on the scan's first goal, at home (fixed), or on the truth.
-    start_cmd = lead.controller.scanning(0.0) if lead.scanning else None
-    if start_cmd is not None:
-        world.place_turret(start_cmd.pan, start_cmd.tilt)
-    elif mode == "fixed":
-        world.place_turret(*lead.controller.home)
-    elif mode == "truth":
-        world.place_turret(*aim_angles(world.target_position(0.0), world.mount))
+    place_at_start(world, lead, mode)
     n_frames = max(1, math.ceil((scan_s + cfg.duration_s) / period - 1e-9))
     logs: list[TrackLogSink] = []
     stages: list[tuple[Stage, list[Sink]]] = []
@@ -169,6 +163,41 @@ def run_lockstep(
         RunResult(c, log.log, p, stats.wall_s, stats.frames * period, kernels, stats.interrupted)
         for c, log, p in zip(configs, logs, pipelines, strict=True)
     ]
+
+
+def flight_config(cfg: ScenarioConfig) -> ScenarioConfig:
+    """The scenario whose flight starts after the background scan: the target waits on
+    the ground for ``scan_s`` more."""
+    scan_s = scan_duration(cfg.pipeline)
+    return cfg.model_copy(
+        update={
+            "trajectory": cfg.trajectory.model_copy(
+                update={"hold_s": cfg.trajectory.hold_s + scan_s}
+            )
+        }
+    )
+
+
+def start_angles(world: SimWorld, pipeline: Pipeline, mode: str) -> tuple[float, float] | None:
+    """Where the turret starts (pan, tilt) [rad]: on the scan's first goal, at home
+    (``fixed``), or on the true target (``truth``); None: where the scenario's turret
+    section puts it."""
+    start_cmd = pipeline.controller.scanning(0.0) if pipeline.scanning else None
+    if start_cmd is not None:
+        return start_cmd.pan, start_cmd.tilt
+    if mode == "fixed":
+        pan, tilt = pipeline.controller.home
+        return pan, tilt
+    if mode == "truth":
+        return aim_angles(world.target_position(0.0), world.mount)
+    return None
+
+
+def place_at_start(world: SimWorld, pipeline: Pipeline, mode: str) -> None:
+    """Put the turret where a run starts it (``start_angles``)."""
+    angles = start_angles(world, pipeline, mode)
+    if angles is not None:
+        world.place_turret(*angles)
 
 
 class CleanViewStart:

@@ -161,6 +161,8 @@ class TurretPlant:
         self._tilt = _Axis(spec.tilt, min(max(tilt, spec.tilt.lower), spec.tilt.upper))
         self._pan.set_goal("position", self._pan.theta, t0)
         self._tilt.set_goal("position", self._tilt.theta, t0)
+        # The last advance's sample times and pan/tilt pointing (see ``advance``).
+        self.last_path: tuple[FloatArray, FloatArray, FloatArray] | None = None
 
     def command(self, cmd: TurretCommand) -> None:
         """Queue a command; each axis acts on it after its own latency."""
@@ -171,8 +173,18 @@ class TurretPlant:
         self._pan.queue(cmd.stamp, cmd.mode, cmd.pan)
         self._tilt.queue(cmd.stamp, cmd.mode, cmd.tilt)
 
+    def command_axis(self, axis: str, stamp: float, angle: float) -> None:
+        """Queue a position goal [rad] for one axis ('pan' or 'tilt') alone, as a servo
+        takes its own goal; it acts after that axis's latency."""
+        if axis not in ("pan", "tilt"):
+            raise ConfigError(f"a turret axis is 'pan' or 'tilt', not {axis!r}")
+        if not math.isfinite(angle):
+            raise ConfigError("turret command angles must be finite")
+        (self._pan if axis == "pan" else self._tilt).queue(stamp, "position", angle)
+
     def advance(self, t_end: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Run to ``t_end``; return sample times and pan/tilt pointing, both ends included."""
+        """Run to ``t_end``; return sample times and pan/tilt pointing, both ends included
+        (also kept as ``last_path``)."""
         if not t_end > self.time:
             raise InputError(f"turret time runs forward: asked for {t_end} s at {self.time} s")
         n = max(1, math.ceil((t_end - self.time) / self.dt - 1e-9))
@@ -194,6 +206,7 @@ class TurretPlant:
             axis.apply_due(float(t_end))
             out[name] = pointing
         self.time = float(t_end)
+        self.last_path = (times, out["pan"], out["tilt"])
         return times, out["pan"], out["tilt"]
 
     def state(self) -> TurretState:

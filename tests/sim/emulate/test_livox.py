@@ -10,6 +10,7 @@ from __future__ import annotations
 import socket
 import struct
 import time
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -251,3 +252,37 @@ def test_a_callable_source_is_called_afresh_at_each_start(
             assert struct.unpack_from("<i", data.recv(2048), 18)[0] == x_mm
             _ask(cmd, dev, frame(0, seq + 1, 0x04, b"\x00"))
     assert len(calls) == 2
+
+
+@pytest.mark.parametrize("covers", [False, True])
+def test_a_chunk_that_says_how_far_it_covers_is_sent_before_the_next_is_taken(
+    host: tuple[socket.socket, socket.socket], covers: bool
+) -> None:
+    # Chunk A holds a point in block 0, chunk B one in block 1.  Without end_ns the
+    # device must see B's point to know block 0 is complete, so it takes B before it
+    # sends anything; with end_ns = one block, it sends block 0's packets first.
+    cmd, data = host
+    devices: list[EmulatedLivox] = []
+    sent_when_b_taken: list[int] = []
+
+    def source() -> Iterator[PointChunk]:
+        block = devices[0].block_ns
+        one = np.array([[10.0, 0.0, 0.0]])
+        end = block if covers else None
+        yield PointChunk(one, np.zeros(1, np.int64), np.ones(1, np.uint8), end)
+        sent_when_b_taken.append(devices[0].packets_sent)
+        yield PointChunk(one, np.array([block + 10], np.int64), np.ones(1, np.uint8))
+
+    with EmulatedLivox(source, device_port=0) as dev:
+        devices.append(dev)
+        # 50 Avia packets of 96 firings of 4 167 ns: 20.0016 ms, the one nearest 20 ms
+        assert dev.block_ns == 50 * 96 * 4_167
+        _ask(cmd, dev, _handshake(cmd, data))
+        before = time.monotonic()
+        _ask(cmd, dev, frame(0, 2, 0x04, b"\x01"))
+        after = time.monotonic()
+        assert before <= dev.stream_start <= after  # device time 0: the start command
+        deadline = time.monotonic() + 2.0
+        while not sent_when_b_taken and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert sent_when_b_taken == [50 if covers else 0]

@@ -11,6 +11,11 @@ wall clock since the start of sampling reaches its first firing's time p·n·Δt
 thread sleeping at most 5 ms at a time.  The stream ends with the packet of the
 source's last point.
 
+A chunk that says how far it covers (``PointChunk.end_ns``) lets the device build
+the packets up to there without taking the next chunk, so a source can make each
+chunk just before its time (``block_ns`` tells how much device time one build
+spans, and ``stream_start`` when the current sampling started).
+
 Test hooks: ``drop_every`` = k withholds every k-th packet (k, 2k, … counted from 1;
 ``packets_dropped``) and ``paused`` withholds all packets while set.
 """
@@ -57,6 +62,9 @@ class PointChunk:
     xyz: FloatArray
     t_ns: NDArray[np.int64]
     reflectivity: NDArray[np.uint8]
+    # No later chunk holds a point before end_ns (None: unknown).  A device can then
+    # build the packets up to end_ns without waiting for the next chunk.
+    end_ns: int | None = None
 
     def __post_init__(self) -> None:
         n = len(self.t_ns)
@@ -192,6 +200,18 @@ class StreamingDevice:
         packet ``first_packet`` of the stream."""
         raise NotImplementedError
 
+    @property
+    def block_ns(self) -> int:
+        """Device time [ns] one build of packets spans: the whole packets nearest BLOCK_S.
+        Blocks start at 0, so block b spans [b·block_ns, (b + 1)·block_ns)."""
+        n, dt = self.firings_per_packet, self.point_interval_ns
+        return max(round(BLOCK_S * 1e9 / (n * dt)), 1) * n * dt
+
+    @property
+    def stream_start(self) -> float:
+        """time.monotonic() when the current (or last) sampling started: device time 0."""
+        return self._t_start
+
     # -- life cycle ------------------------------------------------------------------
 
     def start(self) -> Self:
@@ -262,6 +282,7 @@ class StreamingDevice:
         self._t_start = time.monotonic()
         self._iter: Iterator[PointChunk] | None = None
         self._exhausted = False
+        self._covered = 0  # no point to come maps to a firing below this
         self._next_packet = 0
         self._pending: deque[tuple[float, int, bytes]] = deque()
         self._slots = np.zeros(0, np.int64)
@@ -295,19 +316,27 @@ class StreamingDevice:
         return now
 
     def _pull(self, until_slot: int) -> None:
-        """Take source chunks until a point at or beyond ``until_slot`` is held."""
+        """Take source chunks until a point at or beyond ``until_slot`` is held, or a
+        chunk's ``end_ns`` says no point before it is to come."""
         if self._iter is None:
             src = self.source
             self._iter = iter(src() if callable(src) else src)
         dt = self.point_interval_ns
-        while not self._exhausted and (len(self._slots) == 0 or self._slots[-1] < until_slot):
+        while (
+            not self._exhausted
+            and self._covered < until_slot
+            and (len(self._slots) == 0 or self._slots[-1] < until_slot)
+        ):
             chunk = next(self._iter, None)
             if chunk is None:
                 self._exhausted = True
                 return
             t = np.asarray(chunk.t_ns, np.int64)
-            # k = round(t / Δt)
+            # k = round(t / Δt) = ⌊(t + ⌊Δt/2⌋) / Δt⌋, non-decreasing in t: a point at or
+            # after end_ns takes a firing at or after the one end_ns maps to
             slots = (t + dt // 2) // dt
+            if chunk.end_ns is not None:
+                self._covered = max(self._covered, (chunk.end_ns + dt // 2) // dt)
             self._slots = np.concatenate([self._slots, slots])
             self._xyz = np.concatenate([self._xyz, np.asarray(chunk.xyz, np.float64)])
             self._refl = np.concatenate([self._refl, np.asarray(chunk.reflectivity, np.uint8)])
@@ -315,7 +344,7 @@ class StreamingDevice:
     def _build_block(self) -> bool:
         """Encode the next BLOCK_S of packets into the pending queue; False at the end."""
         n, dt = self.firings_per_packet, self.point_interval_ns
-        count = max(round(BLOCK_S * 1e9 / (n * dt)), 1)
+        count = self.block_ns // (n * dt)
         first = self._next_packet * n
         end = first + count * n
         self._pull(end)

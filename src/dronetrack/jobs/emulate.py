@@ -1,0 +1,91 @@
+"""``dronetrack emulate``'s rig: a scenario's simulator in real time behind an emulated
+Livox LiDAR and Dynamixel turret (``sim.emulate.rig``), on ``simulate``'s timeline.
+
+The world is built as ``simulate`` builds it, from the same seed: the same flight,
+starting after the background scan, and the turret at the same start pose.  Only its
+integration time differs: it is stepped in the device's slices (about 20 ms), so
+its returns are drawn differently, while the truth is the same path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from dronetrack.config.rig import turret_spec
+from dronetrack.config.run import ScenarioConfig
+from dronetrack.jobs.factory import scan_duration
+from dronetrack.jobs.run import run_seeds, turret_pipeline
+from dronetrack.jobs.simulate import flight_config, resolve_run, start_angles
+from dronetrack.sim.build import build_world
+from dronetrack.sim.emulate.rig import EmulatedRig, livox_device
+from dronetrack.sim.world import FrameTruth, SimWorld
+from dronetrack.types import Frame
+
+__all__ = ["TAIL_FRAMES", "emulated_rig", "emulated_seconds"]
+
+# Periods streamed past the scenario's end, so that a host closes its last frame (a
+# frame is complete when a later point arrives).
+TAIL_FRAMES = 2
+
+
+def emulated_seconds(cfg: ScenarioConfig) -> float:
+    """Scenario time streamed: the background scan, the flight and the tail [s]."""
+    tail = TAIL_FRAMES * cfg.sensor.integration_time_s
+    return scan_duration(cfg.pipeline) + cfg.duration_s + tail
+
+
+def emulated_rig(
+    cfg: ScenarioConfig,
+    *,
+    lidar_ip: str = "127.0.0.1",
+    serial_link: Path | None = None,
+    truth: Path | None = None,
+    any_ports: bool = False,
+    warm_up: bool = True,
+    on_slice: Callable[[Frame, FrameTruth], None] | None = None,
+) -> EmulatedRig:
+    """The rig of scenario ``cfg`` (resolved first), not yet started.
+
+    ConfigError if the scenario's sensor is not a Livox the emulator knows;
+    DeviceError if the device's ports cannot be bound or the truth file written.
+    ``warm_up`` compiles the simulator's kernels first, so the first slices are on time;
+    ``any_ports`` and ``on_slice`` as ``livox_device`` and ``EmulatedRig`` say.
+    """
+    cfg = resolve_run(cfg)
+    make_device = livox_device(cfg.sensor.model, lidar_ip, any_ports=any_ports)
+    sim_seed, filter_seed = run_seeds(cfg.seed)
+    flight = flight_config(cfg)
+    # The pipeline only tells where simulate starts the turret.
+    lead = turret_pipeline(
+        cfg,
+        cfg.sensor.integration_time_s,
+        turret_spec(cfg.turret),
+        np.random.default_rng(filter_seed),
+    )
+    mode = cfg.pipeline.controller.mode
+    start: list[tuple[float, float] | None] = []
+
+    def make_world(slice_s: float) -> SimWorld:
+        sensor = flight.sensor.model_copy(update={"integration_time_s": slice_s})
+        world = build_world(
+            flight.model_copy(update={"sensor": sensor}), np.random.default_rng(sim_seed)
+        )
+        if not start:
+            start.append(start_angles(world, lead, mode))
+            if warm_up:
+                world.warm_up()
+        if start[0] is not None:
+            world.place_turret(*start[0])
+        return world
+
+    return EmulatedRig(
+        make_world,
+        make_device,
+        duration_s=emulated_seconds(cfg),
+        serial_link=serial_link,
+        truth=truth,
+        on_slice=on_slice,
+    )

@@ -1,0 +1,421 @@
+"""A whole rig emulated in real time: the simulator behind a Livox LiDAR on UDP and a
+pan-tilt turret of two XM430 servos on a pseudo-terminal, for ``dronetrack live`` (or
+any host) to drive with no hardware.
+
+Clock.  Scenario time s starts when the host starts sampling: s = τ − τ₀, with τ the
+host's ``time.monotonic()`` and τ₀ the moment the device took the start command.  The
+device's packets carry s too (nanoseconds since sampling started, no time
+synchronisation), so the point times, the truth file and the servos share one time
+base.  Another start after a stop runs the scenario again from the start, on a fresh
+world built the same way.
+
+Points.  The world is stepped in slices of one device block (whole packets, about
+20 ms: ``StreamingDevice.block_ns``; the world's integration time is set to it).  The
+device asks for a slice just before its first packet is due, and each slice says how
+far it covers (``PointChunk.end_ns``), so a slice is made at τ₀ + s₀ − one packet,
+with the turret's goals known then, and its points leave at their own times.  One
+slice takes 1-2 ms to make for the Avia (the world's ray casting; 1.1 ms median).
+
+Turret.  The two servos' joints (``SimJoint``, a ``servos.JointModel``) are the
+world's own turret plant (``sim.turret.TurretPlant``): a goal the host writes to a
+servo is queued on that axis of the plant, stamped with the scenario time it arrives
+at, and acts after the axis's latency as in ``simulate``.  Present position is the
+plant's pointing at the scenario time of the read, interpolated in the path the plant
+took (``TurretTimeline``), the same path the slices' sensor poses came from; present
+velocity is the slope of that path over ±10 ms.  While sampling, the plant runs ahead
+of the clock by at most a slice (the slices move it); a read the slices have not
+reached yet gets the newest pointing.  Before the first start the turret holds its
+start pose (goals wait for the clock); after the stream ends, or after a stop, reads
+move the plant on to their own time.  The profile velocity and acceleration the host
+writes are kept in the control table but do not change the simulated dynamics, which
+are the scenario's turret preset's.  Protocol errors are the servo emulator's
+(``servos``).
+
+Truth.  With a truth file, each start rewrites it: a header ``t,x,y,z`` and one row
+per slice end (and one at s = 0): the target's true position [m] in the world frame at
+scenario time t [s], written and flushed as each slice is made.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import IO, Self
+
+import numpy as np
+
+from dronetrack.errors import ConfigError, DeviceError
+from dronetrack.formats import livox_sdk1 as s1
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.sim.emulate.livox import AVIA, MID40, EmulatedLivox
+from dronetrack.sim.emulate.livox2 import EmulatedLivox2
+from dronetrack.sim.emulate.livox_stream import (
+    PointChunk,
+    PointSource,
+    StreamingDevice,
+    frame_chunks,
+)
+from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
+from dronetrack.sim.world import FrameTruth, SimWorld
+from dronetrack.types import Frame
+
+__all__ = [
+    "DEVICES",
+    "DeviceFactory",
+    "EmulatedRig",
+    "LivoxModel",
+    "SimJoint",
+    "TurretTimeline",
+    "livox_device",
+]
+
+DeviceFactory = Callable[[PointSource], StreamingDevice]
+WorldFactory = Callable[[float], SimWorld]  # slice length [s] → a fresh world
+RATE_HALF_WINDOW_S = 0.01  # present velocity: slope of the path over ±10 ms
+KEEP_PATH_S = 2.0  # how much of the turret's path the timeline keeps [s]
+
+
+@dataclass(frozen=True, slots=True)
+class LivoxModel:
+    """An emulated Livox model: its name, the host's URI scheme and its SDK."""
+
+    name: str
+    scheme: str
+    sdk: int
+
+
+# sensor model of a scenario → the device that streams it
+DEVICES = {
+    "avia": LivoxModel("Livox Avia", "livox", 1),
+    "mid40": LivoxModel("Livox Mid-40", "livox", 1),
+    "mid360": LivoxModel("Livox Mid-360", "livox2", 2),
+}
+
+
+def livox_device(
+    sensor: str, ip: str = "127.0.0.1", *, any_ports: bool = False, broadcast: bool = True
+) -> DeviceFactory:
+    """The emulated device of a scenario's ``sensor`` on ``ip``: an SDK 1 device for the
+    Avia and Mid-40 (command port 65000), the SDK 2 Mid-360 (ports 56000-56300);
+    ``any_ports`` binds free ports instead (tests).  An SDK 1 device with ``broadcast``
+    announces itself to port 55000 of 127.0.0.1 if ``ip`` is a loopback address, else of
+    255.255.255.255.  ConfigError for a sensor no Livox device emulates."""
+    if sensor not in DEVICES:
+        known = ", ".join(DEVICES)
+        raise ConfigError(
+            f"emulate runs Livox sensors ({known}); this scenario's sensor is {sensor!r}"
+        )
+    if DEVICES[sensor].sdk == 2:
+
+        def sdk2(source: PointSource) -> StreamingDevice:
+            if any_ports:
+                return EmulatedLivox2(
+                    source, ip=ip, discovery_port=0, cmd_port=0, push_port=0, point_port=0
+                )
+            return EmulatedLivox2(source, ip=ip)
+
+        return sdk2
+    dev_type = AVIA if sensor == "avia" else MID40
+    to = None
+    if broadcast:
+        to = ("127.0.0.1" if ip.startswith("127.") else "255.255.255.255", s1.BROADCAST_PORT)
+
+    def sdk1(source: PointSource) -> StreamingDevice:
+        port = 0 if any_ports else s1.LIDAR_CMD_PORT
+        return EmulatedLivox(source, dev_type=dev_type, ip=ip, device_port=port, broadcast_to=to)
+
+    return sdk1
+
+
+class TurretTimeline:
+    """The path the simulated turret took: sample times s [s] and pan/tilt pointing [rad],
+    the last ``keep_s`` seconds of it.  Not thread-safe: the rig's lock guards it."""
+
+    def __init__(self, keep_s: float = KEEP_PATH_S) -> None:
+        self.keep_s = keep_s
+        self.t = np.zeros(1)
+        self.q = np.zeros((1, 2))
+
+    def reset(self, t: float, pan: float, tilt: float) -> None:
+        """One sample: the turret at (pan, tilt) at time t."""
+        self.t = np.array([t], np.float64)
+        self.q = np.array([[pan, tilt]], np.float64)
+
+    def add(self, times: FloatArray, pan: FloatArray, tilt: FloatArray) -> None:
+        """Append a stretch of path (times increasing, past the last sample's)."""
+        new = np.asarray(times, np.float64) > self.t[-1]
+        t = np.concatenate([self.t, np.asarray(times, np.float64)[new]])
+        q = np.concatenate([self.q, np.column_stack([pan, tilt])[new]])
+        keep = t >= t[-1] - self.keep_s
+        self.t, self.q = t[keep], q[keep]
+
+    @property
+    def end(self) -> float:
+        return float(self.t[-1])
+
+    def at(self, s: float) -> tuple[float, float]:
+        """(pan, tilt) at time s, linear between samples, held outside them."""
+        return (
+            float(np.interp(s, self.t, self.q[:, 0])),
+            float(np.interp(s, self.t, self.q[:, 1])),
+        )
+
+    def rate(self, s: float, h: float = RATE_HALF_WINDOW_S) -> tuple[float, float]:
+        """(pan, tilt) rates at s: ω ≈ (q(b) − q(a)) / (b − a), a = s − h, b = s + h,
+        both clipped to the samples; 0 where the path has no length."""
+        a, b = max(s - h, float(self.t[0])), min(s + h, self.end)
+        if not b - a > 1e-9:
+            return 0.0, 0.0
+        pa, ta = self.at(a)
+        pb, tb = self.at(b)
+        return (pb - pa) / (b - a), (tb - ta) / (b - a)
+
+
+class SimJoint:
+    """One axis of the rig's simulated turret as a servo's joint (``servos.JointModel``);
+    t is the servo bus's clock (time.monotonic)."""
+
+    def __init__(self, rig: EmulatedRig, axis: str) -> None:
+        if axis not in ("pan", "tilt"):
+            raise ConfigError(f"a turret axis is 'pan' or 'tilt', not {axis!r}")
+        self.rig = rig
+        self.axis = axis
+        self._index = 0 if axis == "pan" else 1
+        self.profile_rate = 0.0  # as the host wrote them; the dynamics are the preset's
+        self.profile_accel = 0.0
+
+    def profile(self, rate: float, accel: float, t: float) -> None:
+        self.profile_rate, self.profile_accel = rate, accel
+
+    def goal(self, angle: float, t: float) -> None:
+        self.rig.command_axis(self.axis, angle, t)
+
+    def position(self, t: float) -> float:
+        return self.rig.turret_at(t)[self._index]
+
+    def velocity(self, t: float) -> float:
+        return self.rig.turret_rate(t)[self._index]
+
+
+class EmulatedRig:
+    """The simulator in real time behind an emulated Livox device and two emulated
+    XM430 servos on a pseudo-terminal (see the module docstring).
+
+    ``make_world(slice_s)`` builds the scenario's world with integration time
+    ``slice_s`` (called once now and again at each restart of sampling);
+    ``make_device(source)`` the LiDAR (``livox_device``); ``duration_s``: scenario time
+    streamed from the start of sampling; ``serial_link``: a symlink to the servos'
+    pseudo-terminal; ``truth``: the truth CSV.  ``start`` opens the servo link and
+    starts the device; ``close`` stops both and closes the truth file.
+
+    ``on_slice(frame, truth)`` sees each slice as it is made (in the device's thread).
+
+    Events: ``started`` (a host started sampling), ``finished`` (the stream of
+    ``duration_s`` has been sent).  Counters: ``slices``, ``points`` (returns made),
+    ``truth_rows``, ``starts``.
+    """
+
+    def __init__(
+        self,
+        make_world: WorldFactory,
+        make_device: DeviceFactory,
+        *,
+        duration_s: float,
+        serial_link: Path | str | None = None,
+        truth: Path | str | None = None,
+        pan_id: int = 1,
+        tilt_id: int = 2,
+        clock: Callable[[], float] = time.monotonic,
+        on_slice: Callable[[Frame, FrameTruth], None] | None = None,
+    ) -> None:
+        if not duration_s > 0:
+            raise ConfigError(f"the emulated run needs a positive duration, got {duration_s} s")
+        self.duration_s = float(duration_s)
+        self.serial_link = Path(serial_link) if serial_link is not None else None
+        self.truth_path = Path(truth) if truth is not None else None
+        self.started = threading.Event()
+        self.finished = threading.Event()
+        self.on_slice = on_slice
+        self.slices = 0
+        self.points = 0
+        self.truth_rows = 0
+        self.starts = 0
+        self._lock = threading.RLock()
+        self._anchor: float | None = None
+        self._make_world = make_world
+        self._truth: IO[str] | None = None
+        self.timeline = TurretTimeline()
+        self.device = make_device(self._stream)
+        self.slice_s = self.device.block_ns * 1e-9
+        try:
+            self.world = make_world(self.slice_s)
+            if not math.isclose(self.world.integration_time, self.slice_s, rel_tol=1e-12):
+                raise ConfigError(
+                    f"the emulated world steps {self.world.integration_time} s, not the "
+                    f"device's block of {self.slice_s} s"
+                )
+            self._fresh = True
+            self._reset_timeline()
+            self._open_truth()
+        except BaseException:
+            self.device.close()
+            raise
+        self.bus: ServoBus = turret_bus(
+            pan_id, tilt_id, clock=clock, pan=SimJoint(self, "pan"), tilt=SimJoint(self, "tilt")
+        )
+        self.link: PtyServoLink | None = None
+
+    # -- life cycle ---------------------------------------------------------------------
+
+    def start(self) -> Self:
+        """Open the servos' pseudo-terminal (and its link) and start the device."""
+        if self.link is None:
+            self.link = PtyServoLink(self.bus, self.serial_link)
+            self.device.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the device and the servo link (removing the link) and close the truth
+        file; safe to call twice."""
+        self.device.close()
+        if self.link is not None:
+            self.link.close()
+        with self._lock:
+            if self._truth is not None:
+                self._truth.close()
+                self._truth = None
+
+    def __enter__(self) -> Self:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """(ip, port) of the device's command socket."""
+        ip, port = self.device.address  # type: ignore[attr-defined]
+        return str(ip), int(port)
+
+    @property
+    def serial_device(self) -> str:
+        """The path a host opens for the servos: the link if asked for, else the pty."""
+        if self.link is None:
+            raise DeviceError("the emulated rig is not started")
+        return self.link.device
+
+    # -- the clock --------------------------------------------------------------------
+
+    def scenario_time(self, t: float | None = None) -> float | None:
+        """Scenario time [s] at monotonic time ``t`` (now if None); None before sampling."""
+        anchor = self._anchor
+        if anchor is None:
+            return None
+        return (time.monotonic() if t is None else t) - anchor
+
+    def _stamp(self, t: float) -> float:
+        """The scenario time of a servo exchange at ``t``: the plant's own time before
+        the clock starts (goals wait for it), never before 0."""
+        if self._anchor is None:
+            return self.world.plant.time
+        return max(t - self._anchor, 0.0)
+
+    # -- the turret ---------------------------------------------------------------------
+
+    def _reset_timeline(self) -> None:
+        state = self.world.turret_state()
+        self.timeline.reset(self.world.plant.time, state.pan, state.tilt)
+
+    def _catch_up(self, s: float) -> None:
+        """Between streams (after a stop or the end), move the plant on to s."""
+        plant = self.world.plant
+        if self._anchor is None or self.device.sampling or not s > plant.time + plant.dt:
+            return
+        plant.advance(s)
+        if plant.last_path is not None:
+            self.timeline.add(*plant.last_path)
+
+    def command_axis(self, axis: str, angle: float, t: float) -> None:
+        """A goal [rad] a servo took at monotonic time ``t``."""
+        with self._lock:
+            s = self._stamp(t)
+            self._catch_up(s)
+            self.world.plant.command_axis(axis, s, angle)
+
+    def turret_at(self, t: float) -> tuple[float, float]:
+        """(pan, tilt) pointing [rad] at monotonic time ``t``."""
+        with self._lock:
+            s = self._stamp(t)
+            self._catch_up(s)
+            return self.timeline.at(s)
+
+    def turret_rate(self, t: float) -> tuple[float, float]:
+        """(pan, tilt) rates [rad/s] at monotonic time ``t``."""
+        with self._lock:
+            s = self._stamp(t)
+            self._catch_up(s)
+            return self.timeline.rate(s)
+
+    # -- the stream ---------------------------------------------------------------------
+
+    def _open_truth(self) -> None:
+        """(Re)write the truth file's header; DeviceError if it cannot be written."""
+        if self.truth_path is None:
+            return
+        if self._truth is not None:
+            self._truth.close()
+        try:
+            self.truth_path.parent.mkdir(parents=True, exist_ok=True)
+            self._truth = self.truth_path.open("w", encoding="ascii")
+            self._truth.write("t,x,y,z\n")
+            self._truth.flush()
+        except OSError as exc:
+            raise DeviceError(f"cannot write the truth file {self.truth_path}: {exc}") from exc
+        self.truth_rows = 0
+
+    def _write_truth(self, t: float, p: FloatArray) -> None:
+        with self._lock:
+            if self._truth is None:
+                return
+            self._truth.write(f"{t:.9f},{p[0]:.6f},{p[1]:.6f},{p[2]:.6f}\n")
+            self._truth.flush()
+            self.truth_rows += 1
+
+    def _stream(self) -> Iterator[PointChunk]:
+        """The device's source, called (in the device's thread) at each start of
+        sampling: anchor the clock, take a fresh world after the first run, stream."""
+        with self._lock:
+            if not self._fresh:
+                self.world = self._make_world(self.slice_s)
+                self._reset_timeline()
+                if self.truth_rows:
+                    self._open_truth()
+            self._fresh = False
+            self._anchor = self.device.stream_start
+            self.starts += 1
+            self.finished.clear()
+        self.started.set()
+        return self._slices(self.world)
+
+    def _slices(self, world: SimWorld) -> Iterator[PointChunk]:
+        """The world's slices as point chunks, each covering up to its end."""
+        n = max(1, math.ceil(self.duration_s / self.slice_s - 1e-9))
+        self._write_truth(0.0, world.target_position(0.0))
+        for _ in range(n):
+            with self._lock:
+                frame, truth = world.step()
+                if world.plant.last_path is not None:
+                    self.timeline.add(*world.plant.last_path)
+                self.slices += 1
+                self.points += len(frame)
+            self._write_truth(truth.t, truth.target_position)
+            if self.on_slice is not None:
+                self.on_slice(frame, truth)
+            chunk = next(frame_chunks([frame]))
+            yield replace(chunk, end_ns=round(truth.t * 1e9))
+        # the device asks again once the last slice's packets have gone
+        self.finished.set()

@@ -1,0 +1,172 @@
+"""``dronetrack emulate``: what it prints, its exit codes and its truth file, driven by the
+host-side clients on loopback (the Livox SDK 1 client, the DYNAMIXEL SDK turret).
+
+The command runs in a subprocess on a loopback address of its own (127.0.0.x), so its
+fixed device port 65000 meets no other test's; every wait is bounded."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dronetrack.actuators.dynamixel import DynamixelTurret
+from dronetrack.cli.main import run
+from dronetrack.errors import DeviceError
+from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
+
+AVIA_SLICE_S = 50 * 96 * 4_167e-9  # one device block: 50 packets of 96 firings
+START_S = 120.0  # the command's start, with the simulator's kernels compiled once
+
+
+@dataclass
+class Emulator:
+    proc: subprocess.Popen[bytes]
+    ip: str
+    link: Path
+    truth: Path
+    lines: list[str]
+
+
+def _scenario(tmp_path: Path, flight_s: float) -> Path:
+    toml = tmp_path / "short.toml"
+    toml.write_text(
+        f'base = "default"\nduration_s = {flight_s}\n\n[pipeline.background]\nscan_s = 0.5\n'
+    )
+    return toml
+
+
+@contextmanager
+def emulator(tmp_path: Path, flight_s: float) -> Iterator[Emulator]:
+    """``dronetrack emulate`` of the default scenario with a 0.5 s scan and ``flight_s``
+    of flight, once it has printed its two addresses; killed after if still running."""
+    ip = f"127.0.0.{20 + os.getpid() % 200}"
+    link, truth = tmp_path / "ttyDXL", tmp_path / "truth.csv"
+    args = [str(_scenario(tmp_path, flight_s)), "--lidar-ip", ip]
+    args += ["--serial-link", str(link), "--truth", str(truth)]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dronetrack", "emulate", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        assert proc.stdout is not None
+        out = b""
+        deadline = time.monotonic() + START_S
+        while out.count(b"\n") < 2 and time.monotonic() < deadline:
+            ready, _, _ = select.select([proc.stdout], [], [], 0.5)
+            if ready:
+                got = os.read(proc.stdout.fileno(), 4096)
+                if not got:
+                    break
+                out += got
+        lines = out.decode().splitlines()
+        assert len(lines) == 2, (lines, proc.poll())
+        yield Emulator(proc, ip, link, truth, lines)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(timeout=10)
+        for pipe in (proc.stdout, proc.stderr):
+            if pipe is not None:
+                pipe.close()
+
+
+def _client(ip: str) -> LivoxClient:
+    return LivoxClient(LivoxEndpoint(ip, None, 0, 0, 0), discover_s=0.1)
+
+
+def test_emulate_prints_its_devices_streams_the_scenario_and_exits_0(tmp_path: Path) -> None:
+    with emulator(tmp_path, flight_s=0.5) as emu:
+        lidar, turret_line = emu.lines
+        assert lidar.startswith(f"lidar: livox://{emu.ip}  (Livox Avia, UDP {emu.ip}:65000)")
+        pattern = r"turret: dynamixel://(\S+)  \(2 XM430-W350, pan ID 1, tilt ID 2, on "
+        found = re.match(pattern, turret_line)
+        assert found is not None
+        assert found.group(1) == str(emu.link)
+        assert os.path.realpath(emu.link).startswith("/dev/pts/")
+        turret = DynamixelTurret(found.group(1))
+        points, lost = 0, -1
+        try:
+            with _client(emu.ip) as client:
+                client.open(timeout_s=3.0)
+                deadline = time.monotonic() + 10.0
+                # until the stream ends: no packet for the client's 1 s
+                with pytest.raises(DeviceError, match="no point packet"):  # noqa: PT012
+                    while time.monotonic() < deadline:
+                        points += len(client.read(0.05))
+                lost = client.packets_lost
+            assert emu.proc.poll() is None  # still answering while the host closes
+        finally:
+            turret.close()
+        rc = emu.proc.wait(timeout=10)
+        err = emu.proc.stderr.read().decode() if emu.proc.stderr else ""
+    assert rc == 0, err
+    assert points > 0
+    assert lost == 0
+    assert "sampling started" in err
+    assert "Traceback" not in err
+    # 0.5 s scan + 0.5 s flight + 2 periods of tail, in whole device blocks, a truth row
+    # at each block's end and at 0, flushed as it went
+    slices = math.ceil((0.5 + 0.5 + 0.2) / AVIA_SLICE_S)
+    assert f"streamed {slices * AVIA_SLICE_S:.2f} s" in err
+    table = np.loadtxt(emu.truth, delimiter=",", skiprows=1)
+    assert table.shape == (slices + 1, 4)
+    np.testing.assert_allclose(table[:, 0], np.arange(slices + 1) * AVIA_SLICE_S, atol=1e-9)
+    assert not emu.link.exists()  # the link goes with the command
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_emulate_stopped_by_a_signal_exits_130_and_keeps_the_truth(
+    tmp_path: Path, signum: signal.Signals
+) -> None:
+    with emulator(tmp_path, flight_s=20.0) as emu, _client(emu.ip) as client:
+        client.open(timeout_s=3.0)
+        deadline = time.monotonic() + 0.5
+        while time.monotonic() < deadline:
+            client.read(0.05)
+        emu.proc.send_signal(signum)
+        rc = emu.proc.wait(timeout=10)
+        err = emu.proc.stderr.read().decode() if emu.proc.stderr else ""
+    assert rc == 130, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("interrupted; truth (")
+    assert str(emu.truth) in last
+    assert "Traceback" not in err
+    table = np.loadtxt(emu.truth, delimiter=",", skiprows=1, ndmin=2)
+    # about 0.5 s of slices were made before the signal (20 ms each)
+    assert len(table) >= 10
+    assert table[0, 0] == 0.0
+    assert np.all(np.diff(table[:, 0]) > 0)
+    assert not emu.link.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--lidar-ip", "300.1.2.3"], "error: --lidar-ip '300.1.2.3' is not an IPv4 address"),
+        (["walk-square"], "error: emulate runs Livox sensors (avia, mid40, mid360)"),
+        (["nowhere"], "error: unknown scenario 'nowhere'"),
+        (["--duration", "0"], "error: Invalid value for '--duration'"),
+        (["--lidar-ip", "192.0.2.1"], "error: emulated Livox: cannot bind 192.0.2.1:65000"),
+    ],
+)
+def test_emulate_bad_options_fail_with_one_line_and_exit_2(
+    args: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert run(["emulate", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(message)
+    assert "\n" not in err
