@@ -15,9 +15,9 @@ import pytest
 
 from dronetrack.config.run import ScenarioConfig, apply_overrides
 from dronetrack.config.scenarios import get_scenario
-from dronetrack.errors import ConfigError, DeviceError, InputError
+from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.formats.dynamixel import ADDR
-from dronetrack.jobs.live import LiveSetup, live_config, read_truth_csv, run_live
+from dronetrack.jobs.live import LiveSetup, live_config, run_live
 from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
 from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
 from dronetrack.types import Sample, StepResult
@@ -190,13 +190,3 @@ def test_options_a_rig_cannot_run_are_config_errors() -> None:
         run_live(live_config(cfg), LiveSetup("http://192.168.1.3", "none"))
     with pytest.raises(ConfigError, match="--turret"):
         run_live(live_config(cfg), LiveSetup("livox://192.168.1.3", "ptu"))
-
-
-def test_a_truth_file_must_hold_numbers_in_time_order(tmp_path: Path) -> None:
-    bad = tmp_path / "truth.csv"
-    bad.write_text("t,x,y,z\n1.0,0,0,0\n0.5,0,0,0\n")
-    with pytest.raises(InputError, match="must not decrease"):
-        read_truth_csv(bad)
-    bad.write_text("t,x,y\n1.0,0,0\n")
-    with pytest.raises(InputError, match="missing column"):
-        read_truth_csv(bad)

@@ -260,3 +260,37 @@ def test_a_stop_request_ends_the_wait_for_a_frame(monkeypatch: pytest.MonkeyPatc
     t0 = time.monotonic()
     assert list(LiveSource(stream, MountGeometry(), period_s=0.1)) == []
     assert time.monotonic() - t0 < 1.0
+
+
+def test_a_truth_file_is_read_as_it_grows(tmp_path: object) -> None:
+    """emulate writes the truth while the run goes: rows count once their line is
+    complete; a bad value or a time going back names the file and line."""
+    from pathlib import Path
+
+    from dronetrack.errors import InputError
+    from dronetrack.sources.live import TruthFile
+
+    path = Path(str(tmp_path)) / "truth.csv"
+    path.write_text("t,x,y,z\n")
+    truth = TruthFile(path)
+    assert truth.ground_truth() is None
+    with path.open("a") as fh:
+        fh.write("0.0,1,2,3\n0.5,2,2,3\n1.0,3,2")  # the last line not finished yet
+    g = truth.ground_truth()
+    assert g is not None
+    np.testing.assert_allclose(g.t, [0.0, 0.5])
+    np.testing.assert_allclose(g.at(0.25)[0], [1.5, 2.0, 3.0])
+    with path.open("a") as fh:
+        fh.write(",3\n")
+    g = truth.ground_truth()
+    assert g is not None
+    np.testing.assert_allclose(g.position[-1], [3.0, 2.0, 3.0])
+    with path.open("a") as fh:
+        fh.write("0.9,3,2,3\n")
+    with pytest.raises(InputError, match="line 5: t must not decrease"):
+        truth.ground_truth()
+    path.write_text("t,x,y\n")
+    with pytest.raises(InputError, match="missing column"):
+        TruthFile(path)
+    with pytest.raises(InputError, match="not found"):
+        TruthFile(path.with_name("none.csv"))

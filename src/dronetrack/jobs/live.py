@@ -34,21 +34,19 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from dronetrack.actuators.turrets import LimitGuard, check_turret_uri, open_turret
+from dronetrack.actuators.turrets import FixedSensor, LimitGuard, check_turret_uri, open_turret
 from dronetrack.config.rig import resolve_turret, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig
-from dronetrack.errors import ConfigError, DeviceError, InputError
+from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.eval.log import TrackLog
-from dronetrack.formats.tables import read_csv_columns
 from dronetrack.jobs.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
 from dronetrack.jobs.replay import TARGET_MARGIN_M, recording_config
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
 from dronetrack.pipeline import run
 from dronetrack.seams import Sink, Source
 from dronetrack.sinks.track_log import TrackLogSink
-from dronetrack.sources.live import LiveSource, PointStream
+from dronetrack.sources.live import LiveSource, PointStream, TruthFile
 from dronetrack.sources.paced import FILE_SCHEME, PacedSource
-from dronetrack.sources.recording import GroundTruth
 from dronetrack.types import Sample
 
 __all__ = [
@@ -59,7 +57,6 @@ __all__ = [
     "live_config",
     "open_point_stream",
     "probe_lidar",
-    "read_truth_csv",
     "run_live",
 ]
 
@@ -112,17 +109,6 @@ def _recording_path(uri: str) -> Path:
     if not str(path) or str(path) == ".":
         raise ConfigError(f"--lidar {uri!r} names no recording after file://")
     return path
-
-
-def read_truth_csv(path: Path) -> GroundTruth:
-    """``--truth``: the target's positions, CSV columns t,x,y,z [s, m], t in the sensor's
-    time base; at least one row, finite values, t not decreasing."""
-    data = read_csv_columns(path, ("t", "x", "y", "z"), InputError, "truth CSV")
-    if not np.all(np.isfinite(data)):
-        raise InputError(f"truth CSV {path} has NaN or infinite values")
-    if np.any(np.diff(data[:, 0]) < 0):
-        raise InputError(f"truth CSV {path}: t must not decrease")
-    return GroundTruth(data[:, 0].copy(), data[:, 1:].copy())
 
 
 def base_config(scenario: ScenarioConfig | None, lidar: str) -> ScenarioConfig:
@@ -264,7 +250,7 @@ def run_live(
     if not lidar.startswith(LIDAR_SCHEMES):
         open_point_stream(lidar)  # raises the ConfigError that lists the schemes
     check_turret_uri(setup.turret)
-    truth = read_truth_csv(setup.truth) if setup.truth is not None else None
+    truth = TruthFile(setup.truth) if setup.truth is not None else None
     radius = 0.5 * target_spec(cfg.drone.model).s_diag + TARGET_MARGIN_M
     if lidar.startswith(FILE_SCHEME):
         from dronetrack.sources.recordings import open_recording
@@ -300,7 +286,7 @@ def run_live(
             stream.open(OPEN_TIMEOUT_S)
         try:
             if stream is not None:
-                reader = turret if turret.state() is not None else None
+                reader = None if isinstance(turret.turret, FixedSensor) else turret
                 source = LiveSource(
                     stream,
                     spec.mount,
@@ -354,7 +340,7 @@ class _TruthOverride:
     """A recording's frames with the ``--truth`` file as their truth (its t on the
     recording's clock)."""
 
-    def __init__(self, source: Source, truth: GroundTruth, radius: float) -> None:
+    def __init__(self, source: Source, truth: TruthFile, radius: float) -> None:
         self.source = source
         self.truth = truth
         self.radius = radius
@@ -367,8 +353,9 @@ class _TruthOverride:
         from dronetrack.sources.playback import RecordedTruth
 
         for sample in self.source:
+            g = self.truth.ground_truth()
             t = sample.frame.end
-            truth = RecordedTruth(self.truth, self.truth.at(t)[0], self.radius)
+            truth = None if g is None else RecordedTruth(g, g.at(t)[0], self.radius)
             yield replace(sample, truth=truth)
 
 

@@ -45,9 +45,12 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Protocol
 
-from dronetrack.errors import ConfigError, DeviceError, DronetrackError
+import numpy as np
+
+from dronetrack.errors import ConfigError, DeviceError, DronetrackError, InputError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.interrupt import stop_requested
 from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, PoseHistory, StreamFrame
@@ -55,7 +58,7 @@ from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth
 from dronetrack.types import Sample, TurretState
 
-__all__ = ["LiveSource", "PointStream", "TurretReader"]
+__all__ = ["LiveSource", "PointStream", "TruthFile", "TurretReader"]
 
 POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 
@@ -72,6 +75,69 @@ class PointStream(Protocol):
     def read(self, timeout_s: float = 0.1) -> PointBatch: ...
 
     def close(self) -> None: ...
+
+
+class TruthFile:
+    """``--truth``: a CSV of t,x,y,z [s, m] read as it grows (``dronetrack emulate``
+    writes it row by row while the run goes).  ``ground_truth`` reads the rows added
+    since the last call (a line is taken once it is complete) and gives them all;
+    None while there are none.  InputError names the file and line of a bad header,
+    a value that is not a finite number, or a time that goes back."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise InputError(f"truth CSV not found: {self.path}")
+        self._offset = 0
+        self._rest = b""
+        self._line = 0
+        self._columns: list[int] | None = None
+        self._rows: list[list[float]] = []
+        self._built: GroundTruth | None = None
+        self.ground_truth()  # check what is there already
+
+    def _parse(self, line: str) -> None:
+        self._line += 1
+        cells = [c.strip() for c in line.strip().lstrip("\ufeff").split(",")]
+        if cells == [""]:
+            return
+        if self._columns is None:
+            names = [c.lower() for c in cells]
+            missing = [c for c in ("t", "x", "y", "z") if c not in names]
+            if missing:
+                raise InputError(
+                    f"truth CSV {self.path} is missing column(s): {', '.join(missing)}"
+                )
+            self._columns = [names.index(c) for c in ("t", "x", "y", "z")]
+            return
+        try:
+            row = [float(cells[i]) for i in self._columns]
+        except (ValueError, IndexError):
+            raise InputError(f"truth CSV {self.path} line {self._line}: {line.strip()!r}") from None
+        if not all(math.isfinite(v) for v in row):
+            raise InputError(f"truth CSV {self.path} line {self._line}: not a finite number")
+        if self._rows and row[0] < self._rows[-1][0]:
+            raise InputError(f"truth CSV {self.path} line {self._line}: t must not decrease")
+        self._rows.append(row)
+
+    def ground_truth(self) -> GroundTruth | None:
+        try:
+            with self.path.open("rb") as fh:
+                fh.seek(self._offset)
+                data = fh.read()
+                self._offset = fh.tell()
+        except OSError as exc:
+            raise InputError(f"truth CSV {self.path}: {exc}") from exc
+        *lines, self._rest = (self._rest + data).split(b"\n")
+        before = len(self._rows)
+        for line in lines:
+            self._parse(line.decode("utf-8", "replace"))
+        if not self._rows:
+            return None
+        if self._built is None or len(self._rows) != before:
+            a = np.asarray(self._rows, dtype=np.float64)
+            self._built = GroundTruth(a[:, 0].copy(), a[:, 1:].copy())
+        return self._built
 
 
 class TurretReader(Protocol):
@@ -93,7 +159,8 @@ class LiveSource:
     the sensor pose (None: a fixed sensor at pan = tilt = 0); ``period_s``: the
     integration time; ``max_frames``: the queue bound; ``duration_s``: stop after
     this much sensor time (None: until the stream ends or the run is stopped);
-    ``truth``: the target's positions in the sensor's time base (``--truth``), and
+    ``truth``: the target's positions in the sensor's time base (``--truth``; a
+    ``TruthFile`` is read as it grows), and
     ``truth_radius``: a return within it of the true position counts as the
     target's [m].
     """
@@ -107,7 +174,7 @@ class LiveSource:
         period_s: float = 0.1,
         max_frames: int = 2,
         duration_s: float | None = None,
-        truth: GroundTruth | None = None,
+        truth: GroundTruth | TruthFile | None = None,
         truth_radius: float = 0.5,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
@@ -119,7 +186,7 @@ class LiveSource:
         self.duration_s = duration_s
         self.truth = truth
         self.truth_radius = truth_radius
-        self._run_truth: GroundTruth | None = None  # the truth on the run's clock
+        self._run_truth: tuple[GroundTruth, GroundTruth] | None = None  # (given, shifted)
         self.clock = clock
         self.assembler = FrameAssembler(period_s)
         self.poses = PoseHistory(mount, keep_s=max(2.0, 4 * period_s))
@@ -249,12 +316,12 @@ class LiveSource:
 
     def _truth_at(self, t: float, t0_ns: int) -> RecordedTruth | None:
         """The truth at ``t`` on the run's clock (None without ``truth``)."""
-        if self.truth is None:
+        g = self.truth.ground_truth() if isinstance(self.truth, TruthFile) else self.truth
+        if g is None:
             return None
-        if self._run_truth is None:
-            g = self.truth
-            self._run_truth = GroundTruth(g.t - t0_ns / NS, g.position, g.max_gap_s)
-        run_truth = self._run_truth
+        if self._run_truth is None or self._run_truth[0] is not g:
+            self._run_truth = (g, GroundTruth(g.t - t0_ns / NS, g.position, g.max_gap_s))
+        run_truth = self._run_truth[1]
         return RecordedTruth(run_truth, run_truth.at(t)[0], self.truth_radius)
 
     def stop(self) -> None:
