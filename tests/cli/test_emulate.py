@@ -9,14 +9,9 @@ from __future__ import annotations
 import math
 import os
 import re
-import select
 import signal
-import subprocess
-import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 import numpy as np
@@ -26,18 +21,9 @@ from dronetrack.actuators.dynamixel import DynamixelTurret
 from dronetrack.cli.main import run
 from dronetrack.errors import DeviceError
 from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
+from emulated_rig import Emulator, emulator
 
 AVIA_SLICE_S = 50 * 96 * 4_167e-9  # one device block: 50 packets of 96 firings
-START_S = 120.0  # the command's start, with the simulator's kernels compiled once
-
-
-@dataclass
-class Emulator:
-    proc: subprocess.Popen[bytes]
-    ip: str
-    link: Path
-    truth: Path
-    lines: list[str]
 
 
 def _scenario(tmp_path: Path, flight_s: float) -> Path:
@@ -48,40 +34,10 @@ def _scenario(tmp_path: Path, flight_s: float) -> Path:
     return toml
 
 
-@contextmanager
-def emulator(tmp_path: Path, flight_s: float) -> Iterator[Emulator]:
+def _emulator(tmp_path: Path, flight_s: float) -> AbstractContextManager[Emulator]:
     """``dronetrack emulate`` of the default scenario with a 0.5 s scan and ``flight_s``
-    of flight, once it has printed its two addresses; killed after if still running."""
-    ip = f"127.0.0.{20 + os.getpid() % 200}"
-    link, truth = tmp_path / "ttyDXL", tmp_path / "truth.csv"
-    args = [str(_scenario(tmp_path, flight_s)), "--lidar-ip", ip]
-    args += ["--serial-link", str(link), "--truth", str(truth)]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "dronetrack", "emulate", *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
-    try:
-        assert proc.stdout is not None
-        out = b""
-        deadline = time.monotonic() + START_S
-        while out.count(b"\n") < 2 and time.monotonic() < deadline:
-            ready, _, _ = select.select([proc.stdout], [], [], 0.5)
-            if ready:
-                got = os.read(proc.stdout.fileno(), 4096)
-                if not got:
-                    break
-                out += got
-        lines = out.decode().splitlines()
-        assert len(lines) == 2, (lines, proc.poll())
-        yield Emulator(proc, ip, link, truth, lines)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        proc.wait(timeout=10)
-        for pipe in (proc.stdout, proc.stderr):
-            if pipe is not None:
-                pipe.close()
+    of flight."""
+    return emulator(tmp_path, str(_scenario(tmp_path, flight_s)))
 
 
 def _client(ip: str) -> LivoxClient:
@@ -89,7 +45,7 @@ def _client(ip: str) -> LivoxClient:
 
 
 def test_emulate_prints_its_devices_streams_the_scenario_and_exits_0(tmp_path: Path) -> None:
-    with emulator(tmp_path, flight_s=0.5) as emu:
+    with _emulator(tmp_path, flight_s=0.5) as emu:
         lidar, turret_line = emu.lines
         assert lidar.startswith(f"lidar: livox://{emu.ip}  (Livox Avia, UDP {emu.ip}:65000)")
         pattern = r"turret: dynamixel://(\S+)  \(2 XM430-W350, pan ID 1, tilt ID 2, on "
@@ -132,7 +88,7 @@ def test_emulate_prints_its_devices_streams_the_scenario_and_exits_0(tmp_path: P
 def test_emulate_stopped_by_a_signal_exits_130_and_keeps_the_truth(
     tmp_path: Path, signum: signal.Signals
 ) -> None:
-    with emulator(tmp_path, flight_s=20.0) as emu, _client(emu.ip) as client:
+    with _emulator(tmp_path, flight_s=20.0) as emu, _client(emu.ip) as client:
         client.open(timeout_s=3.0)
         deadline = time.monotonic() + 0.5
         while time.monotonic() < deadline:
