@@ -274,13 +274,17 @@ class LiveSource:
 
     # -- the Source ---------------------------------------------------------------------
 
-    def sensor_time(self) -> float:
-        """The host's clock now on the run's clock (seconds since the first frame's
-        start); NaN before the first point."""
+    def run_time(self, host: float) -> float:
+        """A time on the host's clock (``clock``) on the run's clock, seconds since the
+        first frame's start: t_host + δ − t₀; NaN before the first point."""
         t0 = self.assembler.t0_ns
         if self._offset is None or t0 is None:
             return float("nan")
-        return self.clock() + self._offset - t0 / NS
+        return host + self._offset - t0 / NS
+
+    def sensor_time(self) -> float:
+        """The host's clock now on the run's clock (``run_time``)."""
+        return self.run_time(self.clock())
 
     def _read_turret(self) -> TurretState:
         t = self.sensor_time()
@@ -290,9 +294,7 @@ class LiveSource:
         if state is None:
             raise DeviceError("the turret reports no joint state")
         # Its stamp is on the host clock (self.clock): move it onto the run's.
-        assert self._offset is not None
-        assert self.assembler.t0_ns is not None
-        stamp = state.stamp + self._offset - self.assembler.t0_ns / NS
+        stamp = self.run_time(state.stamp)
         return TurretState(stamp, state.pan, state.tilt, state.pan_rate, state.tilt_rate)
 
     def __iter__(self) -> Iterator[Sample]:
