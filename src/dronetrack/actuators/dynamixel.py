@@ -261,6 +261,11 @@ class DynamixelTurret:
         return TurretState(0.5 * (t0 + t1), q[0], q[1], w[0], w[1])
 
     @property
+    def reads_missed(self) -> int:
+        """The poller's reads that got no answer (0 without a poller)."""
+        return self.poller.misses if self.poller is not None else 0
+
+    @property
     def stale_s(self) -> float:
         """How old (on ``clock``) the newest polled reading may be at the time a caller
         needs the pose: ``STALE_PERIODS`` poll periods (0 without a poller)."""

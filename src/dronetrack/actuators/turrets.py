@@ -112,6 +112,11 @@ class LimitGuard:
         state = self.turret.state()
         return [] if state is None else [state]
 
+    @property
+    def reads_missed(self) -> int:
+        """The turret's polled reads that got no answer (0 if it keeps no count)."""
+        return int(getattr(self.turret, "reads_missed", 0))
+
     def close(self) -> None:
         self.turret.close()
 
