@@ -410,3 +410,18 @@ def test_a_read_waits_for_its_answer_without_spinning(rig: Rig) -> None:
     wall, cpu = time.monotonic() - wall, time.thread_time() - cpu
     assert wall >= 0.034  # the sync read's time-out, at least
     assert cpu < 0.3 * wall
+
+
+def test_from_a_frames_readings_to_its_command_the_line_is_the_frames() -> None:
+    """After readings the poller starts no read until the next command (HOLD_S at
+    most), so the command does not wait behind one."""
+    with _polled(100.0) as (_, turret):
+        turret.readings(time.monotonic(), timeout_s=1.0)
+        assert turret.poller is not None
+        time.sleep(0.005)  # a read under way finishes
+        reads = turret.poller.reads
+        time.sleep(0.03)  # three reads would have been due
+        assert turret.poller.reads == reads
+        turret.command(TurretCommand(0.0, 0.1, 0.0))
+        time.sleep(0.05)
+        assert turret.poller.reads >= reads + 2

@@ -147,3 +147,27 @@ def test_readings_not_taken_are_bounded() -> None:
 def test_bad_settings_are_config_errors(rate: float, kw: dict[str, int]) -> None:
     with pytest.raises(ConfigError):
         _poller(Script(), rate, **kw)
+
+
+def test_no_read_starts_while_held() -> None:
+    """hold keeps reads from starting until release, or until its time is up."""
+    script = Script()
+    poller = _poller(script, 200.0)
+    poller.start()
+    try:
+        poller.take(timeout_s=1.0)
+        poller.hold(10.0)
+        time.sleep(0.02)  # a read under way when held may still finish
+        held_at = script.calls
+        time.sleep(0.2)  # 40 reads would have been due
+        assert script.calls == held_at
+        poller.release()
+        time.sleep(0.1)
+        assert script.calls >= held_at + 5
+        poller.hold(0.05)  # not released: reads start again after 50 ms
+        time.sleep(0.01)
+        held_at = script.calls
+        time.sleep(0.2)
+        assert script.calls >= held_at + 5
+    finally:
+        poller.stop()

@@ -25,7 +25,9 @@ Reading while the frames go.  With ``poll_hz`` > 0 a thread of the turret's own
 second, each reading stamped at the middle of its round trip, and ``readings``
 hands the new ones over; the serial port serves one transaction at a time
 (``dynamixel_port.ServoPort``'s lock), so a goal write waits at most for the read
-under way.  With ``poll_hz`` = 0 ``readings`` reads once, there and then.
+under way.  From ``readings`` to the next ``command`` (a frame's work, ``HOLD_S``
+at most) the poller starts no read, so the frame's command finds the line free.
+With ``poll_hz`` = 0 ``readings`` reads once, there and then.
 """
 
 from __future__ import annotations
@@ -74,6 +76,10 @@ _TIME_BASED_PROFILE = 0x04  # Drive Mode bit 2
 # A polled reading older than this many poll periods is stale: ``readings`` waits for
 # a newer one (the poller is behind, or failing).
 STALE_PERIODS = 5
+# After ``readings`` the poller starts no read until the next command, for this long at
+# most: the frame's command does not wait behind a read (a frame that sends none lets
+# polling go on after it).
+HOLD_S = 0.05
 
 
 def axis_tick_limits(axis: AxisSpec) -> tuple[int, int]:
@@ -207,6 +213,8 @@ class DynamixelTurret:
             for ident, value in zip(self.ids, ticks, strict=True):
                 self._goal_write.addParam(ident, le32(value))
             result = line.group(what, self._goal_write.txPacket)
+        if self.poller is not None:
+            self.poller.release()
         if result != line.ok:
             raise DeviceError(f"{line.both}: {what}: {line.result_text(result)}")
         self.goals = list(ticks)
@@ -279,7 +287,9 @@ class DynamixelTurret:
         if self.poller is None:
             return [self.state()]
         self.poller.start()
-        return self.poller.take(until - self.stale_s, timeout_s)
+        got = self.poller.take(until - self.stale_s, timeout_s)
+        self.poller.hold(HOLD_S)  # until the frame's command (``_send_goals``)
+        return got
 
     # -- closing ---------------------------------------------------------------------
 

@@ -7,7 +7,11 @@ frame.  So the serial round trip is out of the frame's path: the frame only wait
 when the newest reading is older than it may be.
 
 Schedule.  Reads are due at t₀ + k/f; a read that ends after the next one was due
-is followed at once by the next (no burst to catch up the ones missed).
+is followed at once by the next (no burst to catch up the ones missed).  ``hold``
+keeps the poller from starting a read for a while (until ``release``, at most the
+time given), so that a caller who will soon need the line (a frame between taking
+its readings and sending its command) does not wait behind a read; a read already
+under way finishes.
 
 Failures.  A read that raises ``DeviceError`` is a miss (counted in ``misses``);
 ``fail_after`` misses in a row end the polling with the last error, which every
@@ -63,6 +67,7 @@ class StatePoller:
         self._newest: TurretState | None = None
         self._error: DeviceError | None = None
         self._cond = threading.Condition()
+        self._held_until = 0.0  # time.monotonic() before which no read starts
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -85,6 +90,9 @@ class StatePoller:
         due = time.monotonic()
         in_a_row = 0
         while not self._stop.is_set():
+            self._wait_while_held()
+            if self._stop.is_set():
+                return
             try:
                 state = self.read()
             except DeviceError as exc:
@@ -107,6 +115,25 @@ class StatePoller:
             if due < now:
                 due = now  # behind: the next read now, none of the missed ones
             self._stop.wait(due - now)
+
+    def _wait_while_held(self) -> None:
+        with self._cond:
+            while not self._stop.is_set():
+                left = self._held_until - time.monotonic()
+                if left <= 0:
+                    return
+                self._cond.wait(left)
+
+    def hold(self, max_s: float) -> None:
+        """Start no read for ``max_s`` seconds at most, or until ``release``."""
+        with self._cond:
+            self._held_until = time.monotonic() + max_s
+
+    def release(self) -> None:
+        """Let reads start again (after ``hold``)."""
+        with self._cond:
+            self._held_until = 0.0
+            self._cond.notify_all()
 
     def take(self, fresh: float = float("-inf"), timeout_s: float = 1.0) -> list[TurretState]:
         """The readings made since the last ``take``, oldest first, once the newest is
