@@ -26,7 +26,7 @@ import logging
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -74,10 +74,15 @@ class OutlierSettings:
 
 @dataclass(frozen=True, slots=True)
 class Acquisition:
-    """The detect stage of every tracking frame: clustering, then tentative tracks."""
+    """The detect stage of every tracking frame: clustering, then tentative tracks, and
+    the history of the tracker's lock on them (``detect.lock``)."""
 
     detector: CandidateDetector
     tracks: TentativeTracks
+    lock: LockBook = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lock", LockBook(self.tracks.settings))
 
     def step(self, t: float, points: FloatArray) -> tuple[Detections, Candidates]:
         """The clusters of the foreground ``points`` at ``t`` and the confirmed candidates."""
@@ -86,6 +91,7 @@ class Acquisition:
 
     def reset(self) -> None:
         self.tracks.reset()
+        self.lock.reset()
 
 
 class Pipeline:
@@ -118,8 +124,6 @@ class Pipeline:
         self.counts: Counter[str] = Counter()
         self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
         self.acquisition = acquisition
-        # the lock's history (detect.lock), kept when candidates can start the tracker
-        self.lock = None if acquisition is None else LockBook(acquisition.tracks.settings)
 
     @property
     def scanning(self) -> bool:
@@ -148,16 +152,14 @@ class Pipeline:
                 self.tracker.reset()
                 if self.acquisition is not None:
                     self.acquisition.reset()
-                if self.lock is not None:
-                    self.lock.reset()
             found, confirmed = self._detect(frame.end, points, steps)
             estimate = self.tracker.step(frame.end, points, steps)
             if not np.all(np.isfinite(estimate.position)):
                 flags.append("nonfinite_estimate")
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
-            if self.lock is not None:
-                self.lock.update(estimate, confirmed)
+            if self.acquisition is not None:
+                self.acquisition.lock.update(estimate, confirmed)
             command = (
                 self.controller.tracking(
                     t_cmd,
@@ -187,31 +189,34 @@ class Pipeline:
         while the tracker is not locked, offer it the confirmed ones within reach of the
         last fix; while it is locked on what never hovered, restart it on a confirmed
         candidate that did (``detect.lock``)."""
-        if self.acquisition is None or self.lock is None or steps == 0:
+        if self.acquisition is None or steps == 0:
             return None, None
         found, confirmed = self.acquisition.step(t, points)
         if not isinstance(self.tracker, CandidateStart):
             return found, confirmed
-        other = self.lock.switch(confirmed)
+        lock = self.acquisition.lock
+        other = lock.switch(confirmed)
         if other is not None:
             log.info("frame ending %.3f s: lock moved to a target that hovered", t)
             self.tracker.reset()
-            self.lock.reset()
+            lock.reset()
             self.tracker.acquire(other)
-        elif not self.lock.locked:
-            start = self.lock.reachable(t, confirmed)
+        elif not lock.locked:
+            start = lock.reachable(t, confirmed)
             if start is not None and len(start) > 0:
                 self.tracker.acquire(start)
         return found, confirmed
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
         """The candidates within the lost target's reach (``detect.lock``)."""
-        return candidates if self.lock is None else self.lock.reachable(t, candidates)
+        if self.acquisition is None:
+            return candidates
+        return self.acquisition.lock.reachable(t, candidates)
 
     def _cues(self, t: float) -> Candidates | None:
         """Tentative tracks worth a look while the tracker is not locked, within reach of
         the last fix (None: no acquisition, or locked)."""
-        if self.acquisition is None or self.lock is None or self.lock.locked:
+        if self.acquisition is None or self.acquisition.lock.locked:
             return None
         return self._reachable(t, self.acquisition.tracks.cues(t))
 
