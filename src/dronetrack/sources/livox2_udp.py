@@ -64,13 +64,10 @@ from numpy.typing import NDArray
 from dronetrack.errors import ConfigError, DecodeError
 from dronetrack.formats import livox_sdk2 as s2
 from dronetrack.sources.assembly import PointBatch
-from dronetrack.sources.livox_link import (
-    MAX_DATAGRAM,
-    LinkOptions,
-    LivoxLink,
-    hits_in_time_order,
-    parse_device_uri,
-)
+from dronetrack.sources.livox_link import LinkOptions, LivoxLink
+from dronetrack.sources.livox_net import MAX_DATAGRAM
+from dronetrack.sources.livox_points import hits_in_time_order
+from dronetrack.sources.livox_uri import parse_device_uri
 
 __all__ = ["Livox2Client", "Livox2Endpoint", "parse_livox2_uri"]
 
