@@ -17,6 +17,7 @@ import pytest
 
 from dronetrack.sim.emulate.livox import GridSource, PointChunk, grid_points
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
+from dronetrack.sources.livox_net import udp_socket
 from livox_helpers import (
     LOOP,
     assert_no_reply,
@@ -87,6 +88,23 @@ def test_discovery_answers_type_serial_ip_and_commandport_of() -> None:
         assert sn == b"0EMULATEDMID360\0"
         assert socket.inet_ntoa(ip) == LOOP
         assert cmd_port == dev.address[1]
+
+
+def test_a_host_on_the_same_machine_binds_the_detection_port_too() -> None:
+    # Livox-SDK2 binds the host's detection socket to port 56000 on all interfaces
+    # (device_manager.cpp, with port reuse), the port the LiDAR listens on: on one
+    # machine the emulator shares it.  Its own address (127.0.0.3, not the host's
+    # 127.0.0.1) keeps the answer, sent back to 127.0.0.1, away from its own socket.
+    with _device(ip="127.0.0.3") as dev:
+        port = dev.discovery_address[1]
+        with udp_socket(port, "discovery") as host:  # 0.0.0.0:port, as the client binds
+            host.settimeout(2.0)
+            _seq, cmd_id, cmd_type, sender, data = _ask(
+                host, dev.discovery_address, sdk2_frame(0x0000, 0, 5, b"")
+            )
+        assert (cmd_id, cmd_type, sender) == (0x0000, 1, 1)
+        assert data[:2] == b"\x00\x09"  # ret_code 0, Mid-360
+        assert dev.discoveries_answered == 1
 
 
 def test_configuration_sampling_and_the_point_packets(

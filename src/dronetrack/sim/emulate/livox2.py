@@ -111,7 +111,8 @@ class EmulatedLivox2(StreamingDevice):
                 (push_port, "status pushes"),
                 (point_port, "point data"),
             ):
-                socks.append(bound_udp(ip, port, what))
+                # the host binds the detection port too (0.0.0.0:56000): it is shared
+                socks.append(bound_udp(ip, port, what, shared=what == "discovery"))
         except BaseException:
             for sock in socks:
                 sock.close()
