@@ -23,10 +23,11 @@ the oldest packet is dropped and counted when the consumer falls behind).  Both 
 at least every 50 ms to see a stop request, so ``close`` joins them within a bounded
 time.
 
-The parts live in modules of their own, importable from here as before: the device
-URI (``livox_uri``), the sockets (``livox_net``), the queues between the threads
-(``livox_queues``), the keep-alive's clock (``livox_keepalive``), the commands
-(``livox_commands``) and the decoded points' order (``livox_points``).
+The parts live in modules of their own: the device URI (``livox_uri``), the sockets
+(``livox_net``), the queues between the threads (``livox_queues``), the keep-alive's
+clock (``livox_keepalive``), the commands (``livox_commands``) and the decoded
+points' order (``livox_points``); the names this module exported before are still
+importable from it.
 """
 
 from __future__ import annotations
