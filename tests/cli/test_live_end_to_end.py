@@ -1,12 +1,22 @@
 """The whole live chain on one machine: ``dronetrack emulate`` (the simulator in real time
-behind an emulated Livox Avia on UDP and two emulated XM430 servos on a pseudo-terminal)
-in its own process, and ``dronetrack live`` against it through the real protocols, for
-20 s of the ``default`` flight after its 10 s background scan.
+behind an emulated Livox LiDAR on UDP and two emulated XM430 servos on a pseudo-terminal)
+in its own process, and ``dronetrack live`` against it through the real protocols:
+
+- SDK 1: an Avia, 20 s of the ``default`` flight after its 10 s background scan;
+- SDK 2: a Mid-360, 15 s of the ``mid360-aggressive`` flight (seed 002's sensor and
+  F550 in aggressive flight) after its 2 s scan; 15 s rather than 20 s keeps the test
+  under 40 s on this 2-core machine (measured: emulate up 2-3 s, live 20.5-22.8 s,
+  simulate 3.8-10.2 s, the slower figures under a load average of 4).
 
 Against ``dronetrack simulate`` of the same seed and flight time, the live run must cover
 the drone within 10 points (the issue's bound: the two differ only in real-time
-effects, the turret's command timing and the servos' reads; measured: live 95.0 %,
-simulate 94.0 % on seed 0), and lose no packet and drop no frame."""
+effects, the turret's command timing and the servos' reads; measured on seed 0: live
+95.0 %, simulate 94.0 % for the Avia; live 100.0 %, simulate 100.0 % for the Mid-360),
+and lose no packet and drop no frame.
+
+Both run in real time: on this 2-core machine under a load average of 4-6 from other
+processes, both failed in some runs (a servo's status packet later than the DYNAMIXEL
+SDK's timeout of about 34 ms, or the Avia's points 1 s late); unloaded, they pass."""
 
 from __future__ import annotations
 
@@ -17,6 +27,7 @@ from dronetrack.cli.main import run
 from emulated_rig import emulator
 
 FLIGHT_S = "20"
+MID360_FLIGHT_S = "15"
 
 
 def _metrics(folder: Path) -> dict[str, float]:
@@ -51,6 +62,44 @@ def test_live_against_the_emulated_rig_tracks_as_the_simulation_does(tmp_path: P
         run(["simulate", "default", "--seed", "0", "--duration", FLIGHT_S, "--out", str(sim)]) == 0
     )
     got, want = _metrics(live), _metrics(sim)
+    assert got["packets_lost"] == 0
+    assert got["packets_malformed"] == 0
+    assert got["frames_dropped"] == 0
+    assert got["frames"] == want["frames"]
+    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
+    assert got["latency_ms_p50"] > 0
+
+
+def test_live_against_an_emulated_mid360_over_sdk2_tracks_as_the_simulation_does(
+    tmp_path: Path,
+) -> None:
+    scenario, seed = "mid360-aggressive", "0"
+    with emulator(tmp_path, scenario, "--seed", seed, "--duration", MID360_FLIGHT_S) as emu:
+        assert emu.lines[0].startswith(f"lidar: livox2://{emu.ip}  (Livox Mid-360")
+        live = tmp_path / "live"
+        rc = run(
+            [
+                "live",
+                scenario,
+                "--lidar",
+                f"livox2://{emu.ip}",
+                "--turret",
+                f"dynamixel://{emu.link}",
+                "--duration",
+                MID360_FLIGHT_S,
+                "--truth",
+                str(emu.truth),
+                "--out",
+                str(live),
+            ]
+        )
+        assert rc == 0
+        assert emu.proc.poll() is None
+    sim = tmp_path / "sim"
+    args = ["simulate", scenario, "--seed", seed, "--duration", MID360_FLIGHT_S]
+    assert run([*args, "--out", str(sim)]) == 0
+    got, want = _metrics(live), _metrics(sim)
+    assert got["lidar"] == f"livox2://{emu.ip}"
     assert got["packets_lost"] == 0
     assert got["packets_malformed"] == 0
     assert got["frames_dropped"] == 0
