@@ -332,3 +332,36 @@ def test_a_kalman_tracker_starts_on_the_drone_not_on_a_lone_false_return(kind: s
     tracked_alone, good_alone = run(False)
     assert tracked_alone[0]
     assert not good_alone[0]
+
+
+@pytest.mark.parametrize(("drone_speed", "moves"), [(0.0, True), (10.0, False)])
+def test_a_lock_on_a_bird_gives_way_to_a_drone_that_hovers(drone_speed: float, moves: bool) -> None:
+    """A bird at 8 m/s is the only target for 1.5 s, and the tracker locks on it; then a
+    drone shows itself 60 m away.  Hovering, it is a multirotor (no bird can fly that
+    slowly, ``detect.tentative``): the lock moves to it within half a second (confirmed
+    on its 2nd frame, hovered on its 4th) and stays.  Flying at 10 m/s, it could be a
+    bird as well: the lock stays where it is."""
+    g = np.random.default_rng(5)
+    pipe = _pipeline_with(True)
+    bird0, v_bird = np.array([80.0, 40.0, 30.0]), np.array([0.0, -8.0, 0.0])
+    drone0, v_drone = np.array([60.0, -30.0, 10.0]), np.array([drone_speed, 0.0, 0.0])
+    on_bird, on_drone = [], []
+    for k in range(45):
+        t = 0.1 * k
+        bird = bird0 + v_bird * t
+        pts = [_drone(g, tuple(bird))]
+        drone = drone0 + v_drone * max(t - 1.5, 0.0)
+        if t >= 1.5:
+            pts.append(_drone(g, tuple(drone)))
+        r = pipe.step(_frame(t, np.vstack(pts)))
+        assert r.estimate is not None
+        on_bird.append(r.estimate.tracked and np.linalg.norm(r.estimate.position - bird) < 1.0)
+        on_drone.append(r.estimate.tracked and np.linalg.norm(r.estimate.position - drone) < 1.0)
+    assert all(on_bird[5:15])  # locked on the bird before the drone shows itself
+    if moves:
+        first = next(k for k in range(15, 45) if on_drone[k])
+        assert first <= 15 + 6
+        assert all(on_drone[first:])
+    else:
+        assert all(on_bird[15:])
+        assert not any(on_drone)

@@ -34,7 +34,8 @@ from numpy.typing import NDArray
 
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
-from dronetrack.detect.tentative import TentativeTracks, within_reach
+from dronetrack.detect.lock import LockBook
+from dronetrack.detect.tentative import TentativeTracks
 from dronetrack.errors import InputError
 from dronetrack.geometry.field import FieldOfRegard
 from dronetrack.geometry.transforms import FloatArray
@@ -87,13 +88,6 @@ class Acquisition:
         self.tracks.reset()
 
 
-# A lock this long [s] is established: after its loss, a new start must be within the
-# lost target's reach.  A filter that locked on clutter flickers in and out of lock
-# for 0.1-0.6 s at a time (measured on the replay benchmark's ground returns); a gate
-# around such a lock would keep it from moving on to the drone.
-ESTABLISHED_S = 1.0
-
-
 class Pipeline:
     """Preprocessing, detection, tracking and turret control, one frame at a time."""
 
@@ -124,9 +118,8 @@ class Pipeline:
         self.counts: Counter[str] = Counter()
         self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
         self.acquisition = acquisition
-        self._locked = False  # the tracker's lock after the last frame
-        self._fix: TrackEstimate | None = None  # the last estimate of an established lock
-        self._locked_since = 0.0  # when the current lock began [s]
+        # the lock's history (detect.lock), kept when candidates can start the tracker
+        self.lock = None if acquisition is None else LockBook(acquisition.tracks.settings)
 
     @property
     def scanning(self) -> bool:
@@ -155,18 +148,16 @@ class Pipeline:
                 self.tracker.reset()
                 if self.acquisition is not None:
                     self.acquisition.reset()
-                self._locked, self._fix = False, None
+                if self.lock is not None:
+                    self.lock.reset()
             found, confirmed = self._detect(frame.end, points, steps)
             estimate = self.tracker.step(frame.end, points, steps)
             if not np.all(np.isfinite(estimate.position)):
                 flags.append("nonfinite_estimate")
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
-            if estimate.tracked and not self._locked:
-                self._locked_since = frame.end
-            self._locked = estimate.tracked
-            if estimate.tracked and frame.end - self._locked_since >= ESTABLISHED_S:
-                self._fix = estimate
+            if self.lock is not None:
+                self.lock.update(estimate, confirmed)
             command = (
                 self.controller.tracking(
                     t_cmd,
@@ -193,31 +184,34 @@ class Pipeline:
         self, t: float, points: FloatArray, steps: int
     ) -> tuple[Detections | None, Candidates | None]:
         """Cluster the foreground and confirm candidates (a new period's frames only);
-        while the tracker is not locked, offer it the confirmed ones."""
-        if self.acquisition is None or steps == 0:
+        while the tracker is not locked, offer it the confirmed ones within reach of the
+        last fix; while it is locked on what never hovered, restart it on a confirmed
+        candidate that did (``detect.lock``)."""
+        if self.acquisition is None or self.lock is None or steps == 0:
             return None, None
         found, confirmed = self.acquisition.step(t, points)
-        start = self._reachable(t, confirmed)
-        ready = not self._locked and start is not None and len(start) > 0
-        if ready and isinstance(self.tracker, CandidateStart):
-            assert start is not None
-            self.tracker.acquire(start)
+        if not isinstance(self.tracker, CandidateStart):
+            return found, confirmed
+        other = self.lock.switch(confirmed)
+        if other is not None:
+            log.info("frame ending %.3f s: lock moved to a target that hovered", t)
+            self.tracker.reset()
+            self.lock.reset()
+            self.tracker.acquire(other)
+        elif not self.lock.locked:
+            start = self.lock.reachable(t, confirmed)
+            if start is not None and len(start) > 0:
+                self.tracker.acquire(start)
         return found, confirmed
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
-        """After the loss of an established lock, the candidates the lost target could
-        have reached since its last fix (``detect.tentative.within_reach``); before the
-        first established lock, all of them."""
-        if candidates is None or self._fix is None or self.acquisition is None:
-            return candidates
-        s = self.acquisition.tracks.settings
-        fix = self._fix
-        return within_reach(candidates, t - fix.t, fix.position, s.v_max, s.gate_m)
+        """The candidates within the lost target's reach (``detect.lock``)."""
+        return candidates if self.lock is None else self.lock.reachable(t, candidates)
 
     def _cues(self, t: float) -> Candidates | None:
         """Tentative tracks worth a look while the tracker is not locked, within reach of
         the last fix (None: no acquisition, or locked)."""
-        if self.acquisition is None or self._locked:
+        if self.acquisition is None or self.lock is None or self.lock.locked:
             return None
         return self._reachable(t, self.acquisition.tracks.cues(t))
 

@@ -155,6 +155,8 @@ class Candidates:
     hits: (K,) frames of the confirmation window in which it was detected.
     sizes: (K,) its largest principal extent in the latest frame [m].
     ids: (K,) a number that stays with a tentative track for its life.
+    hovered: (K,) whether it has moved slower than a bird can fly for several frames in
+        a row (``detect.tentative``); left out: none has.
     """
 
     positions: FloatArray
@@ -162,15 +164,19 @@ class Candidates:
     hits: NDArray[np.int64]
     sizes: FloatArray
     ids: NDArray[np.int64]
+    hovered: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def __post_init__(self) -> None:
         k = len(self.positions)
+        if len(self.hovered) == 0:
+            object.__setattr__(self, "hovered", np.zeros(k, dtype=bool))
         for name, shape, dtype in (
             ("positions", (k, 3), np.float64),
             ("velocities", (k, 3), np.float64),
             ("hits", (k,), np.int64),
             ("sizes", (k,), np.float64),
             ("ids", (k,), np.int64),
+            ("hovered", (k,), np.bool_),
         ):
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 
@@ -191,6 +197,7 @@ class Candidates:
             self.hits[idx],
             self.sizes[idx],
             self.ids[idx],
+            self.hovered[idx],
         )
 
 

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dronetrack.control.aiming import aim_angles
 from dronetrack.control.controller import TurretController
@@ -177,3 +179,38 @@ def test_scanning_raster_covers_its_area() -> None:
     assert angles[:, 1].max() == pytest.approx(tilt[1], abs=1e-2)
     assert triangle(0.0, 1.0, 3.0, 2.0) == 1.0
     assert triangle(1.0, 1.0, 3.0, 2.0) == 3.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    t_e=st.floats(0.5, 60.0),
+    pan_e=st.floats(-2.0, 2.0),
+    tilt_e=st.floats(-1.0, 1.0),
+    period=st.floats(1.0, 10.0),
+    t=st.floats(0.0, 60.0),
+)
+def test_a_raster_with_an_end_passes_through_it_and_stays_in_its_box(
+    t_e: float, pan_e: float, tilt_e: float, period: float, t: float
+) -> None:
+    pan, tilt = (math.radians(-60), math.radians(60)), (math.radians(-25), math.radians(5))
+    end = raster(t_e, pan, tilt, period, (t_e, pan_e, tilt_e))
+    # θ(t_e) is the end angle, clipped into the box
+    assert end[0] == pytest.approx(min(max(pan_e, pan[0]), pan[1]), abs=1e-9)
+    assert end[1] == pytest.approx(min(max(tilt_e, tilt[0]), tilt[1]), abs=1e-9)
+    p, q = raster(t, pan, tilt, period, (t_e, pan_e, tilt_e))
+    assert pan[0] - 1e-12 <= p <= pan[1] + 1e-12
+    assert tilt[0] - 1e-12 <= q <= tilt[1] + 1e-12
+    # the same waves, shifted in time: the pan sweeps at the rate of the unshifted raster
+    h = 1e-4
+    rate = abs(raster(t + h, pan, tilt, period, (t_e, pan_e, tilt_e))[0] - p) / h
+    assert rate <= 2 * (pan[1] - pan[0]) / period * (1 + 1e-6)
+
+
+def test_the_background_scan_ends_at_home() -> None:
+    home = (60.0, 10.0, 15.0)
+    c = _controller(home=home, scan_end_s=10.0)
+    cmd = c.scanning(10.0)
+    assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles(home, MOUNT), abs=1e-9)
+    # without an end the raster falls where it falls: 2.5 periods of 4 s, the far edge
+    far = _controller(home=home).scanning(10.0)
+    assert far.pan == pytest.approx(math.radians(60.0))

@@ -191,3 +191,47 @@ def test_within_reach_is_the_reachable_subset_in_order(seed: int, dt: float) -> 
     out = within_reach(c, dt, p, 15.0, 1.0)
     near = np.linalg.norm(c.positions - p, axis=1) <= 15.0 * dt + 1.0
     assert out.ids.tolist() == c.ids[near].tolist()
+
+
+def _fly(tracks: TentativeTracks, v: np.ndarray, frames: int, t0: float = 0.0) -> Candidates:
+    """A target at constant velocity ``v`` seen in every frame; the last confirmed set."""
+    out = Candidates.empty()
+    for k in range(frames):
+        p = np.array([40.0, 5.0, 10.0]) + v * (k * T)
+        out = tracks.update(t0 + k * T, _found(tuple(p)))
+    return out
+
+
+def test_a_hover_shows_on_the_fourth_detection_not_before() -> None:
+    # v is measured from the 2nd detection on; K = 3 slow ones in a row: the 4th.
+    s = ConfirmationSettings(hover_speed=4.0, hover_frames=3)
+    flags = [
+        bool(_fly(TentativeTracks(s), np.array([0.0, 0.0, 2.5]), n).hovered[0]) for n in (2, 3, 4)
+    ]
+    assert flags == [False, False, True]
+
+
+def test_a_bird_at_its_slowest_never_hovers() -> None:
+    # 5 m/s, the slowest bird of the clutter model, for 50 frames
+    out = _fly(TentativeTracks(ConfirmationSettings()), np.array([3.0, 4.0, 0.0]), 50)
+    assert len(out) == 1
+    assert not out.hovered[0]
+
+
+def test_a_track_that_hovered_keeps_the_flag_at_speed_and_comes_first() -> None:
+    tracks = TentativeTracks(ConfirmationSettings())
+    v_hover, v_fast = np.array([1.0, 0.0, 0.0]), np.array([12.0, 0.0, 0.0])
+    p_bird = np.array([80.0, -30.0, 40.0])
+    p = np.array([20.0, 0.0, 5.0])
+    out = Candidates.empty()
+    for k in range(12):
+        v = v_hover if k < 5 else v_fast
+        p = p + v * T
+        # equal hits and detections; the bird's track is the older (listed first): it
+        # would come first without the flag
+        out = tracks.update(
+            k * T, _found(tuple(p_bird + np.array([9.0, 0.0, 0.0]) * k * T), tuple(p))
+        )
+    assert len(out) == 2
+    assert out.hovered.tolist() == [True, False]
+    np.testing.assert_allclose(out.positions[0], p)

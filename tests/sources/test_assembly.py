@@ -4,6 +4,7 @@ from the turret's readings."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -118,3 +119,48 @@ def test_a_batch_out_of_time_order_is_put_in_order() -> None:
     np.testing.assert_array_equal(frames[0].points.t_ns - T0, [10_000_000, 20_000_000])
     np.testing.assert_array_equal(frames[1].points.t_ns - T0, [120_000_000, 150_000_000])
     assert a.late_points == 0
+
+
+def _fired(t_ns: np.ndarray, first_ms: float, last_ms: float) -> PointBatch:
+    """Points at ``t_ns`` from packets whose firings span first_ms … last_ms after T0."""
+    span = (T0 + round(first_ms * 1e6), T0 + round(last_ms * 1e6))
+    return replace(_batch(t_ns), firings=span)
+
+
+def test_a_firing_past_its_end_completes_a_frame_with_no_point_after_it() -> None:
+    """Returns at 10 and 60 ms, then open sky: the packet whose firings reach 100 ms
+    completes frame 0 with no return of its own; before that the frame stays open."""
+    a = FrameAssembler(0.1, t0_ns=T0)
+    pts = T0 + np.array([10, 60], dtype=np.int64) * 1_000_000
+    assert a.push(_fired(pts, 0.0, 60.0)) == []
+    assert a.push(_fired(pts[:0], 60.0, 99.9)) == []  # sky: firings, no return
+    (frame,) = a.push(_fired(pts[:0], 99.95, 100.35))
+    assert (frame.index, len(frame.points)) == (0, 2)
+    # a point of the closed frame arriving after it is late, and counted
+    assert a.push(_fired(T0 + np.array([99_000_000]), 99.0, 99.0)) == []
+    assert a.late_points == 1
+    # the next frame opens with its first return, and the periods without one are counted
+    (later,) = a.push(_fired(T0 + np.array([310_000_000, 420_000_000]), 300.0, 420.0))
+    assert later.index == 3
+    assert a.empty_periods == 2  # frames 1 and 2 had no return
+
+
+def test_taking_points_keeps_the_batchs_firings() -> None:
+    batch = _fired(T0 + np.array([5, 6, 7], dtype=np.int64), 0.0, 1.0)
+    assert batch.take(np.array([True, False, True])).firings == batch.firings
+    assert (batch.first_ns, batch.last_ns) == (T0, T0 + 1_000_000)
+    bare = _batch(T0 + np.array([5, 6, 7], dtype=np.int64))
+    assert (bare.first_ns, bare.last_ns) == (T0 + 5, T0 + 7)
+    assert _batch(np.zeros(0, np.int64)).first_ns is None
+
+
+def test_beyond_the_newest_reading_its_rates_carry_the_pose_for_lead_s() -> None:
+    # q(t) = q_k + ω_k · min(t − t_k, lead_s): at 0.2 s pan 0.2 rad, 1 rad/s; tilt −0.5 rad/s
+    history = PoseHistory(MountGeometry(), lead_s=0.05)
+    history.add(TurretState(0.1, pan=0.1, tilt=0.0))
+    history.add(TurretState(0.2, pan=0.2, tilt=0.0, pan_rate=1.0, tilt_rate=-0.5))
+    pan, tilt = history.angles(np.array([0.15, 0.2, 0.23, 0.25, 0.4]))
+    np.testing.assert_allclose(pan, [0.15, 0.2, 0.23, 0.25, 0.25])
+    np.testing.assert_allclose(tilt, [0.0, 0.0, -0.015, -0.025, -0.025])
+    with pytest.raises(ConfigError, match="lead"):
+        PoseHistory(MountGeometry(), lead_s=-0.1)

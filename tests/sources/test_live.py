@@ -18,6 +18,7 @@ from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.pipeline import run
 from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
+from dronetrack.sim.emulate.livox_stream import PointChunk
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.live import LiveSource
 from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
@@ -79,7 +80,9 @@ def test_a_slow_consumer_loses_whole_frames_never_parts_of_them() -> None:
             time.sleep(0.25)
     assert source.frames_dropped >= 3
     assert np.all(np.diff(stamps) > 0.15)  # frames were skipped, in order
-    assert source.frames_dropped + source.frames_delivered <= 13
+    # each of the stream's 15 frames once at most (the last is complete too: the device's
+    # last packet fires past 1.5 s)
+    assert source.frames_dropped + source.frames_delivered <= 15
 
 
 def test_a_silent_device_ends_the_run_with_its_name() -> None:
@@ -143,6 +146,95 @@ def test_the_run_loop_measures_the_latency_to_the_command() -> None:
     for sample, _ in keep.results:
         axis = sample.frame.poses[-1, :3, 0]  # the sensor's x axis in the world
         assert np.arctan2(axis[1], axis[0]) == pytest.approx(0.5, abs=1e-9)
+
+
+class _SkyBands:
+    """A point source with a return at 0, then returns only 20-60 ms into each 100 ms
+    (every 10th firing), open sky the rest: with frames from the first point, a
+    frame's last return comes 40 ms before its end, and the next 20 ms after it.
+    0.5 s of it, in 10 ms chunks that say how far they cover."""
+
+    def __iter__(self) -> Iterator[PointChunk]:
+        for c in range(50):
+            k = np.arange(c * 2_400, (c + 1) * 2_400, STRIDE, dtype=np.int64)
+            t = k * DT
+            band = (t % 100_000_000 >= 20_000_000) & (t % 100_000_000 < 60_000_000)
+            k = k[band | (k == 0)]
+            yield PointChunk(grid_points(k), k * DT, np.ones(len(k), np.uint8),
+                             end_ns=(c + 1) * 10_000_000)  # fmt: skip
+
+
+def test_a_frame_is_handed_on_at_its_end_not_at_the_next_return() -> None:
+    """The sky's firings (zero range) complete a frame: each frame is handed on as
+    its last packet arrives, not 60 ms later with the next return (measured here, from
+    that packet's arrival to the frame in hand: 0.5-1.3 ms; waiting for the next
+    return, 61-62 ms; 30 ms leaves room for a loaded machine)."""
+    dev = EmulatedLivox(_SkyBands(), device_port=0)
+    ep = LivoxEndpoint(LOOP, None, 0, 0, 0, dev.address[1])
+    client = LivoxClient(ep, discover_s=0.0)
+    waits, counts = [], []
+    try:
+        dev.start()
+        client.open(timeout_s=2.0)
+        for sample in LiveSource(client, MountGeometry(), period_s=0.1, duration_s=0.4):
+            assert sample.received is not None
+            waits.append(time.perf_counter() - sample.received)
+            counts.append(len(sample.frame))
+    finally:
+        client.close()
+        dev.close()
+    assert len(waits) == 4
+    # 40 ms of every 10th firing at 4.167 µs: 960 points (and the first frame's at 0)
+    assert counts == [961, 960, 960, 960]
+    assert max(waits) < 0.030
+
+
+class _Polled:
+    """A turret that polls itself: readings every 10 ms on the host's clock, the pan
+    turning at ω = 0.5 rad/s from its first reading; ``until`` of each call is kept."""
+
+    OMEGA = 0.5
+
+    def __init__(self) -> None:
+        self.h0: float | None = None
+        self.last = -np.inf
+        self.asked: list[float] = []
+
+    def state(self) -> TurretState:  # pragma: no cover - the source reads readings
+        raise AssertionError("a polled turret is not read by state")
+
+    def readings(self, until: float = -np.inf, timeout_s: float = 1.0) -> list[TurretState]:
+        self.asked.append(until)
+        now = time.monotonic()
+        if self.h0 is None:
+            self.h0 = self.last = now - 0.2
+        stamps = np.arange(self.last + 0.01, now, 0.01)
+        if len(stamps):
+            self.last = float(stamps[-1])
+        w = self.OMEGA
+        return [TurretState(float(h), w * (h - self.h0), 0.0, pan_rate=w) for h in stamps]
+
+
+def test_a_polled_turrets_readings_give_every_pose_of_the_frame() -> None:
+    """The readings of a turret turning at a constant rate, stamped on the host's clock,
+    put the sensor at ω (h − h₀) at every pose time h of the frame (interpolated between
+    readings, carried on at the newest's rate after it), and each frame asks for
+    readings fresh up to its end on the host's clock."""
+    turret = _Polled()
+    with avia(1.0) as (client, _):
+        source = LiveSource(client, MountGeometry(), turret, period_s=0.1, duration_s=0.4)
+        samples = list(source)
+    assert len(samples) == 4
+    assert turret.h0 is not None
+    for sample, until in zip(samples, turret.asked, strict=True):
+        frame = sample.frame
+        # δ only grows as smaller delays are seen (by µs on loopback): 1 ms bounds it
+        assert source.host_time(frame.end) == pytest.approx(until, abs=1e-3)
+        axis = frame.poses[:, :3, 0]  # the sensor's x axis in the world at each pose time
+        pan = np.arctan2(axis[:, 1], axis[:, 0])
+        hosts = np.array([source.host_time(t) for t in frame.pose_t])
+        w = _Polled.OMEGA
+        np.testing.assert_allclose(pan, w * (hosts - turret.h0), atol=w * 1e-3)
 
 
 def test_the_queue_needs_room() -> None:

@@ -207,6 +207,28 @@ def test_decode_skips_and_counts_malformed_packets() -> None:
     assert len(client.decode([])) == 0
 
 
+def test_decode_gives_the_packets_firings_with_or_without_a_return() -> None:
+    """Two Avia packets of 96 firings, returns only in the first ten of the first:
+    the batch holds those ten points, and its firings span both packets, from firing
+    0 to firing 191 (4.167 µs apart), so time is known to have passed where the sky
+    sent nothing back."""
+    client = LivoxClient(LivoxEndpoint(LOOP))
+    client.dev_type = 7
+    xyz = grid_points(np.arange(192))
+    xyz[10:] = 0.0  # no return
+    packets = s1.encode_point_packets(
+        xyz, np.zeros(192, np.uint8), data_type=2, t0_ns=5_000, point_interval_ns=DT[7]
+    )
+    batch = client.decode(packets)
+    np.testing.assert_array_equal(batch.t_ns, 5_000 + np.arange(10) * DT[7])
+    assert batch.firings == (5_000, 5_000 + 191 * DT[7])
+    sky = client.decode(packets[1:])
+    assert len(sky) == 0
+    assert sky.firings == (5_000 + 96 * DT[7], 5_000 + 191 * DT[7])
+    assert client.decode([]).firings is None
+    assert client.decode([b"junk"]).firings is None
+
+
 # --- livox:// URIs ---------------------------------------------------------------
 
 

@@ -103,6 +103,20 @@ class LimitGuard:
     def state(self) -> TurretState | None:
         return self.turret.state()
 
+    def readings(self, until: float = -math.inf, timeout_s: float = 1.0) -> list[TurretState]:
+        """The turret's new measured states (``DynamixelTurret.readings``); a turret
+        without them: its ``state`` now (none for a fixed sensor)."""
+        read = getattr(self.turret, "readings", None)
+        if read is not None:
+            return list(read(until, timeout_s))
+        state = self.turret.state()
+        return [] if state is None else [state]
+
+    @property
+    def reads_missed(self) -> int:
+        """The turret's polled reads that got no answer (0 if it keeps no count)."""
+        return int(getattr(self.turret, "reads_missed", 0))
+
     def close(self) -> None:
         self.turret.close()
 

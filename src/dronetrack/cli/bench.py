@@ -1,4 +1,5 @@
-"""``dronetrack bench``: the benchmark suite on one core, its table and bench.json.
+"""``dronetrack bench``: the benchmark suite on one core, its table and bench.json;
+with ``--live``, the live chain against the emulator instead, and bench_live.json.
 
 Registered on the ``dronetrack`` app by ``cli``; it follows its conventions (one
 ``error:`` line and exit code 2 for anything the user can fix).  The measuring is
@@ -29,7 +30,7 @@ from dronetrack.cli.app import app
 from dronetrack.cli.options import RunDirOption
 from dronetrack.cli.output import progress_bar
 
-__all__ = ["bench", "bench_table"]
+__all__ = ["bench", "bench_table", "live_table"]
 
 
 def _target_cells(targets: dict[str, Any], key: str) -> tuple[str, str]:
@@ -83,6 +84,106 @@ def bench_table(results: dict[str, Any], path: Path) -> Table:
     return table
 
 
+def _cell(value: Any, unit: str = "") -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, float):
+        return f"{value:.2f}{unit}"
+    return f"{value}{unit}"
+
+
+def live_table(results: dict[str, Any], path: Path) -> Table:
+    """The table ``dronetrack bench --live`` prints: the machine in the title, then each
+    figure of the latency run and the soak with its target, where it has one."""
+    m = results["machine"]
+    s = results["settings"]
+    quick = " (quick: a smoke test, not a measurement)" if s["quick"] else ""
+    table = Table(
+        title=(
+            f"dronetrack bench --live: {m['cpu']}, {m['cores']} cores; Python {m['python']}; "
+            "emulate and live on loopback, the Avia at 240,000 points/s"
+        ),
+        caption=f"as dronetrack live runs (threads not pinned){quick}; {path}",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    table.add_column("measurement", no_wrap=True)
+    for name in ("value", "target", ""):
+        table.add_column(name, justify="right", no_wrap=True)
+    targets = results["targets"]
+
+    def add(label: str, row: dict[str, Any], key: str, unit: str, section: str) -> None:
+        table.add_row(label, _cell(row[key], unit), *_target_cells(targets, f"{section}.{key}"))
+
+    lat = results["live_latency"]
+    turret = "no turret" if not s["turret"] else "Dynamixel turret"
+    table.add_row(f"latency run: {lat['flight_s']:g} s of flight, {turret}", "", "", "")
+    for label, key, unit in (
+        ("latency p50", "latency_ms_p50", " ms"),
+        ("latency p99", "latency_ms_p99", " ms"),
+        ("frames", "frames", ""),
+        ("frames dropped", "frames_dropped", ""),
+        ("packets lost", "packets_lost", ""),
+        ("packets malformed", "packets_malformed", ""),
+        ("turret reads missed", "turret_reads_missed", ""),
+        ("coverage", "coverage_pct", " %"),
+    ):
+        add(f"  {label}", lat, key, unit, "live_latency")
+    soak = results["live_soak"]
+    if soak is not None:
+        table.add_section()
+        table.add_row(
+            f"soak: {soak['soak_s']:g} s of flight, RSS every {soak['sample_s']:g} s "
+            f"after {soak['warmup_s']:g} s",
+            "",
+            "",
+            "",
+        )
+        for label, key, unit in (
+            ("RSS at the end of warm-up", "rss_mb_warm", " MB"),
+            ("RSS max after warm-up", "rss_mb_max", " MB"),
+            ("RSS growth", "rss_growth_pct", " %"),
+            ("packets lost", "packets_lost", ""),
+            ("frames dropped", "frames_dropped", ""),
+            ("latency p50", "latency_ms_p50", " ms"),
+            ("latency p99", "latency_ms_p99", " ms"),
+            ("turret reads missed", "turret_reads_missed", ""),
+        ):
+            add(f"  {label}", soak, key, unit, "live_soak")
+    return table
+
+
+def _live(
+    out_dir: Path,
+    quick: bool,
+    latency_s: float | None,
+    soak_s: float | None,
+    warmup_s: float | None,
+) -> None:
+    """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
+    from dataclasses import replace
+
+    from dronetrack.experiments.bench import LIVE_FULL, LIVE_QUICK, live_bench
+    from dronetrack.sinks.run_folder import prepare_run_dir
+
+    settings = LIVE_QUICK if quick else LIVE_FULL
+    given = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
+    settings = replace(settings, **{k: v for k, v in given.items() if v is not None})
+    settings.checked()
+    with progress_bar() as bar:
+        task = bar.add_task("live benchmarks", total=None)
+
+        def report(what: str, done: float, total: float) -> None:
+            bar.update(task, description=what, completed=done, total=total)
+
+        results = live_bench(settings, quick=quick, progress=report)
+    prepare_run_dir(out_dir)
+    path = out_dir / "bench_live.json"
+    path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
+    Console().print(live_table(results, path))
+    typer.echo(str(path))
+
+
 @app.command()
 def bench(
     out: RunDirOption = None,
@@ -107,19 +208,52 @@ def bench(
     quick: Annotated[
         bool,
         typer.Option(
-            "--quick", help="A smoke test: 5 steps, 1 round, a 5 s recording, unless given."
+            "--quick",
+            help="A smoke test: 5 steps, 1 round, a 5 s recording, unless given "
+            "(with --live: 2 s of latency, a 4 s soak).",
         ),
     ] = False,
+    live: Annotated[
+        bool,
+        typer.Option(
+            "--live",
+            help="Instead: the live chain against 'dronetrack emulate' in real time "
+            "(latency, then a memory soak); writes bench_live.json.",
+        ),
+    ] = False,
+    latency_s: Annotated[
+        float | None,
+        typer.Option("--latency-s", help="With --live: the latency run's flight [20 s]."),
+    ] = None,
+    soak_s: Annotated[
+        float | None,
+        typer.Option("--soak-s", help="With --live: the soak's flight, 0 for none [600 s]."),
+    ] = None,
+    warmup_s: Annotated[
+        float | None,
+        typer.Option(
+            "--warmup-s", help="With --live: the soak's warm-up before memory counts [60 s]."
+        ),
+    ] = None,
 ) -> None:
     """Time the pipeline, every tracker, the simulator and replay on one core.
 
     Writes bench.json (pf_step_ms, tracker_step_ms, sim_frame_ms, replay_x_realtime,
     machine, targets) and prints a table that marks each speed target met or missed.
+    With --live, runs the live chain against the emulator instead (latency p50/p99,
+    frames dropped, packets lost; a memory soak) and writes bench_live.json.
     """
-
+    from dronetrack.errors import ConfigError
     from dronetrack.sinks.run_folder import check_run_dir, default_run_dir, prepare_run_dir
 
     out_dir = check_run_dir(out if out is not None else default_run_dir())
+    if live:
+        if rounds is not None or repeats is not None or replay_seconds is not None:
+            raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
+        _live(out_dir, quick, latency_s, soak_s, warmup_s)
+        return
+    if latency_s is not None or soak_s is not None or warmup_s is not None:
+        raise ConfigError("--latency-s, --soak-s and --warmup-s go with --live")
     from dronetrack.experiments.bench import bench as run_bench
     from dronetrack.experiments.bench import single_thread
 

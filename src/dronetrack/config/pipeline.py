@@ -221,6 +221,10 @@ class AcquisitionConfig(StrictModel):
     confirm_hits: int = Field(2, ge=1, le=62)  # M
     confirm_frames: int = Field(4, ge=1, le=62)  # N
     gate_m: float = Field(1.0, ge=0)  # g: centroid jitter allowed on top of v_max Δt
+    # a track this slow [m/s] for hover_frames detections in a row has hovered: no bird
+    # flies that slowly, so a lock moves from a target that never hovered to one that did
+    hover_speed_m_s: float = Field(4.0, ge=0)
+    hover_frames: int = Field(3, ge=1)
 
     @model_validator(mode="after")
     def _m_of_n(self) -> AcquisitionConfig:

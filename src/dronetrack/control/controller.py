@@ -86,6 +86,7 @@ class TurretController:
         scan_pan: tuple[float, float] = (math.radians(-60.0), math.radians(60.0)),
         scan_tilt: tuple[float, float] = (math.radians(-25.0), math.radians(5.0)),
         scan_period_s: float = 4.0,
+        scan_end_s: float | None = None,
     ) -> None:
         """``search_pan``: the first search sweep's half-width; ``search_lane``: the
         sensor's dense centre (the raster's lane width); ``search_rate``: the search's
@@ -105,6 +106,8 @@ class TurretController:
         self.cue_look_s = cue_look_s
         self._look: tuple[float, tuple[float, float]] | None = None  # (until, aim) of a cue
         self.scan = (scan_pan, scan_tilt, scan_period_s)
+        # The scan ends at home at scan_end_s [s] (None: the raster from t = 0 as it falls)
+        self.scan_end = None if scan_end_s is None else (scan_end_s, *self.home)
         self._locked_once = False
         self._last_aim = self.home
         self._lost_since: float | None = None  # when the tracker last stopped being on it
@@ -119,7 +122,7 @@ class TurretController:
     def scanning(self, t: float) -> TurretCommand:
         """The background-scan raster at time t."""
         pan, tilt, period = self.scan
-        return self._command(t, *raster(t, pan, tilt, period))
+        return self._command(t, *raster(t, pan, tilt, period, self.scan_end))
 
     def tracking(
         self,

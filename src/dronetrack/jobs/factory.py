@@ -122,9 +122,17 @@ def resolve_tracker(
     )
 
 
-# (cfg, pipeline config for the background scan, mount, pan limits, tilt limits) [rad]
+# (cfg, pipeline config for the background scan, mount, pan limits, tilt limits [rad],
+# the background scan's end [s] or None when there is no scan)
 ControllerBuilder = Callable[
-    [ControllerConfig, PipelineConfig, MountGeometry, tuple[float, float], tuple[float, float]],
+    [
+        ControllerConfig,
+        PipelineConfig,
+        MountGeometry,
+        tuple[float, float],
+        tuple[float, float],
+        float | None,
+    ],
     Controller,
 ]
 
@@ -136,6 +144,7 @@ def _turret_controller(
     mount: MountGeometry,
     pan_limits: tuple[float, float],
     tilt_limits: tuple[float, float],
+    scan_end_s: float | None,
 ) -> Controller:
     pan, tilt, period = scan_area(scan)
     field = field_of_regard(scan, mount.base)
@@ -155,6 +164,7 @@ def _turret_controller(
         scan_pan=(math.radians(pan[0]), math.radians(pan[1])),
         scan_tilt=(math.radians(tilt[0]), math.radians(tilt[1])),
         scan_period_s=period,
+        scan_end_s=scan_end_s,
     )
 
 
@@ -165,6 +175,7 @@ def _strategy_controller(
     mount: MountGeometry,
     pan_limits: tuple[float, float],
     tilt_limits: tuple[float, float],
+    scan_end_s: float | None,
 ) -> Controller:
     rad = math.radians
     return ScanStrategyController(
@@ -227,7 +238,12 @@ def build_pipeline(
     return Pipeline(
         tracker=tracker,
         controller=CONTROLLERS[cfg.controller.mode](
-            cfg.controller, cfg, mount, pan_limits, tilt_limits
+            cfg.controller,
+            cfg,
+            mount,
+            pan_limits,
+            tilt_limits,
+            start + bg_cfg.scan_s if background is not None and not background.ready else None,
         ),
         crop_min=np.asarray(crop[0]),
         crop_max=np.asarray(crop[1]),
@@ -252,7 +268,12 @@ def build_acquisition(cfg: AcquisitionConfig, v_max: float) -> Acquisition | Non
         max_extent=cfg.max_extent_m,
     )
     settings = ConfirmationSettings(
-        v_max=v_max, gate_m=cfg.gate_m, hits=cfg.confirm_hits, frames=cfg.confirm_frames
+        v_max=v_max,
+        gate_m=cfg.gate_m,
+        hits=cfg.confirm_hits,
+        frames=cfg.confirm_frames,
+        hover_speed=cfg.hover_speed_m_s,
+        hover_frames=cfg.hover_frames,
     )
     return Acquisition(detector, TentativeTracks(settings))
 

@@ -184,13 +184,15 @@ class LiveRun:
     packets_malformed: int
     packets_dropped: int  # the host's packet queue overflowed (the reader fell behind)
     commands_clamped: int  # commands the limit guard had to bring inside the limits
+    turret_reads_missed: int  # the turret's polled reads that got no answer
     lidar: str
     turret: str
     error: DeviceError | None = None  # the device error that ended the run early
 
     def metrics(self) -> dict[str, Any]:
         """The run's metrics with the live ones (names are a contract): latency_ms_p50 and
-        latency_ms_p99 (from the log), frames_dropped, packets_lost, packets_malformed."""
+        latency_ms_p99 (from the log), frames_dropped, packets_lost, packets_malformed,
+        packets_dropped, commands_clamped, turret_reads_missed, lidar and turret."""
         out = self.run.metrics()
         out.update(
             frames_dropped=self.frames_dropped,
@@ -198,6 +200,7 @@ class LiveRun:
             packets_malformed=self.packets_malformed,
             packets_dropped=self.packets_dropped,
             commands_clamped=self.commands_clamped,
+            turret_reads_missed=self.turret_reads_missed,
             lidar=self.lidar,
             turret=self.turret,
         )
@@ -323,6 +326,7 @@ def run_live(
         malformed,
         dropped,
         turret.clamped,
+        turret.reads_missed,
         lidar,
         setup.turret,
         failed[0] if failed else None,

@@ -9,8 +9,10 @@ time.  A frame is every point whose time falls in one integration period:
 with t₀ the first point's time and T the integration time (100 ms by default).
 Frames are cut by the points' times, not by when packets arrive, so a late or
 bunched packet still lands in its own frame.  A frame is complete once a point of
-a later frame arrives; the stream is in time order (each batch is sorted by time
-first), so nothing more can join it.
+a later frame arrives, or a firing of a later frame with no return (a batch's
+``firings``: where the sensor sees open sky, the next return may be tens of
+milliseconds away, while its packets keep coming); the stream is in time order
+(each batch is sorted by time first), so nothing more can join it.
 A point older than the open frame (a packet delivered out of order after its
 frame was handed on) is dropped and counted, and so are the periods that passed
 with no point at all (every packet of a frame lost).
@@ -18,7 +20,13 @@ with no point at all (every packet of a frame lost).
 The turret's joints are read as the frames come in.  ``PoseHistory`` keeps the
 recent time-stamped readings and gives the sensor's pose at any time in the frame
 by the mount kinematics (``geometry.mount.sensor_poses``), the joint angles
-interpolated linearly between readings (held constant beyond the newest one).
+interpolated linearly between readings.  Beyond the newest reading they move on
+at its measured rates for at most ``lead_s`` (0 by default), then hold:
+
+    q(t) = q_k + ω_k · min(t − t_k, lead_s)     for t > t_k, the newest reading
+
+so a frame whose last milliseconds came after the newest reading is not bent
+where the turret slews.
 """
 
 from __future__ import annotations
@@ -42,12 +50,19 @@ NS = 1_000_000_000  # nanoseconds per second
 @dataclass(frozen=True, slots=True)
 class PointBatch:
     """Points as a decoder gives them, in time order: xyz (N, 3) [m] in the sensor
-    frame, t_ns (N,) int64 [ns], reflectivity (N,) and line (N,) uint8."""
+    frame, t_ns (N,) int64 [ns], reflectivity (N,) and line (N,) uint8.
+
+    ``firings``: the times [ns] of the first and the last firing in the packets the
+    points came from, with a return or not (None: not known, the points' own times
+    stand for them).  A sensor's packets carry its firings without a return too, so
+    they tell that time has passed where no point came back (open sky).
+    """
 
     xyz: FloatArray
     t_ns: NDArray[np.int64]
     reflectivity: NDArray[np.uint8]
     line: NDArray[np.uint8]
+    firings: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.t_ns)
@@ -61,7 +76,24 @@ class PointBatch:
         return len(self.t_ns)
 
     def take(self, sel: slice | NDArray[np.intp] | NDArray[np.bool_]) -> PointBatch:
-        return PointBatch(self.xyz[sel], self.t_ns[sel], self.reflectivity[sel], self.line[sel])
+        """The points ``sel``, from the same packets (the same ``firings``)."""
+        return PointBatch(
+            self.xyz[sel], self.t_ns[sel], self.reflectivity[sel], self.line[sel], self.firings
+        )
+
+    @property
+    def first_ns(self) -> int | None:
+        """The batch's earliest time: its first firing's, else its first point's."""
+        if self.firings is not None:
+            return self.firings[0]
+        return int(self.t_ns.min()) if len(self) else None
+
+    @property
+    def last_ns(self) -> int | None:
+        """The batch's latest time: its last firing's, else its last point's."""
+        if self.firings is not None:
+            return self.firings[1]
+        return int(self.t_ns.max()) if len(self) else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,20 +138,24 @@ class FrameAssembler:
     def push(self, batch: PointBatch) -> list[StreamFrame]:
         """Add ``batch``; the frames it completes, in order."""
         if len(batch) == 0:
-            return []
+            return self._passed(batch)
         if np.any(np.diff(batch.t_ns) < 0):  # a batch out of order: put it in time order
             batch = batch.take(np.argsort(batch.t_ns, kind="stable"))
         if self.t0_ns is None:
             self.t0_ns = int(batch.t_ns[0])
         # k(t) = ⌊(t − t₀) / T⌋
         k = (batch.t_ns - self.t0_ns) // self.period_ns
-        if self._open is not None:
-            late = k < self._open
+        # the earliest frame a point may still join: the open one, else the next one
+        floor = self._open
+        if floor is None and self._last_done is not None:
+            floor = self._last_done + 1
+        if floor is not None:
+            late = k < floor
             if late.any():
                 self.late_points += int(late.sum())
                 batch, k = batch.take(~late), k[~late]
                 if len(batch) == 0:
-                    return []
+                    return self._passed(batch)
         done: list[StreamFrame] = []
         # The batch is in time order: split it where k changes.
         cuts = np.flatnonzero(np.diff(k)) + 1
@@ -130,7 +166,15 @@ class FrameAssembler:
                 done.append(self._close())
             self._open = kk
             self._parts.append(batch.take(sel))
-        return done
+        return done + self._passed(batch)
+
+    def _passed(self, batch: PointBatch) -> list[StreamFrame]:
+        """The open frame, if ``batch``'s last firing is past its end (none else)."""
+        if self._open is None or batch.firings is None or self.t0_ns is None:
+            return []
+        if batch.firings[1] < self.t0_ns + (self._open + 1) * self.period_ns:
+            return []
+        return [self._close()]
 
     def flush(self) -> list[StreamFrame]:
         """The open frame, if any (at the end of the stream)."""
@@ -150,13 +194,18 @@ class FrameAssembler:
 class PoseHistory:
     """The turret's recent measured joint states, and the sensor pose at any time.
 
-    ``keep_s``: how far back readings are kept [s].  Times are seconds on the run's
-    clock.  Readings must come in time order; an older one is ignored.
+    ``keep_s``: how far back readings are kept [s]; ``lead_s``: how far beyond the
+    newest reading its rates carry the joints (module docstring) [s].  Times are
+    seconds on the run's clock.  Readings must come in time order; an older one is
+    ignored.
     """
 
-    def __init__(self, mount: MountGeometry, keep_s: float = 2.0) -> None:
+    def __init__(self, mount: MountGeometry, keep_s: float = 2.0, lead_s: float = 0.0) -> None:
+        if not lead_s >= 0:
+            raise ConfigError(f"a pose's lead past the newest reading must be >= 0 s, not {lead_s}")
         self.mount = mount
         self.keep_s = keep_s
+        self.lead_s = lead_s
         self._states: deque[TurretState] = deque()
 
     def __len__(self) -> int:
@@ -170,13 +219,20 @@ class PoseHistory:
             self._states.popleft()
 
     def angles(self, t: NDArray[np.float64]) -> tuple[FloatArray, FloatArray]:
-        """Pan and tilt [rad] at times ``t`` [s]: linear between readings, held beyond them."""
+        """Pan and tilt [rad] at times ``t`` [s]: linear between readings, held before
+        the oldest, carried ``lead_s`` on at the newest's rates beyond it."""
         if not self._states:
             raise InputError("no turret reading yet: the sensor pose is unknown")
         s = np.array([x.stamp for x in self._states])
-        pan = np.array([x.pan for x in self._states])
-        tilt = np.array([x.tilt for x in self._states])
-        return np.interp(t, s, pan), np.interp(t, s, tilt)
+        pan = np.interp(t, s, np.array([x.pan for x in self._states]))
+        tilt = np.interp(t, s, np.array([x.tilt for x in self._states]))
+        last = self._states[-1]
+        if self.lead_s > 0 and (last.pan_rate != 0 or last.tilt_rate != 0):
+            # q(t) = q_k + ω_k · min(t − t_k, lead_s) beyond the newest reading k
+            ahead = np.clip(np.asarray(t, dtype=np.float64) - last.stamp, 0.0, self.lead_s)
+            pan = pan + last.pan_rate * ahead
+            tilt = tilt + last.tilt_rate * ahead
+        return pan, tilt
 
     def frame(self, frame: StreamFrame, t0_ns: int, samples: int = 5) -> Frame:
         """``frame`` as the pipeline's Frame on the run's clock (seconds since ``t0_ns``),

@@ -12,19 +12,31 @@ Time.  Every time in the run is the sensor's, in seconds since the first point (
 run's clock, as ``seams`` says).  The turret's readings are stamped on the host's
 monotonic clock and moved onto the sensor's by the offset
 
-    δ = max over batches (t_last point − t_host at its arrival)
+    δ = max over batches (t_last firing − t_host at its arrival)
 
-the smallest delay seen between a point's time and its arrival, so δ follows the
+the smallest delay seen between a firing's time and its arrival (a batch's last
+firing, with a return or not, or its last point when the stream gives only
+points), so δ follows the
 sensor's clock to within the shortest transport delay (a fraction of a millisecond
-on a wired link).  The turret is read once per frame, before the frame is handed
-on; ``assembly.PoseHistory`` interpolates the readings to each pose time of the
-frame, so the per-point sensor pose follows the measured joint angles.
+on a wired link).
+
+The turret's pose.  A turret that polls its joints (``readings``: the Dynamixel
+turret reads them 100 times a second in a thread of its own) hands over every
+reading made since the last frame; the frame waits only if the newest is stale
+(older than the turret allows before the frame's end), so the serial round trip
+is not in the frame's path.  A turret without ``readings`` is read once, before
+the frame is handed on.  ``assembly.PoseHistory`` interpolates the readings to
+each pose time of the frame, and carries the newest on at its measured rates for
+at most ``LEAD_S`` beyond it, so the per-point sensor pose follows the measured
+joint angles.
 
 Latency.  Each frame carries ``received``, the ``time.perf_counter()`` when the
-batch holding its last point was read off the stream: the batch that completed the
-frame if the frame's points reach into it, else the batch before.  A frame is known
-complete only when a later point arrives, and that wait is part of the latency
-``pipeline.run`` measures, as it is part of the delay on a rig.
+batch holding its last firing (its last point, with a return or not) was read off
+the stream: the batch that completed the frame if it reaches into the frame, else
+the batch before.  A frame is known complete only when a later firing arrives
+(``assembly.FrameAssembler``; a stream whose batches carry no ``firings``: a later
+point), and that wait is part of the latency ``pipeline.run`` measures, as it is
+part of the delay on a rig.
 
 Truth.  ``--truth`` gives the target's positions in the sensor's time base (the
 points' own timestamps, in seconds); the run's clock starts at the first point, so
@@ -58,9 +70,11 @@ from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth
 from dronetrack.types import Sample, TurretState
 
-__all__ = ["LiveSource", "PointStream", "TruthFile", "TurretReader"]
+__all__ = ["LEAD_S", "LiveSource", "PointStream", "PolledTurret", "TruthFile", "TurretReader"]
 
 POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
+POSE_WAIT_S = 1.0  # longest a frame waits for a fresh turret reading
+LEAD_S = 0.05  # how far the newest reading's rates carry the pose beyond it [s]
 
 
 class PointStream(Protocol):
@@ -146,6 +160,14 @@ class TurretReader(Protocol):
     def state(self) -> TurretState | None: ...
 
 
+class PolledTurret(TurretReader, Protocol):
+    """A turret that reads its joints on its own (``DynamixelTurret.readings``): the
+    states read since the last call, once the newest is fresh for host time
+    ``until``, waiting at most ``timeout_s``; stamps on the host's clock."""
+
+    def readings(self, until: float = ..., timeout_s: float = ...) -> list[TurretState]: ...
+
+
 @dataclass(frozen=True, slots=True)
 class _Done:
     frame: StreamFrame
@@ -155,8 +177,9 @@ class _Done:
 class LiveSource:
     """Frames of a live ``stream`` as they complete (see the module docstring).
 
-    ``mount``: the sensor's mount on the turret; ``turret``: read once a frame for
-    the sensor pose (None: a fixed sensor at pan = tilt = 0); ``period_s``: the
+    ``mount``: the sensor's mount on the turret; ``turret``: its readings give the
+    sensor pose, a ``PolledTurret``'s every reading, else one ``state`` a frame
+    (None: a fixed sensor at pan = tilt = 0); ``period_s``: the
     integration time; ``max_frames``: the queue bound; ``duration_s``: stop after
     this much sensor time (None: until the stream ends or the run is stopped);
     ``truth``: the target's positions in the sensor's time base (``--truth``; a
@@ -189,7 +212,8 @@ class LiveSource:
         self._run_truth: tuple[GroundTruth, GroundTruth] | None = None  # (given, shifted)
         self.clock = clock
         self.assembler = FrameAssembler(period_s)
-        self.poses = PoseHistory(mount, keep_s=max(2.0, 4 * period_s))
+        self.poses = PoseHistory(mount, keep_s=max(2.0, 4 * period_s), lead_s=LEAD_S)
+        self._newest: TurretState | None = None  # the newest turret reading, run clock
         self._period = period_s
         self.frames_dropped = 0
         self.frames_delivered = 0
@@ -226,14 +250,14 @@ class LiveSource:
         try:
             while not self._stop.is_set():
                 batch = self.stream.read(POLL_S)
-                if len(batch) == 0:
+                first, last = batch.first_ns, batch.last_ns
+                if first is None or last is None:
                     continue
                 arrived = time.perf_counter()
                 host = self.clock()
-                # δ = max (t_last point − t_host at arrival)
-                delta = int(batch.t_ns[-1]) / NS - host
+                # δ = max (t_last firing − t_host at arrival)
+                delta = last / NS - host
                 self._offset = delta if self._offset is None else max(self._offset, delta)
-                first = int(batch.t_ns.min())
                 for frame in self.assembler.push(batch):
                     # its last point came in this batch if the batch reaches into it
                     mine = first < frame.start_ns + frame.period_ns
@@ -286,16 +310,40 @@ class LiveSource:
         """The host's clock now on the run's clock (``run_time``)."""
         return self.run_time(self.clock())
 
-    def _read_turret(self) -> TurretState:
-        t = self.sensor_time()
-        if self.turret is None:
-            return TurretState(t, 0.0, 0.0)
-        state = self.turret.state()
-        if state is None:
-            raise DeviceError("the turret reports no joint state")
-        # Its stamp is on the host clock (self.clock): move it onto the run's.
+    def host_time(self, t: float) -> float:
+        """A time on the run's clock on the host's (``clock``): the inverse of
+        ``run_time``, t − δ + t₀; NaN before the first point."""
+        t0 = self.assembler.t0_ns
+        if self._offset is None or t0 is None:
+            return float("nan")
+        return t - self._offset + t0 / NS
+
+    def _on_run_clock(self, state: TurretState) -> TurretState:
+        """A reading stamped on the host's clock, moved onto the run's."""
         stamp = self.run_time(state.stamp)
         return TurretState(stamp, state.pan, state.tilt, state.pan_rate, state.tilt_rate)
+
+    def _read_turret(self, frame_end: float) -> TurretState:
+        """Add the turret's new readings to the pose history (for a frame ending at
+        ``frame_end`` on the run's clock); the newest reading."""
+        if self.turret is None:
+            self._newest = TurretState(self.sensor_time(), 0.0, 0.0)
+            self.poses.add(self._newest)
+            return self._newest
+        read = getattr(self.turret, "readings", None)
+        if read is None:
+            state = self.turret.state()
+            if state is None:
+                raise DeviceError("the turret reports no joint state")
+            states = [state]
+        else:
+            states = read(self.host_time(frame_end), POSE_WAIT_S)
+        for state in states:
+            self._newest = self._on_run_clock(state)
+            self.poses.add(self._newest)
+        if self._newest is None:
+            raise DeviceError("the turret reports no joint state")
+        return self._newest
 
     def __iter__(self) -> Iterator[Sample]:
         self.start()
@@ -306,8 +354,8 @@ class LiveSource:
                     return
                 t0_ns = self.assembler.t0_ns
                 assert t0_ns is not None
-                state = self._read_turret()
-                self.poses.add(state)
+                end_ns = done.frame.start_ns + done.frame.period_ns
+                state = self._read_turret((end_ns - t0_ns) / NS)
                 frame = self.poses.frame(done.frame, t0_ns)
                 self.frames_delivered += 1
                 yield Sample(frame, self._truth_at(frame.end, t0_ns), state, done.received)

@@ -41,7 +41,7 @@ from __future__ import annotations
 import struct
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Unpack
 
 import numpy as np
@@ -238,7 +238,9 @@ class LivoxClient(LivoxLink):
         """The points with a return in ``packets``, in time order, t_ns the device's
         int64 ns; malformed packets are skipped and counted in ``packets_malformed``.
         ``line`` is the firing's index in its packet modulo the device's laser lines
-        (6 for Avia, Horizon, Tele; livox_ros_driver ``lds.cpp``), 0 otherwise."""
+        (6 for Avia, Horizon, Tele; livox_ros_driver ``lds.cpp``), 0 otherwise.
+        ``firings``: the first and last firing's times in the packets, with a return
+        or not (None if no packet decoded)."""
         by_type: dict[int, list[bytes]] = {}
         for p in packets:
             by_type.setdefault(p[9] if len(p) > 9 else -1, []).append(p)
@@ -254,4 +256,8 @@ class LivoxClient(LivoxLink):
             firing = np.arange(len(pts)) // layout.returns % n  # firing j within its packet
             parts.append(pts)
             lines.append((firing % self._lines(data_type)).astype(np.uint8))
-        return hits_in_time_order(parts, lines)
+        batch = hits_in_time_order(parts, lines)
+        if not parts:
+            return batch
+        first = min(int(p.t_ns.min()) for p in parts)
+        return replace(batch, firings=(first, max(int(p.t_ns.max()) for p in parts)))

@@ -24,6 +24,15 @@ parts with the same functions.  What is timed, and where:
   the ground-truth bookkeeping; written both as ROS 1 with Livox CustomMsg and as
   ROS 2 MCAP with PointCloud2.  The figure is the slower format's.
 
+The live chain (``live``, ``dronetrack bench --live``, bench_live.json) is timed
+apart, in real time against ``dronetrack emulate`` in another process:
+
+- ``live_latency``: p50 and p99 of the latency from a frame's last firing to its
+  turret command, at the Avia's full 240,000 points/s with the Dynamixel turret on
+  the emulated servos (target p99 ≤ 20 ms), frames dropped, packets lost;
+- ``live_soak``: resident memory through a 10-minute live run, its growth after a
+  60 s warm-up (target ≤ 5 %), with no packet lost and no frame dropped.
+
 ``suite`` runs them all, with the statistics and the speed targets; ``machine``
 describes the machine and pins its thread pools.  Every measurement runs
 ``rounds`` times and keeps the round with the lowest median (replay: the fastest
@@ -36,6 +45,19 @@ pins numba's and OpenBLAS's thread pools for the caller.
 
 from __future__ import annotations
 
+from dronetrack.experiments.bench.live import (
+    LATENCY_P99_TARGET_MS,
+    LIVE_FULL,
+    LIVE_QUICK,
+    LIVE_TARGETS,
+    RSS_GROWTH_TARGET_PCT,
+    LiveSettings,
+    live_bench,
+    live_latency,
+    live_soak,
+    resident_mb,
+    rss_growth_pct,
+)
 from dronetrack.experiments.bench.machine import (
     cpu_model,
     machine_info,
@@ -74,14 +96,20 @@ from dronetrack.experiments.bench.suite import (
 
 __all__ = [
     "FULL",
+    "LATENCY_P99_TARGET_MS",
+    "LIVE_FULL",
+    "LIVE_QUICK",
+    "LIVE_TARGETS",
     "PF_PARTICLES",
     "QUICK",
     "REPLAY_FORMATS",
+    "RSS_GROWTH_TARGET_PCT",
     "SENSORS",
     "SIM_CASES",
     "STAT_KEYS",
     "TARGETS",
     "AviaFrames",
+    "LiveSettings",
     "ReplayTiming",
     "Settings",
     "Target",
@@ -90,9 +118,14 @@ __all__ = [
     "cpu_model",
     "evaluate_targets",
     "heavy_repeats",
+    "live_bench",
+    "live_latency",
+    "live_soak",
     "machine_info",
     "pipeline_step_ms",
     "replay_config",
+    "resident_mb",
+    "rss_growth_pct",
     "sim_frame_ms",
     "single_thread",
     "stats",

@@ -94,10 +94,12 @@ def _lookup(results: dict[str, Any], path: tuple[str, ...]) -> float:
     return float(value)
 
 
-def evaluate_targets(results: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Each target of ``TARGETS``: its value in ``results``, its limit and whether it is met."""
+def evaluate_targets(
+    results: dict[str, Any], targets: tuple[Target, ...] = TARGETS
+) -> dict[str, dict[str, Any]]:
+    """Each of ``targets``: its value in ``results``, its limit and whether it is met."""
     out: dict[str, dict[str, Any]] = {}
-    for target in TARGETS:
+    for target in targets:
         value = _lookup(results, target.path)
         out[target.key] = {
             "label": target.label,

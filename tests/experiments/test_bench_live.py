@@ -1,0 +1,121 @@
+"""``dronetrack bench --live``: the live benchmarks' code path on a quick run (a smoke
+test: ``dronetrack emulate`` in its own process and ``live`` against it for a few
+seconds), bench_live.json's structure, the memory figures, and bad input.
+
+Latency and memory growth are reported by the benchmark, never asserted here: the
+quick run only checks that every figure is there and sane."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dronetrack.cli.main import run
+from dronetrack.errors import ConfigError
+from dronetrack.experiments.bench import (
+    LIVE_QUICK,
+    LIVE_TARGETS,
+    LiveSettings,
+    resident_mb,
+    rss_growth_pct,
+)
+
+pytest.importorskip("dynamixel_sdk")
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and value >= 0
+
+
+def test_quick_live_bench_writes_every_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert run(["bench", "--live", "--quick", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    path = tmp_path / "bench_live.json"
+    assert out.strip().splitlines()[-1] == str(path)
+    assert not (tmp_path / "bench.json").exists()
+    data = json.loads(path.read_text())
+    assert data["settings"]["quick"] is True
+    assert data["settings"]["latency_s"] == LIVE_QUICK.latency_s
+
+    lat = data["live_latency"]
+    # 2 s of flight at 10 Hz after the scan: every frame logged or dropped
+    assert 15 <= lat["frames"] + lat["frames_dropped"] <= 21
+    assert 0 < lat["latency_ms_p50"] <= lat["latency_ms_p99"]
+    for key in ("frames_dropped", "packets_lost", "packets_malformed", "turret_reads_missed"):
+        assert _count(lat[key]), key
+    assert lat["turret"].startswith("dynamixel://")
+    assert lat["met"] == (lat["latency_ms_p99"] <= 20.0)
+
+    soak = data["live_soak"]
+    samples = np.array(soak["rss_samples"])
+    # a sample every 0.5 s through the 0.5 s scan and the 4 s flight, from the devices' answer
+    assert len(samples) >= 7
+    assert np.all(np.diff(samples[:, 0]) > 0)
+    assert np.all(samples[:, 1] > 10.0)  # MB: numpy, numba and the pipeline are loaded
+    assert soak["rss_mb_max"] == max(mb for t, mb in soak["rss_samples"] if t >= 1.0)
+    assert soak["rss_growth_pct"] == pytest.approx(
+        100.0 * (soak["rss_mb_max"] - soak["rss_mb_warm"]) / soak["rss_mb_warm"]
+    )
+    assert soak["coverage_pct"] is None  # a soak runs as a rig does, without truth
+
+    targets = data["targets"]
+    assert set(targets) == {t.key for t in LIVE_TARGETS}
+    assert targets["live_latency.latency_ms_p99"]["value"] == lat["latency_ms_p99"]
+    assert targets["live_soak.rss_growth_pct"]["value"] == soak["rss_growth_pct"]
+    for target in targets.values():
+        assert math.isfinite(target["value"])
+        assert target["met"] == (target["value"] <= target["limit"])
+    assert out.count("met") + out.count("MISSED") >= len(LIVE_TARGETS)
+
+
+def test_growth_counts_from_the_end_of_the_warm_up() -> None:
+    samples = [(0.0, 50.0), (5.0, 120.0), (10.0, 100.0), (15.0, 103.0), (20.0, 101.0)]
+    # from the first sample at or after 10 s (100 MB) to the largest after it (103 MB)
+    assert rss_growth_pct(samples, 10.0) == pytest.approx(3.0)
+    assert rss_growth_pct(samples, 7.5) == pytest.approx(3.0)
+    assert rss_growth_pct(samples, 16.0) == 0.0
+    with pytest.raises(ConfigError, match="warm-up"):
+        rss_growth_pct(samples, 25.0)
+
+
+def test_resident_memory_counts_touched_pages() -> None:
+    before = resident_mb()
+    block = np.ones(64_000_000 // 8)  # 64 MB, every page written
+    after = resident_mb()
+    assert after - before > 50.0
+    del block
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--soak-s", "30"], "go with --live"),
+        (["--live", "--rounds", "2"], "not --live"),
+        (["--live", "--soak-s", "30", "--warmup-s", "40"], "shorter than the soak"),
+        (["--live", "--latency-s", "0"], "flight of > 0 s"),
+        (["--live", "--soak-s", "-1"], "0: none"),
+    ],
+)
+def test_bad_live_input_exits_2_with_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    assert run(["bench", "--out", str(tmp_path), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:")
+    assert message in err
+    assert "\n" not in err
+    assert not (tmp_path / "bench_live.json").exists()
+
+
+def test_live_settings_are_checked() -> None:
+    assert LiveSettings().checked() == LiveSettings(20.0, 600.0, 60.0, 5.0, None)
+    assert LiveSettings(soak_s=0.0, warmup_s=60.0).checked().soak_s == 0.0  # no soak
+    with pytest.raises(ConfigError, match="sampling"):
+        LiveSettings(sample_s=0.0).checked()
