@@ -92,6 +92,27 @@ def test_decode_drops_no_return_points_skips_imu_and_sorts_by_time() -> None:
     assert client.packets_malformed == 0
 
 
+def test_decode_gives_the_packets_firings_with_or_without_a_return() -> None:
+    """Two packets of 96 points 5 µs apart, returns only in the first ten of the first:
+    the batch holds those ten points, and its firings span both packets, from point 0
+    of the first to point 95 of the second, so time is known to have passed where the
+    sky sent nothing back."""
+    hits = b"".join(struct.pack("<iiiBB", 1000 + k, 0, 0, 9, 0) for k in range(10))
+    first = sdk2_packet(1, hits + bytes(14 * 86), N, interval=4750)
+    second = sdk2_packet(1, bytes(14 * N), N, interval=4750, stamp=T0 + P, udp_cnt=4)
+    imu = sdk2_packet(0, struct.pack("<6f", 0, 0, 0, 0, 0, 1), 1, interval=0, stamp=T0 + 9 * P)
+    client = _client()
+    batch = client.decode([first, second, imu])
+    np.testing.assert_array_equal(batch.t_ns, T0 + DT * np.arange(10))
+    assert batch.firings == (T0, T0 + P + 95 * DT)
+    sky = client.decode([second])
+    assert len(sky) == 0
+    assert sky.firings == (T0 + P, T0 + P + 95 * DT)
+    assert client.decode([imu]).firings is None
+    assert client.decode([]).firings is None
+    assert client.decode([b"junk"]).firings is None
+
+
 def test_decode_skips_and_counts_malformed_packets() -> None:
     recs, _ = _records(1)
     good = sdk2_packet(1, recs, N, interval=4750)

@@ -58,7 +58,7 @@ import socket
 import struct
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Unpack
 
 import numpy as np
@@ -290,7 +290,9 @@ class Livox2Client(LivoxLink):
     def decode(self, packets: Sequence[bytes]) -> PointBatch:
         """The points with a return in ``packets``, in time order, t_ns the device's
         int64 ns; malformed packets are skipped and counted in ``packets_malformed``,
-        IMU packets skipped.  ``line``: the point's index in its packet mod 4."""
+        IMU packets skipped.  ``line``: the point's index in its packet mod 4.
+        ``firings``: the first and last point's times in the point packets, with a
+        return or not (None if no point packet decoded)."""
         good = [p for p in packets if s2.packet_problem(p) is None]
         self.packets_malformed += len(packets) - len(good)
         points = [p for p in good if p[10] != s2.IMU_DATA_TYPE]
@@ -301,4 +303,6 @@ class Livox2Client(LivoxLink):
         line: NDArray[np.uint8] = np.concatenate(
             [np.arange(n, dtype=np.int64) % LINES for n in counts]
         ).astype(np.uint8)
-        return hits_in_time_order([decoded.points], [line])
+        batch = hits_in_time_order([decoded.points], [line])
+        t_ns = decoded.points.t_ns
+        return replace(batch, firings=(int(t_ns.min()), int(t_ns.max())))
