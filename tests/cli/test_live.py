@@ -23,6 +23,7 @@ import pytest
 from dronetrack.cli.main import run
 from dronetrack.formats.dynamixel import ADDR
 from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource
+from dronetrack.sim.emulate.livox2 import EmulatedLivox2
 from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
 
 LIVE_METRICS = {"latency_ms_p50", "latency_ms_p99", "frames_dropped", "packets_lost",
@@ -250,6 +251,44 @@ def test_info_of_a_livox_device(capsys: pytest.CaptureFixture[str]) -> None:
     sampled = next(line for line in out.splitlines() if line.startswith("sampling"))
     assert "0 lost, 0 malformed" in sampled
     assert int(sampled.split(": ")[1].split()[0]) > 500  # packets in 0.5 s of 2,500/s
+
+
+def test_info_of_a_livox2_device(capsys: pytest.CaptureFixture[str]) -> None:
+    lidar = EmulatedLivox2(
+        GridSource(5_000, 5.0, stride=10),
+        discovery_port=0,
+        cmd_port=0,
+        push_port=0,
+        point_port=0,
+        serial="47MDL9W0020022",
+        firmware=(10, 11, 6, 35),
+    ).start()
+    (_, port), (_, detect) = lidar.address, lidar.discovery_address
+    uri = (
+        f"livox2://127.0.0.1?device_port={port}&device_discovery_port={detect}"
+        "&cmd_port=0&point_port=0&discovery_port=0&broadcast=0"
+    )
+    try:
+        assert run(["info", uri]) == 0
+    finally:
+        lidar.close()
+    out = capsys.readouterr().out
+    for line in (
+        "device: Livox Mid-360 at 127.0.0.1",
+        "device type: 9",
+        "serial number: 47MDL9W0020022",
+        "product: Mid-360 emulated",
+        "firmware: 10.11.6.35",
+        "loader version: 0.1.0.0",
+        "hardware version: 0.0.0.1",
+        "MAC: 02:00:00:00:03:60",
+        "work state: 0x02 IDLE",
+    ):
+        assert line in out.splitlines()
+    sampled = next(line for line in out.splitlines() if line.startswith("sampling"))
+    assert "0 lost, 0 malformed" in sampled
+    # 0.5 s of 200,000 points/s, every 10th point a return: packets at 2,083/s
+    assert int(sampled.split(": ")[1].split()[0]) > 500
 
 
 def test_info_of_the_servos(

@@ -1,12 +1,25 @@
 """The whole live chain on one machine: ``dronetrack emulate`` (the simulator in real time
-behind an emulated Livox Avia on UDP and two emulated XM430 servos on a pseudo-terminal)
+behind an emulated Livox LiDAR on UDP and two emulated XM430 servos on a pseudo-terminal)
 in its own process, and ``dronetrack live`` against it through the real protocols, for
-20 s of the ``default`` flight after its 10 s background scan.
+20 s of flight:
+
+- SDK 1: an Avia, the ``default`` flight after its 10 s background scan;
+- SDK 2: a Mid-360, the ``mid360-aggressive`` flight (seed 002's sensor and F550 in
+  aggressive flight) after its 2 s scan; the test takes 27.5-28.1 s here (3 runs at a
+  load average of 1.4-1.7).
 
 Against ``dronetrack simulate`` of the same seed and flight time, the live run must cover
 the drone within 10 points (the issue's bound: the two differ only in real-time
-effects, the turret's command timing and the servos' reads; measured: live 95.0 %,
-simulate 94.0 % on seed 0), and lose no packet and drop no frame."""
+effects, the turret's command timing and the servos' reads), and lose no packet and
+drop no frame.  Measured on seed 0 at a load average of 1-3: the Avia live 95.0 % or
+83.0 % (two outcomes, in 3 and 4 of 7 runs, with or without the Mid-360's changes),
+simulate 95.0 %; the Mid-360 live 93.5 %, 96.0 %, 92.0 %, simulate 100.0 %.  With 15 s
+of the Mid-360's flight one run of eleven fell 10.7 points below simulate, hence 20 s.
+
+Both run in real time and feel the machine's load: with a load average of 4-6 from other
+processes, before the servos' reads were polled, they failed in some runs on a servo's
+status packet later than the DYNAMIXEL SDK's timeout (about 34 ms); since, one Avia run
+of eight, at a load average of 2.5, ended on its points arriving 1 s late."""
 
 from __future__ import annotations
 
@@ -51,6 +64,44 @@ def test_live_against_the_emulated_rig_tracks_as_the_simulation_does(tmp_path: P
         run(["simulate", "default", "--seed", "0", "--duration", FLIGHT_S, "--out", str(sim)]) == 0
     )
     got, want = _metrics(live), _metrics(sim)
+    assert got["packets_lost"] == 0
+    assert got["packets_malformed"] == 0
+    assert got["frames_dropped"] == 0
+    assert got["frames"] == want["frames"]
+    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
+    assert got["latency_ms_p50"] > 0
+
+
+def test_live_against_an_emulated_mid360_over_sdk2_tracks_as_the_simulation_does(
+    tmp_path: Path,
+) -> None:
+    scenario, seed = "mid360-aggressive", "0"
+    with emulator(tmp_path, scenario, "--seed", seed, "--duration", FLIGHT_S) as emu:
+        assert emu.lines[0].startswith(f"lidar: livox2://{emu.ip}  (Livox Mid-360")
+        live = tmp_path / "live"
+        rc = run(
+            [
+                "live",
+                scenario,
+                "--lidar",
+                f"livox2://{emu.ip}",
+                "--turret",
+                f"dynamixel://{emu.link}",
+                "--duration",
+                FLIGHT_S,
+                "--truth",
+                str(emu.truth),
+                "--out",
+                str(live),
+            ]
+        )
+        assert rc == 0
+        assert emu.proc.poll() is None
+    sim = tmp_path / "sim"
+    args = ["simulate", scenario, "--seed", seed, "--duration", FLIGHT_S]
+    assert run([*args, "--out", str(sim)]) == 0
+    got, want = _metrics(live), _metrics(sim)
+    assert got["lidar"] == f"livox2://{emu.ip}"
     assert got["packets_lost"] == 0
     assert got["packets_malformed"] == 0
     assert got["frames_dropped"] == 0

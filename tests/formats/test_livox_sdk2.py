@@ -290,6 +290,62 @@ def test_parameter_queries_and_their_acks_against_hand_built_bytes() -> None:
         s2.QueryAck.decode(ack[:-1])
 
 
+def _kv(key: int, value: bytes) -> bytes:
+    return struct.pack("<HH", key, len(value)) + value
+
+
+def test_device_information_from_a_hand_built_inquiry_ack() -> None:
+    # Livox-SDK2 QueryLivoxLidarFirmwareVer: key_num 1, reserved, key 0x8002
+    assert s2.encode_key_list([0x8002]) == struct.pack("<HHH", 1, 0, 0x8002)
+    # the ACK (document, 0x0101 and the key_value_list table): ret_code, key_num, then
+    # sn uint8_t[16], product_info char[64], version_app uint8_t[4] aa.bb.cc.dd with
+    # version_info[0] = aa, version_loader, version_hardware, mac uint8_t[6]
+    # aa:bb:cc:dd:ee:ff with data[0] = aa, cur_work_state uint8_t; and a key not read
+    items = [
+        _kv(0x8000, b"47MDL9W0020022\0\0"),
+        _kv(0x8001, b"Mid-360 2021/12/01".ljust(64, b"\0")),
+        _kv(0x8002, bytes([10, 11, 6, 35])),
+        _kv(0x8003, bytes([1, 2, 3, 4])),
+        _kv(0x8004, bytes([0, 0, 0, 2])),
+        _kv(0x8005, bytes([0x3C, 0x6D, 0x66, 0x01, 0xAB, 0xCD])),
+        _kv(0x8006, b"\x01"),
+        _kv(0x8007, struct.pack("<i", 4250)),  # core_temp, 42.50 °C: not read
+    ]
+    ack = struct.pack("<BH", 0, len(items)) + b"".join(items)
+    info = s2.DeviceInfo.from_items(s2.QueryAck.decode(ack).items)
+    assert info == s2.DeviceInfo(
+        serial="47MDL9W0020022",
+        product="Mid-360 2021/12/01",
+        firmware="10.11.6.35",
+        loader="1.2.3.4",
+        hardware="0.0.0.2",
+        mac="3c:6d:66:01:ab:cd",
+        work_state=1,
+    )
+    assert info.work_state_name == "SAMPLING"
+    # a device that leaves keys out: those are None
+    only = struct.pack("<BH", 0, 1) + _kv(0x8002, bytes([1, 0, 0, 0]))
+    assert s2.DeviceInfo.from_items(s2.QueryAck.decode(only).items) == s2.DeviceInfo(
+        firmware="1.0.0.0"
+    )
+    assert s2.DeviceInfo().work_state_name is None
+    assert s2.DeviceInfo(work_state=0x03).work_state_name == "unknown"
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        (0x8002, bytes(3)),  # version_app is 4 bytes
+        (0x8005, bytes(7)),  # mac is 6
+        (0x8006, b""),  # cur_work_state is 1
+        (0x8000, bytes(17)),  # sn is at most 16
+    ],
+)
+def test_device_information_of_the_wrong_length_raises(key: int, value: bytes) -> None:
+    with pytest.raises(DecodeError, match=f"0x{key:04X}"):
+        s2.DeviceInfo.from_items([(key, value)])
+
+
 def test_host_configuration_alone_leaves_out_the_work_mode() -> None:
     data = s2.host_config_request("192.168.1.5", 1, 2, 3, work_mode=None)
     assert struct.unpack_from("<H", data)[0] == 3

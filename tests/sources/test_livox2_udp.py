@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import struct
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -24,7 +25,17 @@ from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.sim.emulate.livox import GridSource, grid_points
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
 from dronetrack.sources.livox2_udp import Livox2Client, Livox2Endpoint, parse_livox2_uri
-from livox_helpers import LOOP, T0, collect, damaged_packets, read_for, sdk2_packet
+from livox_helpers import (
+    LOOP,
+    T0,
+    collect,
+    damaged_packets,
+    loopback_udp,
+    port_of,
+    read_for,
+    sdk2_frame,
+    sdk2_packet,
+)
 
 DT = 5_000  # ns between points at 200,000 points/s
 N = 96  # points per packet (protocol document, "Data Types")
@@ -79,6 +90,27 @@ def test_decode_drops_no_return_points_skips_imu_and_sorts_by_time() -> None:
     np.testing.assert_allclose(batch.xyz[0], [0.01, 0.02, 0.03])
     np.testing.assert_array_equal(batch.line, [0, 1, 2, 0])
     assert client.packets_malformed == 0
+
+
+def test_decode_gives_the_packets_firings_with_or_without_a_return() -> None:
+    """Two packets of 96 points 5 µs apart, returns only in the first ten of the first:
+    the batch holds those ten points, and its firings span both packets, from point 0
+    of the first to point 95 of the second, so time is known to have passed where the
+    sky sent nothing back."""
+    hits = b"".join(struct.pack("<iiiBB", 1000 + k, 0, 0, 9, 0) for k in range(10))
+    first = sdk2_packet(1, hits + bytes(14 * 86), N, interval=4750)
+    second = sdk2_packet(1, bytes(14 * N), N, interval=4750, stamp=T0 + P, udp_cnt=4)
+    imu = sdk2_packet(0, struct.pack("<6f", 0, 0, 0, 0, 0, 1), 1, interval=0, stamp=T0 + 9 * P)
+    client = _client()
+    batch = client.decode([first, second, imu])
+    np.testing.assert_array_equal(batch.t_ns, T0 + DT * np.arange(10))
+    assert batch.firings == (T0, T0 + P + 95 * DT)
+    sky = client.decode([second])
+    assert len(sky) == 0
+    assert sky.firings == (T0 + P, T0 + P + 95 * DT)
+    assert client.decode([imu]).firings is None
+    assert client.decode([]).firings is None
+    assert client.decode([b"junk"]).firings is None
 
 
 def test_decode_skips_and_counts_malformed_packets() -> None:
@@ -338,3 +370,123 @@ def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:
         assert not any(t.is_alive() for t in client._threads)
     finally:
         silent.close()
+
+
+# --- the device information against a device answering hand-built frames ------------
+
+INFO_KEYS = [0x8000, 0x8001, 0x8002, 0x8003, 0x8004, 0x8005, 0x8006]
+
+
+def _kv(key: int, value: bytes) -> bytes:
+    return struct.pack("<HH", key, len(value)) + value
+
+
+@contextmanager
+def hand_built_device(inquiry: bytes | None) -> Iterator[int]:
+    """A device on 127.0.0.1 (its command port yielded) that answers, with frames built
+    by hand: 0x0100 with ret_code 0, a work-state query (the keep-alive) with IDLE, and
+    any other 0x0101 with the ACK data ``inquiry`` (None: no answer)."""
+    sock = loopback_udp()
+    sock.settimeout(0.05)
+    stop = threading.Event()
+
+    def serve() -> None:
+        while not stop.is_set():
+            try:
+                buf, peer = sock.recvfrom(2048)
+            except TimeoutError:
+                continue
+            (seq, cmd_id), data = struct.unpack_from("<IH", buf, 4), buf[24:]
+            if cmd_id == 0x0100:
+                reply = struct.pack("<BH", 0, 0)
+            elif data == struct.pack("<HHH", 1, 0, 0x8006):
+                reply = struct.pack("<BH", 0, 1) + _kv(0x8006, b"\x02")
+            elif inquiry is not None:
+                reply = inquiry
+            else:
+                continue
+            sock.sendto(sdk2_frame(cmd_id, 1, seq, reply, sender=1), peer)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield port_of(sock)
+    finally:
+        stop.set()
+        thread.join(1.0)
+        sock.close()
+
+
+def _connected(device_port: int) -> Livox2Client:
+    ep = Livox2Endpoint(LOOP, None, 0, 0, 0, device_port, 1, False)
+    client = Livox2Client(ep, discover_s=0.0)
+    client.connect(timeout_s=2.0)
+    return client
+
+
+def test_query_info_reads_what_the_device_reports() -> None:
+    items = [
+        _kv(0x8000, b"47MDL9W0020022\0\0"),
+        _kv(0x8001, b"Mid-360 2021/12/01".ljust(64, b"\0")),
+        _kv(0x8002, bytes([10, 11, 6, 35])),
+        _kv(0x8006, b"\x02"),
+    ]  # loader, hardware and MAC left out
+    inquiry = struct.pack("<BH", 0, len(items)) + b"".join(items)
+    with hand_built_device(inquiry) as port:
+        client = _connected(port)
+        try:
+            info = client.query_info(timeout_s=1.0)
+        finally:
+            client.close()
+    assert info is not None
+    assert (info.serial, info.product, info.firmware) == (
+        "47MDL9W0020022",
+        "Mid-360 2021/12/01",
+        "10.11.6.35",
+    )
+    assert (info.loader, info.hardware, info.mac, info.work_state) == (None, None, None, 2)
+
+
+def test_query_info_asks_for_the_documented_keys_and_names_a_refusal() -> None:
+    asked: list[bytes] = []
+    refusal = struct.pack("<BH", 0x01, 0)  # ret_code 0x01 failure, no keys
+    with hand_built_device(refusal) as port:
+        client = _connected(port)
+        original = client._send
+
+        def spy(cmd_id: int, payload: bytes, cmd_type: int | None = None) -> int:
+            if cmd_id == 0x0101:
+                asked.append(payload)
+            return original(cmd_id, payload, cmd_type)
+
+        client._send = spy  # type: ignore[method-assign]
+        try:
+            with pytest.raises(DeviceError, match="parameter inquiry refused, ret_code 0x01"):
+                client.query_info(timeout_s=1.0)
+        finally:
+            client.close()
+    assert struct.pack("<HH7H", 7, 0, *INFO_KEYS) in asked
+
+
+def test_query_info_without_an_answer_is_none_and_the_link_stays_alive() -> None:
+    with hand_built_device(None) as port:
+        client = _connected(port)
+        try:
+            t0 = time.monotonic()
+            assert client.query_info(timeout_s=0.3) is None
+            assert 0.3 <= time.monotonic() - t0 < 1.0
+            assert client._dead is None
+        finally:
+            client.close()
+    with pytest.raises(DeviceError, match="not connected"):
+        Livox2Client(Livox2Endpoint(LOOP)).query_info()
+
+
+def test_query_info_of_the_emulated_mid360() -> None:
+    with linked(GridSource(DT, 1.0)) as (client, dev):
+        client.connect(timeout_s=2.0)
+        info = client.query_info()
+        assert info is not None
+        assert (info.serial, info.firmware, info.work_state) == ("0EMULATEDMID360", "0.1.0.0", 2)
+        assert info.product == "Mid-360 emulated"
+        assert dev.queries_answered >= 1

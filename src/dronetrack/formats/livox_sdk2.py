@@ -58,6 +58,7 @@ from dronetrack.geometry.transforms import FloatArray
 
 __all__ = [
     "DISCOVERY",
+    "INFO_KEYS",
     "KEY_IMU_HOST",
     "KEY_POINT_HOST",
     "KEY_STATE_HOST",
@@ -66,6 +67,7 @@ __all__ = [
     "LAYOUTS",
     "SET_PARAMS",
     "CommandFrame",
+    "DeviceInfo",
     "DiscoveryAck",
     "HostIpConfig",
     "ParamAck",
@@ -95,7 +97,29 @@ DEVICE_TYPE_MID360 = 9  # Livox-SDK2 livox_lidar_def.h LivoxLidarDeviceType
 DISCOVERY_PORT, CMD_PORT, PUSH_PORT, POINT_PORT, IMU_PORT = 56000, 56100, 56200, 56300, 56400
 KEY_DATA_TYPE, KEY_STATE_HOST, KEY_POINT_HOST, KEY_IMU_HOST = 0x0000, 0x0005, 0x0006, 0x0007
 KEY_WORK_MODE, KEY_IMU_ENABLE = 0x001A, 0x001C
-KEY_SERIAL, KEY_WORK_STATE = 0x8000, 0x8006  # read-only: serial number, current work state
+# read-only keys (document, "0x0102 LiDAR Information Push", key_value_list): serial
+# number, product info, firmware (app, loader, hardware) versions, MAC, current work state
+KEY_SERIAL, KEY_PRODUCT_INFO, KEY_VERSION_APP = 0x8000, 0x8001, 0x8002
+KEY_VERSION_LOADER, KEY_VERSION_HARDWARE, KEY_MAC, KEY_WORK_STATE = 0x8003, 0x8004, 0x8005, 0x8006
+INFO_KEYS = (
+    KEY_SERIAL,
+    KEY_PRODUCT_INFO,
+    KEY_VERSION_APP,
+    KEY_VERSION_LOADER,
+    KEY_VERSION_HARDWARE,
+    KEY_MAC,
+    KEY_WORK_STATE,
+)
+# work states (document, "LiDAR Working Status")
+WORK_STATES = {
+    0x01: "SAMPLING",
+    0x02: "IDLE",
+    0x04: "ERROR",
+    0x05: "SELFCHECK",
+    0x06: "MOTORSTARTUP",  # the document spells it MOTORSTARUP
+    0x08: "UPGRADE",
+    0x09: "READY",
+}
 WORK_MODE_SAMPLING, WORK_MODE_IDLE = 0x01, 0x02
 # return codes (protocol document, "Return Code Description")
 RET_OK, RET_FAILURE, RET_NOT_PERMITTED, RET_OUT_OF_RANGE = 0x00, 0x01, 0x02, 0x03
@@ -335,6 +359,68 @@ class QueryAck:
             raise DecodeError(f"Livox query ACK of {len(b)} bytes is shorter than 3")
         ret_code, count = struct.unpack_from("<BH", b)
         return QueryAck(ret_code, tuple(_items(b, count, 3)))
+
+
+def _text(value: bytes) -> str:
+    """A NUL-padded string value (sn, product_info)."""
+    return value.split(b"\0", 1)[0].decode("ascii", "replace")
+
+
+def _version(value: bytes) -> str:
+    """A uint8_t[4] version aa.bb.cc.dd, version_info[0] = aa (as Livox-SDK2's
+    livox_lidar_info_get sample prints it: decimal)."""
+    return ".".join(str(b) for b in value)
+
+
+# key → (field of DeviceInfo, value length (strings: at most), reading of the value)
+_INFO_FIELDS: dict[int, tuple[str, int, Callable[[bytes], object]]] = {
+    KEY_SERIAL: ("serial", 16, _text),
+    KEY_PRODUCT_INFO: ("product", 64, _text),
+    KEY_VERSION_APP: ("firmware", 4, _version),
+    KEY_VERSION_LOADER: ("loader", 4, _version),
+    KEY_VERSION_HARDWARE: ("hardware", 4, _version),
+    KEY_MAC: ("mac", 6, lambda v: ":".join(f"{b:02x}" for b in v)),
+    KEY_WORK_STATE: ("work_state", 1, lambda v: v[0]),
+}
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    """What a device says of itself in the ACK of a 0x0101 query of ``INFO_KEYS``: serial
+    number, product info ("LiDAR type + production date"), firmware version
+    (``version_app``), loader and hardware versions, MAC address and current work
+    state; None for a key the device left out."""
+
+    serial: str | None = None
+    product: str | None = None
+    firmware: str | None = None
+    loader: str | None = None
+    hardware: str | None = None
+    mac: str | None = None
+    work_state: int | None = None
+
+    @staticmethod
+    def from_items(items: Sequence[tuple[int, bytes]]) -> DeviceInfo:
+        """From a query ACK's key/value list; other keys are ignored.  DecodeError for a
+        value whose length is not the document's (a string may be shorter)."""
+        fields: dict[str, object] = {}
+        for key, value in items:
+            if key not in _INFO_FIELDS:
+                continue
+            name, size, read = _INFO_FIELDS[key]
+            text = key in (KEY_SERIAL, KEY_PRODUCT_INFO)
+            if len(value) > size if text else len(value) != size:
+                raise DecodeError(
+                    f"Livox key 0x{key:04X} ({name}) has {len(value)} bytes, expected {size}"
+                )
+            fields[name] = read(value)
+        return DeviceInfo(**fields)  # type: ignore[arg-type]
+
+    @property
+    def work_state_name(self) -> str | None:
+        if self.work_state is None:
+            return None
+        return WORK_STATES.get(self.work_state, "unknown")
 
 
 def packet_problem(buf: Bytes, check_crc: bool = False) -> str | None:

@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -48,6 +48,9 @@ from dronetrack.sinks.track_log import TrackLogSink
 from dronetrack.sources.live import LiveSource, PointStream, TruthFile
 from dronetrack.sources.paced import FILE_SCHEME, PacedSource
 from dronetrack.types import Sample
+
+if TYPE_CHECKING:
+    from dronetrack.sources.livox2_udp import Livox2Client
 
 __all__ = [
     "LIDAR_SCHEMES",
@@ -363,13 +366,36 @@ class _TruthOverride:
             yield replace(sample, truth=truth)
 
 
+def _sdk2_info(client: Livox2Client, unknown: str) -> list[tuple[str, str]]:
+    """``info`` lines of an SDK 2 device's parameter inquiry (keys 0x8000-0x8006)."""
+    info = client.query_info()
+    serial = client.serial or (info.serial if info is not None else None)
+    lines = [("serial number", serial or unknown)]
+    if info is None:
+        return [*lines, ("firmware", "no answer to the parameter inquiry (0x0101)")]
+    state = None
+    if info.work_state is not None:
+        state = f"0x{info.work_state:02X} {info.work_state_name}"
+    missing = "not reported"
+    return [
+        *lines,
+        ("product", info.product or missing),
+        ("firmware", info.firmware or missing),
+        ("loader version", info.loader or missing),
+        ("hardware version", info.hardware or missing),
+        ("MAC", info.mac or missing),
+        ("work state", state or missing),
+    ]
+
+
 def probe_lidar(uri: str, sample_s: float = 0.5) -> list[tuple[str, str]]:
-    """What a Livox LiDAR says of itself (``dronetrack info livox://IP``), as (name,
-    value) lines: model and device type from discovery, broadcast code (SDK 1) or
-    serial number (SDK 2), the firmware (SDK 1's device-information query), the host
-    address and ports the handshake announced, then what ``sample_s`` seconds of
-    sampling bring (packets, points, lost and malformed packets).  DeviceError if
-    it does not answer."""
+    """What a Livox LiDAR says of itself (``dronetrack info livox://IP``, ``livox2://IP``),
+    as (name, value) lines: model and device type from discovery; for SDK 1 the
+    broadcast code and the firmware (the device-information query); for SDK 2 what
+    its parameter inquiry reports (serial number, product, firmware, loader and
+    hardware versions, MAC, work state); the host address and command port the
+    connection announced, then what ``sample_s`` seconds of sampling bring (packets,
+    points, lost and malformed packets).  DeviceError if it does not answer."""
     from dronetrack.sources.livox2_udp import Livox2Client
     from dronetrack.sources.livox_udp import LivoxClient
 
@@ -386,7 +412,7 @@ def probe_lidar(uri: str, sample_s: float = 0.5) -> list[tuple[str, str]]:
             firmware = client.query_firmware()
             lines.append(("firmware", firmware or "no answer to the device-information query"))
         else:
-            lines.append(("serial number", client.serial or unknown))
+            lines.extend(_sdk2_info(client, unknown))
         lines.append(("host", f"{client.host_ip}, command port {client.cmd_port}"))
         client.open(OPEN_TIMEOUT_S)
         points = 0

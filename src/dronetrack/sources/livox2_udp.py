@@ -20,7 +20,10 @@ The link, as the Mid-360 protocol document (livox_wiki_en
    each command after 1 s (``comm/define.h`` KDefaultTimeOut).  This client asks
    for the current work state (0x0101 query of key 0x8006) every
    ``heartbeat_period_s`` and counts the link dead after ``heartbeat_timeout_s``
-   with neither an answer nor a status push; ``work_state`` keeps the last one seen.
+   with neither an answer nor a status push; ``work_state`` keeps the last one seen;
+5. device information (``query_info``, for ``dronetrack info``): a 0x0101 query of
+   the read-only keys 0x8000-0x8006: serial number, product info, firmware
+   (``version_app``), loader and hardware versions, MAC, work state.
 
 Ports: the status pushes go to the host's command port (default 56101) and the IMU
 packets to its point port (default 56301), so one socket takes ACKs and pushes and
@@ -55,22 +58,19 @@ import socket
 import struct
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Unpack
 
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.errors import ConfigError, DecodeError
+from dronetrack.errors import ConfigError, DecodeError, DeviceError
 from dronetrack.formats import livox_sdk2 as s2
 from dronetrack.sources.assembly import PointBatch
-from dronetrack.sources.livox_link import (
-    MAX_DATAGRAM,
-    LinkOptions,
-    LivoxLink,
-    hits_in_time_order,
-    parse_device_uri,
-)
+from dronetrack.sources.livox_link import LinkOptions, LivoxLink
+from dronetrack.sources.livox_net import MAX_DATAGRAM
+from dronetrack.sources.livox_points import hits_in_time_order
+from dronetrack.sources.livox_uri import parse_device_uri
 
 __all__ = ["Livox2Client", "Livox2Endpoint", "parse_livox2_uri"]
 
@@ -218,9 +218,10 @@ class Livox2Client(LivoxLink):
         if frame.cmd_id == s2.QUERY_PARAMS:
             ack = s2.QueryAck.decode(frame.payload)
             if ack.ret_code == 0:
+                # any answered query shows the link alive; the ACK still goes to a
+                # caller waiting for it (query_info)
+                self._keepalive_answered()
                 self._note_state(list(ack.items))
-                return True, frame.seq, frame.payload
-            return None
         return False, frame.seq, frame.payload
 
     def _note_state(self, items: list[tuple[int, bytes]]) -> None:
@@ -241,6 +242,28 @@ class Livox2Client(LivoxLink):
     def _sampling_command(self, start: bool) -> tuple[int, bytes]:
         mode = s2.WORK_MODE_SAMPLING if start else s2.WORK_MODE_IDLE
         return s2.SET_PARAMS, s2.encode_key_values([(s2.KEY_WORK_MODE, bytes([mode]))])
+
+    def query_info(self, timeout_s: float = 1.0) -> s2.DeviceInfo | None:
+        """What the connected device says of itself: a parameter inquiry (0x0101) of
+        serial number, product info, firmware (``version_app``, key 0x8002; Livox-SDK2
+        ``QueryLivoxLidarFirmwareVer`` asks for it alone), loader and hardware versions,
+        MAC and work state.  None if it does not answer within ``timeout_s``;
+        DeviceError if it refuses or answers what does not decode."""
+        if not self._connected:
+            raise DeviceError(f"{self.name}: not connected (call connect or open)")
+        query = s2.encode_key_list(list(s2.INFO_KEYS))
+        ack = self._ask(s2.QUERY_PARAMS, query, time.monotonic() + timeout_s)
+        if ack is None:
+            return None
+        try:
+            answer = s2.QueryAck.decode(ack)
+            if answer.ret_code != 0:
+                raise DeviceError(
+                    f"{self.name}: parameter inquiry refused, ret_code 0x{answer.ret_code:02X}"
+                )
+            return s2.DeviceInfo.from_items(answer.items)
+        except DecodeError as exc:
+            raise DeviceError(f"{self.name}: parameter inquiry: {exc}") from exc
 
     def _send_keepalive(self) -> None:
         self._send(s2.QUERY_PARAMS, s2.encode_key_list([s2.KEY_WORK_STATE]))
@@ -267,7 +290,9 @@ class Livox2Client(LivoxLink):
     def decode(self, packets: Sequence[bytes]) -> PointBatch:
         """The points with a return in ``packets``, in time order, t_ns the device's
         int64 ns; malformed packets are skipped and counted in ``packets_malformed``,
-        IMU packets skipped.  ``line``: the point's index in its packet mod 4."""
+        IMU packets skipped.  ``line``: the point's index in its packet mod 4.
+        ``firings``: the first and last point's times in the point packets, with a
+        return or not (None if no point packet decoded)."""
         good = [p for p in packets if s2.packet_problem(p) is None]
         self.packets_malformed += len(packets) - len(good)
         points = [p for p in good if p[10] != s2.IMU_DATA_TYPE]
@@ -278,4 +303,6 @@ class Livox2Client(LivoxLink):
         line: NDArray[np.uint8] = np.concatenate(
             [np.arange(n, dtype=np.int64) % LINES for n in counts]
         ).astype(np.uint8)
-        return hits_in_time_order([decoded.points], [line])
+        batch = hits_in_time_order([decoded.points], [line])
+        t_ns = decoded.points.t_ns
+        return replace(batch, firings=(int(t_ns.min()), int(t_ns.max())))

@@ -51,17 +51,12 @@ from dronetrack.errors import DecodeError, DeviceError, InputError
 from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.formats.livox_common import LivoxPoints
 from dronetrack.sources.assembly import PointBatch
-from dronetrack.sources.livox_link import (
-    MAX_DATAGRAM,
-    LinkOptions,
-    LivoxLink,
-    hits_in_time_order,
-    parse_device_uri,
-)
-
-# importable from here, as before the shared module
-from dronetrack.sources.livox_link import POLL_S as POLL_S
-from dronetrack.sources.livox_link import route_source_ip as route_source_ip
+from dronetrack.sources.livox_link import LinkOptions, LivoxLink
+from dronetrack.sources.livox_net import MAX_DATAGRAM
+from dronetrack.sources.livox_net import POLL_S as POLL_S  # importable from here as before
+from dronetrack.sources.livox_net import route_source_ip as route_source_ip
+from dronetrack.sources.livox_points import hits_in_time_order
+from dronetrack.sources.livox_uri import parse_device_uri
 
 __all__ = ["LivoxClient", "LivoxEndpoint", "parse_livox_uri"]
 

@@ -15,8 +15,10 @@ import zlib
 import numpy as np
 import pytest
 
+from dronetrack.errors import ConfigError
 from dronetrack.sim.emulate.livox import GridSource, PointChunk, grid_points
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
+from dronetrack.sources.livox_net import udp_socket
 from livox_helpers import (
     LOOP,
     assert_no_reply,
@@ -89,6 +91,23 @@ def test_discovery_answers_type_serial_ip_and_commandport_of() -> None:
         assert cmd_port == dev.address[1]
 
 
+def test_a_host_on_the_same_machine_binds_the_detection_port_too() -> None:
+    # Livox-SDK2 binds the host's detection socket to port 56000 on all interfaces
+    # (device_manager.cpp, with port reuse), the port the LiDAR listens on: on one
+    # machine the emulator shares it.  Its own address (127.0.0.3, not the host's
+    # 127.0.0.1) keeps the answer, sent back to 127.0.0.1, away from its own socket.
+    with _device(ip="127.0.0.3") as dev:
+        port = dev.discovery_address[1]
+        with udp_socket(port, "discovery") as host:  # 0.0.0.0:port, as the client binds
+            host.settimeout(2.0)
+            _seq, cmd_id, cmd_type, sender, data = _ask(
+                host, dev.discovery_address, sdk2_frame(0x0000, 0, 5, b"")
+            )
+        assert (cmd_id, cmd_type, sender) == (0x0000, 1, 1)
+        assert data[:2] == b"\x00\x09"  # ret_code 0, Mid-360
+        assert dev.discoveries_answered == 1
+
+
 def test_configuration_sampling_and_the_point_packets(
     host: tuple[socket.socket, socket.socket],
 ) -> None:
@@ -156,8 +175,8 @@ def test_queries_and_status_pushes_report_the_work_state(
 ) -> None:
     cmd, points = host
     with _device(push_period_s=0.1) as dev:
-        # query: key_num, reserved, keys; an unknown key (0x8001) is left out
-        query = struct.pack("<HHHHH", 3, 0, 0x8006, 0x8001, 0x0000)
+        # query: key_num, reserved, keys; a key it does not know (0x8007) is left out
+        query = struct.pack("<HHHHH", 3, 0, 0x8006, 0x8007, 0x0000)
         data = _ask(cmd, dev.address, sdk2_frame(0x0101, 0, 4, query))[4]
         # ACK: ret_code, key_num, then key, length, value: IDLE (0x02), data type 1
         assert data == struct.pack("<BHHHBHHB", 0, 2, 0x8006, 1, 0x02, 0x0000, 1, 1)
@@ -173,6 +192,35 @@ def test_queries_and_status_pushes_report_the_work_state(
                 if state == 0x01:
                     break
         assert (count, key, size, state) == (2, 0x8006, 1, 0x01)  # SAMPLING
+
+
+def test_the_parameter_inquiry_reports_what_the_device_is(
+    host: tuple[socket.socket, socket.socket],
+) -> None:
+    cmd, _ = host
+    with _device(serial="47MDL9W0020022", firmware=(10, 11, 6, 35)) as dev:
+        keys = (0x8000, 0x8001, 0x8002, 0x8003, 0x8004, 0x8005, 0x8006)
+        query = struct.pack("<HH7H", 7, 0, *keys)
+        data = _ask(cmd, dev.address, sdk2_frame(0x0101, 0, 8, query))[4]
+    # ACK: ret_code 0, key_num 7, then key, length, value in the order asked
+    ret, count = struct.unpack_from("<BH", data)
+    values, pos = {}, 3
+    for _ in range(count):
+        key, size = struct.unpack_from("<HH", data, pos)
+        values[key] = data[pos + 4 : pos + 4 + size]
+        pos += 4 + size
+    assert (ret, count, pos, list(values)) == (0, 7, len(data), list(keys))
+    assert values[0x8000] == b"47MDL9W0020022\0\0"  # sn, NUL-padded to 16
+    assert values[0x8001] == b"Mid-360 emulated".ljust(64, b"\0")  # product_info char[64]
+    assert values[0x8002] == bytes([10, 11, 6, 35])  # version_app aa.bb.cc.dd
+    assert (len(values[0x8003]), len(values[0x8004]), len(values[0x8005])) == (4, 4, 6)
+    assert values[0x8005][0] & 0x03 == 0x02  # a locally administered, unicast MAC
+    assert values[0x8006] == b"\x02"  # IDLE
+
+
+def test_a_firmware_version_is_four_bytes() -> None:
+    with pytest.raises(ConfigError, match="four bytes"):
+        _device(firmware=(1, 256, 0, 0))
 
 
 @pytest.mark.parametrize(

@@ -16,8 +16,10 @@ document (livox_wiki_en ``livox_eth_protocol_mid360.md``) describes it:
   kept but unused: the emulator sends no IMU data).  Keys are applied in order up
   to the first that fails; the ACK names it (ret_code 0x20 unsupported key, 0x22
   read-only, 0x23 bad length, 0x03 out of range).
-  0x0101 queries answer ret_code 0 and the keys it knows (0x0000, 0x001A, 0x8000
-  serial number, 0x8006 current work state), leaving out the others.
+  0x0101 queries answer ret_code 0 and the keys it knows (0x0000, 0x001A, and the
+  read-only 0x8000 serial number, 0x8001 product info, 0x8002 firmware
+  ``version_app``, 0x8003 loader and 0x8004 hardware versions, 0x8005 MAC, 0x8006
+  current work state), leaving out the others.
   Frames that do not decode are counted and get no reply;
 - every ``push_period_s`` (1 s) it pushes its status (0x0102, a request from the
   LiDAR: work state and data type) from its push socket (56200) to the status host.
@@ -58,7 +60,9 @@ MID360 = 9  # livox_lidar_def.h kLivoxLidarTypeMid360
 MID360_POINT_INTERVAL_NS = 5_000  # 200,000 points/s
 FRAME_PERIOD_NS = 100_000_000  # 10 Hz point-cloud frames
 _HOST_KEYS = (s2.KEY_STATE_HOST, s2.KEY_POINT_HOST, s2.KEY_IMU_HOST)
-_READ_ONLY = (s2.KEY_SERIAL, s2.KEY_WORK_STATE)
+_READ_ONLY = s2.INFO_KEYS
+PRODUCT_INFO = "Mid-360 emulated"  # the document's example: "Mid-360 2021/12/01"
+MAC = bytes([0x02, 0, 0, 0, 0x03, 0x60])  # a locally administered address (bit 1 set)
 
 
 class EmulatedLivox2(StreamingDevice):
@@ -66,7 +70,8 @@ class EmulatedLivox2(StreamingDevice):
 
     Its detection, command, push and point sockets bind ``discovery_port``,
     ``cmd_port``, ``push_port`` and ``point_port`` (0: a free port; ``address`` and
-    ``discovery_address`` tell which).  ``start`` runs it in a background thread;
+    ``discovery_address`` tell which).  It reports ``serial`` (discovery, key 0x8000)
+    and ``firmware`` (key 0x8002).  ``start`` runs it in a background thread;
     ``close`` stops it within about 1 s.  Counters: ``commands_received``,
     ``commands_malformed``, ``commands_unknown``, ``discoveries_answered``,
     ``queries_answered``, ``pushes_sent``, ``packets_sent``, ``packets_dropped``,
@@ -83,17 +88,21 @@ class EmulatedLivox2(StreamingDevice):
         push_port: int = s2.PUSH_PORT,
         point_port: int = s2.POINT_PORT,
         serial: str = "0EMULATEDMID360",
+        firmware: tuple[int, int, int, int] = (0, 1, 0, 0),
         data_type: int = 1,
         push_period_s: float = 1.0,
         frame_period_ns: int = FRAME_PERIOD_NS,
     ) -> None:
         if len(serial.encode("ascii")) > 16:
             raise ConfigError(f"a serial number has at most 16 characters: {serial!r}")
+        if len(firmware) != 4 or not all(0 <= v <= 255 for v in firmware):
+            raise ConfigError(f"a firmware version is four bytes, got {firmware!r}")
         if data_type not in s2.LAYOUTS:
             raise ConfigError(f"the Mid-360's point data types are 1, 2, 3, not {data_type}")
         super().__init__(source, MID360_POINT_INTERVAL_NS, s2.POINTS_PER_PACKET)
         self.ip = ip
         self.serial = serial
+        self.firmware = firmware
         self.data_type = data_type
         self.push_period_s = push_period_s
         self.frame_period_ns = frame_period_ns
@@ -111,7 +120,8 @@ class EmulatedLivox2(StreamingDevice):
                 (push_port, "status pushes"),
                 (point_port, "point data"),
             ):
-                socks.append(bound_udp(ip, port, what))
+                # the host binds the detection port too (0.0.0.0:56000): it is shared
+                socks.append(bound_udp(ip, port, what, shared=what == "discovery"))
         except BaseException:
             for sock in socks:
                 sock.close()
@@ -225,6 +235,11 @@ class EmulatedLivox2(StreamingDevice):
             s2.KEY_DATA_TYPE: bytes([self.data_type]),
             s2.KEY_WORK_MODE: bytes([self.work_state]),
             s2.KEY_SERIAL: self.serial.encode("ascii").ljust(16, b"\0"),
+            s2.KEY_PRODUCT_INFO: PRODUCT_INFO.encode("ascii").ljust(64, b"\0"),
+            s2.KEY_VERSION_APP: bytes(self.firmware),
+            s2.KEY_VERSION_LOADER: bytes([0, 1, 0, 0]),
+            s2.KEY_VERSION_HARDWARE: bytes([0, 0, 0, 1]),
+            s2.KEY_MAC: MAC,
             s2.KEY_WORK_STATE: bytes([self.work_state]),
         }
         return s2.QueryAck(s2.RET_OK, tuple((k, known[k]) for k in keys if k in known))

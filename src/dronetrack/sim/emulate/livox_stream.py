@@ -130,11 +130,15 @@ class GridSource:
             yield PointChunk(grid_points(k), k * self.point_interval_ns, (k % 251).astype(np.uint8))
 
 
-def bound_udp(ip: str, port: int, what: str) -> socket.socket:
-    """A non-blocking UDP socket bound to (ip, port) that may broadcast."""
+def bound_udp(ip: str, port: int, what: str, *, shared: bool = False) -> socket.socket:
+    """A non-blocking UDP socket bound to (ip, port) that may broadcast; ``shared``: with
+    SO_REUSEADDR, so that a host on the same machine may bind the same port on all
+    interfaces (as Livox-SDK2 binds its detection port 56000 with port reuse)."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        if shared:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind((ip, port))
     except OSError as exc:
         sock.close()
