@@ -386,3 +386,27 @@ def test_a_truth_file_is_read_as_it_grows(tmp_path: object) -> None:
         TruthFile(path)
     with pytest.raises(InputError, match="not found"):
         TruthFile(path.with_name("none.csv"))
+
+
+def test_truth_file_keeps_every_row_as_it_grows_past_its_buffer(tmp_path: object) -> None:
+    """Rows arriving over many reads, past the buffer's first capacity: every row is
+    kept in order, and a truth given out earlier does not change as rows are added."""
+    from pathlib import Path
+
+    from dronetrack.sources.live import TruthFile
+
+    path = Path(str(tmp_path)) / "truth.csv"
+    path.write_text("t,x,y,z\n")
+    truth = TruthFile(path)
+    t = np.arange(1000) * 0.02
+    earlier = []
+    for chunk in np.array_split(np.arange(1000), 7):
+        with path.open("a") as fh:
+            fh.writelines(f"{t[i]:.2f},{i},{-i},{2 * i}\n" for i in chunk)
+        g = truth.ground_truth()
+        assert g is not None
+        earlier.append((g, chunk[-1]))
+    for g, last in earlier:
+        n = last + 1
+        np.testing.assert_allclose(g.t, t[:n])
+        np.testing.assert_allclose(g.position, np.c_[np.arange(n), -np.arange(n), 2 * np.arange(n)])

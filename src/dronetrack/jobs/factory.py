@@ -227,6 +227,10 @@ def build_pipeline(
             background = VoxelBackground(
                 bg_cfg.resolution_m, bg_cfg.inflate_voxels, bg_cfg.lookup_depth, bg_cfg.min_hits
             )
+    # With acquisition on, the scan ends at home, where the search starts; without it
+    # (the seeds' runs) the raster runs as it falls, so seed tables II-IV stay comparable.
+    scanning = background is not None and not background.ready
+    scan_end = start + bg_cfg.scan_s if scanning and cfg.acquisition.enabled else None
     crop = crop_box(cfg, mount.base)
     o = cfg.outliers
     outliers = OutlierSettings(
@@ -243,7 +247,7 @@ def build_pipeline(
             mount,
             pan_limits,
             tilt_limits,
-            start + bg_cfg.scan_s if background is not None and not background.ready else None,
+            scan_end,
         ),
         crop_min=np.asarray(crop[0]),
         crop_max=np.asarray(crop[1]),

@@ -106,7 +106,10 @@ class TruthFile:
         self._rest = b""
         self._line = 0
         self._columns: list[int] | None = None
-        self._rows: list[list[float]] = []
+        # rows (t, x, y, z) in a buffer that doubles when full, so a frame's new rows
+        # cost their own parsing only, however long the run (amortised O(1) a row)
+        self._rows = np.empty((256, 4), np.float64)
+        self._n = 0
         self._built: GroundTruth | None = None
         self.ground_truth()  # check what is there already
 
@@ -130,9 +133,12 @@ class TruthFile:
             raise InputError(f"truth CSV {self.path} line {self._line}: {line.strip()!r}") from None
         if not all(math.isfinite(v) for v in row):
             raise InputError(f"truth CSV {self.path} line {self._line}: not a finite number")
-        if self._rows and row[0] < self._rows[-1][0]:
+        if self._n and row[0] < self._rows[self._n - 1, 0]:
             raise InputError(f"truth CSV {self.path} line {self._line}: t must not decrease")
-        self._rows.append(row)
+        if self._n == len(self._rows):
+            self._rows = np.concatenate([self._rows, np.empty_like(self._rows)])
+        self._rows[self._n] = row
+        self._n += 1
 
     def ground_truth(self) -> GroundTruth | None:
         try:
@@ -143,14 +149,16 @@ class TruthFile:
         except OSError as exc:
             raise InputError(f"truth CSV {self.path}: {exc}") from exc
         *lines, self._rest = (self._rest + data).split(b"\n")
-        before = len(self._rows)
+        before = self._n
         for line in lines:
             self._parse(line.decode("utf-8", "replace"))
-        if not self._rows:
+        if not self._n:
             return None
-        if self._built is None or len(self._rows) != before:
-            a = np.asarray(self._rows, dtype=np.float64)
-            self._built = GroundTruth(a[:, 0].copy(), a[:, 1:].copy())
+        if self._built is None or self._n != before:
+            # views of the first n rows: rows added later go past them, and a grown
+            # buffer is a new array, so a GroundTruth given out never changes
+            a = self._rows[: self._n]
+            self._built = GroundTruth(a[:, 0], a[:, 1:])
         return self._built
 
 
