@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from dronetrack.cli.app import app, report_run, run_outputs
-from dronetrack.cli.options import ParticlesOption, RunDirOption, TrackerOption
+from dronetrack.cli.options import ParticlesOption, RosDomainOption, RunDirOption, TrackerOption
 from dronetrack.cli.output import compile_reporter, err_console, progress_bar
 
 if TYPE_CHECKING:
@@ -35,8 +35,10 @@ def live(
         str,
         typer.Option(
             "--lidar",
-            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), or "
-            "file://RECORDING (any recording track reads, played at wall-clock speed).",
+            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), "
+            "ros2:///TOPIC (a ROS 2 PointCloud2 or livox_ros_driver2 CustomMsg topic, over "
+            "DDS; keys type=, truth=/TOPIC, frame=), or file://RECORDING (any recording "
+            "track reads, played at wall-clock speed).",
         ),
     ],
     turret: Annotated[
@@ -101,6 +103,7 @@ def live(
     ] = None,
     tracker: TrackerOption = None,
     particles: ParticlesOption = None,
+    ros_domain_id: RosDomainOption = None,
 ) -> None:
     """Track live: scan the background with the turret, then detect, track and follow.
 
@@ -127,7 +130,7 @@ def live(
         named = scenario_from_options(scenario, None)
     cfg = apply_overrides(base_config(named, lidar), tracker=tracker, particles=particles)
     cfg = live_config(cfg, duration_s=duration, background_file=background, scan_s=scan_s)
-    setup = LiveSetup(lidar, turret, duration, truth, host_ip)
+    setup = LiveSetup(lidar, turret, duration, truth, host_ip, ros_domain_id=ros_domain_id)
     folder = RunFolder(out if out is not None else default_run_dir())
     viewers = _live_viewers(foxglove_port, cfg)
 

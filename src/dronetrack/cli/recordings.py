@@ -30,6 +30,7 @@ from dronetrack.cli.options import (
     FoxgloveOption,
     ParticlesOption,
     RerunOption,
+    RosDomainOption,
     RunDirOption,
     SeedOption,
     SensorOption,
@@ -212,9 +213,11 @@ def info(
         typer.Argument(
             metavar="RECORDING|DEVICE",
             help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
-            "livox2://IP or dynamixel://DEVICE?baud=…&pan=…&tilt=….",
+            "livox2://IP, dynamixel://DEVICE?baud=…&pan=…&tilt=…, or a ROS 2 domain "
+            "(ros2://) or topic (ros2:///TOPIC).",
         ),
     ],
+    ros_domain_id: RosDomainOption = None,
 ) -> None:
     """List a recording's topics, message types, counts and duration; or what a live
     device says of itself (a LiDAR's model, code or serial, firmware and a short
@@ -229,6 +232,12 @@ def info(
         return
     if target.startswith("dynamixel://"):
         _servo_info(target)
+        return
+    if target.startswith("ros2://"):
+        from dronetrack.jobs.live_ros2 import probe_ros2
+
+        for name, value in probe_ros2(target, ros_domain_id):
+            typer.echo(f"{name}: {value}")
         return
     recording = Path(target)
     summary = recording_info(recording)
