@@ -29,6 +29,7 @@ from dronetrack.cli.options import (
     FlightDurationOption,
     FoxgloveOption,
     ParticlesOption,
+    PublishOption,
     RerunOption,
     RosDomainOption,
     RunDirOption,
@@ -147,6 +148,8 @@ def track(
     ] = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
+    publish: PublishOption = None,
+    ros_domain_id: RosDomainOption = None,
 ) -> None:
     """Replay a recording through the pipeline; turret commands are logged, not executed.
 
@@ -184,7 +187,9 @@ def track(
         background_file=background,
         background_from=background_from,
     )
-    outputs = run_outputs(folder, foxglove, rerun, start=source.origin)
+    outputs = run_outputs(
+        folder, foxglove, rerun, start=source.origin, publish=publish, ros_domain_id=ros_domain_id
+    )
     with outputs as viewers, progress_bar() as bar:
         task = bar.add_task(f"replaying {recording.name}", total=None)
         result = run_replay(
