@@ -11,11 +11,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from ros2_helpers import loopback_dds
 from rosbags.typesys import Stores, get_typestore
 
 from dronetrack.cli.main import run
 from dronetrack.formats.ros2_names import check_type_name, ros_topic_name
+from ros2_helpers import loopback_dds
 
 
 def _subscribe(domain_id: int) -> tuple[Any, dict[str, Any]]:
