@@ -221,11 +221,13 @@ def _frame_period(period: float, where: str) -> float:
 
 
 @contextmanager
-def _turret(uri: str, cfg: ScenarioConfig, failed: list[DeviceError]) -> Iterator[LimitGuard]:
+def _turret(
+    uri: str, cfg: ScenarioConfig, failed: list[DeviceError], domain_id: int | None = None
+) -> Iterator[LimitGuard]:
     """The opened turret; on leaving, it holds its present position and lets go.  When
     the run already failed (an exception, or a device error in ``failed``), a failure to
     hold is not raised over it: the turret may be what failed."""
-    guard = open_turret(uri, turret_spec(cfg.turret))
+    guard = open_turret(uri, turret_spec(cfg.turret), ros_domain_id=domain_id)
     try:
         yield guard
     except BaseException:
@@ -289,7 +291,7 @@ def run_live(
     log = TrackLogSink(on_row=log_sink)
     failed: list[DeviceError] = []
     try:
-        with _turret(setup.turret, cfg, failed) as turret:
+        with _turret(setup.turret, cfg, failed, setup.ros_domain_id) as turret:
             source: LiveSource | PacedSource | Ros2Source
             reader = None if isinstance(turret.turret, FixedSensor) else turret
             if ros2 is not None:
