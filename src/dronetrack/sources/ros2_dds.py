@@ -15,8 +15,8 @@ Poses.  ``/tf`` and ``/tf_static`` give the chain from the root of the tree (or
 ``pose_frame``) to the cloud's ``frame_id``, interpolated at the frame's times
 (``sources.tf``).  A frame waits up to ``TF_WAIT_S`` for /tf to reach its end, as
 tf2's message filter would.  Without a transform to its frame_id, the turret's
-measured joints give the pose through the mount (as ``sources.live`` does; its
-readings move onto the stamps' clock by δ = max(t_last point − t_host at
+newest measured joints give the pose through the mount, held over the frame (the
+reading moves onto the stamps' clock by δ = max(t_last point − t_host at
 arrival)), and without a turret, the mount at pan = tilt = 0.
 
 Truth.  With ``truth_topic`` (``geometry_msgs/PoseStamped`` in the pose frame, as
