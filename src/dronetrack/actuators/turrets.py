@@ -1,8 +1,8 @@
 """The turrets a live run drives, by URI, and the guard on their limits.
 
-``--turret`` takes ``dynamixel://DEVICE?baud=…&pan=…&tilt=…`` (``actuators.dynamixel``)
-or ``none``: a fixed sensor, whose pose is the mount's at pan = tilt = 0; its
-commands go nowhere.
+``--turret`` takes ``dynamixel://DEVICE?baud=…&pan=…&tilt=…`` (``actuators.dynamixel``),
+``ros2:///NAMESPACE`` (``actuators.ros2_turret``) or ``none``: a fixed sensor, whose
+pose is the mount's at pan = tilt = 0; its commands go nowhere.
 
 Whatever the tracker or controller says, a command reaches the turret only through
 ``LimitGuard``: goal angles are clamped into the configured joint limits,
@@ -130,19 +130,33 @@ def check_turret_uri(uri: str) -> None:
 
         parse_dynamixel_uri(uri)
         return
+    if uri.startswith("ros2://"):
+        from dronetrack.actuators.ros2_turret import parse_ros2_turret_uri
+
+        parse_ros2_turret_uri(uri)
+        return
     raise ConfigError(
-        f"--turret {uri!r}: give dynamixel://DEVICE?baud=1000000&pan=1&tilt=2 or none"
+        f"--turret {uri!r}: give dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, "
+        "ros2:///NAMESPACE or none"
     )
 
 
 def open_turret(
-    uri: str, spec: TurretSpec, clock: Callable[[], float] = time.monotonic
+    uri: str,
+    spec: TurretSpec,
+    clock: Callable[[], float] = time.monotonic,
+    ros_domain_id: int | None = None,
 ) -> LimitGuard:
     """The turret ``uri`` names, opened and behind its limit guard; ConfigError for a
-    URI that names none, DeviceError if it does not answer."""
+    URI that names none, DeviceError if it does not answer.  ``ros_domain_id``: the
+    ROS 2 domain of a ``ros2://`` turret."""
     check_turret_uri(uri)
     if uri.strip().lower() == NONE_URI:
         return LimitGuard(FixedSensor(), spec)
+    if uri.startswith("ros2://"):
+        from dronetrack.actuators.ros2_turret import Ros2Turret
+
+        return LimitGuard(Ros2Turret(uri, ros_domain_id, clock=clock), spec)
     from dronetrack.actuators.dynamixel import DynamixelTurret
 
     return LimitGuard(DynamixelTurret.from_uri(uri, turret=spec, clock=clock), spec)

@@ -70,14 +70,22 @@ INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command killed by Ctrl-C
 
 @contextmanager
 def run_outputs(
-    folder: RunFolder, foxglove: Path | None, rerun: Path | None, start: float = 0.0
+    folder: RunFolder,
+    foxglove: Path | None,
+    rerun: Path | None,
+    start: float = 0.0,
+    publish: str | None = None,
+    ros_domain_id: int | None = None,
 ) -> Iterator[list[ViewerSink]]:
-    """The viewer files a run writes besides its folder, closed after the block; if
-    the block fails, or Ctrl-C stops it at once, the folder keeps the frames done."""
+    """The viewer files a run writes besides its folder (and ``--publish ros2``'s
+    publisher), closed after the block; if the block fails, or Ctrl-C stops it at
+    once, the folder keeps the frames done."""
     from dronetrack.sinks.viewers import close_viewers, open_viewers
 
     try:
-        viewers = open_viewers(foxglove, rerun, start=start)
+        viewers = open_viewers(
+            foxglove, rerun, start=start, publish=publish, ros_domain_id=ros_domain_id
+        )
         try:
             yield viewers
         finally:

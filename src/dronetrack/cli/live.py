@@ -15,7 +15,13 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from dronetrack.cli.app import app, report_run, run_outputs
-from dronetrack.cli.options import ParticlesOption, RunDirOption, TrackerOption
+from dronetrack.cli.options import (
+    ParticlesOption,
+    PublishOption,
+    RosDomainOption,
+    RunDirOption,
+    TrackerOption,
+)
 from dronetrack.cli.output import compile_reporter, err_console, progress_bar
 
 if TYPE_CHECKING:
@@ -35,15 +41,19 @@ def live(
         str,
         typer.Option(
             "--lidar",
-            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), or "
-            "file://RECORDING (any recording track reads, played at wall-clock speed).",
+            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), "
+            "ros2:///TOPIC (a ROS 2 PointCloud2 or livox_ros_driver2 CustomMsg topic, over "
+            "DDS; keys type=, truth=/TOPIC, frame=), or file://RECORDING (any recording "
+            "track reads, played at wall-clock speed).",
         ),
     ],
     turret: Annotated[
         str,
         typer.Option(
             "--turret",
-            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, or none (a fixed sensor).",
+            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, ros2:///NAMESPACE (goals as "
+            "JointState on NAMESPACE/command, or type=interbotix_xs_msgs/msg/JointGroupCommand; "
+            "angles from NAMESPACE/joint_states), or none (a fixed sensor).",
         ),
     ],
     scenario: Annotated[
@@ -101,6 +111,8 @@ def live(
     ] = None,
     tracker: TrackerOption = None,
     particles: ParticlesOption = None,
+    ros_domain_id: RosDomainOption = None,
+    publish: PublishOption = None,
 ) -> None:
     """Track live: scan the background with the turret, then detect, track and follow.
 
@@ -127,9 +139,9 @@ def live(
         named = scenario_from_options(scenario, None)
     cfg = apply_overrides(base_config(named, lidar), tracker=tracker, particles=particles)
     cfg = live_config(cfg, duration_s=duration, background_file=background, scan_s=scan_s)
-    setup = LiveSetup(lidar, turret, duration, truth, host_ip)
+    setup = LiveSetup(lidar, turret, duration, truth, host_ip, ros_domain_id=ros_domain_id)
     folder = RunFolder(out if out is not None else default_run_dir())
-    viewers = _live_viewers(foxglove_port, cfg)
+    viewers = _live_viewers(foxglove_port, cfg, publish, ros_domain_id)
 
     def started(resolved: ScenarioConfig) -> None:
         scan = resolved.pipeline.background
@@ -162,11 +174,22 @@ def live(
     report_run(folder, result.run, metrics)
 
 
-def _live_viewers(port: int | None, cfg: ScenarioConfig) -> list[Sink]:
-    """The live viewer server ``--foxglove-port`` asks for (none without it)."""
-    if port is None:
-        return []
+def _live_viewers(
+    port: int | None, cfg: ScenarioConfig, publish: str | None, domain: int | None
+) -> list[Sink]:
+    """The live viewer server ``--foxglove-port`` asks for and ``--publish ros2``'s
+    publisher (none without them)."""
     from dronetrack.config.rig import turret_spec
-    from dronetrack.sinks.foxglove_live import FoxgloveServer
 
-    return [FoxgloveServer(port, turret_spec(cfg.turret).mount)]
+    sinks: list[Sink] = []
+    if publish is not None:
+        from dronetrack.sinks.view import ViewerFeed
+        from dronetrack.sinks.viewers import open_viewers
+
+        feed = ViewerFeed(open_viewers(None, None, publish=publish, ros_domain_id=domain))
+        sinks.append(feed)
+    if port is not None:
+        from dronetrack.sinks.foxglove_live import FoxgloveServer
+
+        sinks.append(FoxgloveServer(port, turret_spec(cfg.turret).mount))
+    return sinks

@@ -25,7 +25,9 @@ __all__ = [
     "FlightDurationOption",
     "FoxgloveOption",
     "ParticlesOption",
+    "PublishOption",
     "RerunOption",
+    "RosDomainOption",
     "RunDirOption",
     "SeedOption",
     "SensorOption",
@@ -66,6 +68,24 @@ FoxgloveOption = Annotated[
 ]
 RerunOption = Annotated[
     Path | None, typer.Option("--rerun", help="Also write a Rerun .rrd file (extra: rerun).")
+]
+RosDomainOption = Annotated[
+    int | None,
+    typer.Option(
+        "--ros-domain-id",
+        min=0,
+        max=232,
+        help="ROS 2 domain for everything this command does on ROS 2 (default: "
+        "ROS_DOMAIN_ID, else 0; extra: ros2).",
+    ),
+]
+PublishOption = Annotated[
+    str | None,
+    typer.Option(
+        "--publish",
+        help="ros2: publish the run for RViz on ROS 2 (estimate, track, particles, "
+        "foreground, points, /tf; extra: ros2).",
+    ),
 ]
 
 

@@ -29,7 +29,9 @@ from dronetrack.cli.options import (
     FlightDurationOption,
     FoxgloveOption,
     ParticlesOption,
+    PublishOption,
     RerunOption,
+    RosDomainOption,
     RunDirOption,
     SeedOption,
     SensorOption,
@@ -146,6 +148,8 @@ def track(
     ] = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
+    publish: PublishOption = None,
+    ros_domain_id: RosDomainOption = None,
 ) -> None:
     """Replay a recording through the pipeline; turret commands are logged, not executed.
 
@@ -183,7 +187,9 @@ def track(
         background_file=background,
         background_from=background_from,
     )
-    outputs = run_outputs(folder, foxglove, rerun, start=source.origin)
+    outputs = run_outputs(
+        folder, foxglove, rerun, start=source.origin, publish=publish, ros_domain_id=ros_domain_id
+    )
     with outputs as viewers, progress_bar() as bar:
         task = bar.add_task(f"replaying {recording.name}", total=None)
         result = run_replay(
@@ -212,9 +218,11 @@ def info(
         typer.Argument(
             metavar="RECORDING|DEVICE",
             help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
-            "livox2://IP or dynamixel://DEVICE?baud=…&pan=…&tilt=….",
+            "livox2://IP, dynamixel://DEVICE?baud=…&pan=…&tilt=…, or a ROS 2 domain "
+            "(ros2://) or topic (ros2:///TOPIC).",
         ),
     ],
+    ros_domain_id: RosDomainOption = None,
 ) -> None:
     """List a recording's topics, message types, counts and duration; or what a live
     device says of itself (a LiDAR's model, code or serial, firmware and a short
@@ -229,6 +237,12 @@ def info(
         return
     if target.startswith("dynamixel://"):
         _servo_info(target)
+        return
+    if target.startswith("ros2://"):
+        from dronetrack.jobs.live_ros2 import probe_ros2
+
+        for name, value in probe_ros2(target, ros_domain_id):
+            typer.echo(f"{name}: {value}")
         return
     recording = Path(target)
     summary = recording_info(recording)

@@ -14,7 +14,9 @@ from dronetrack.cli.options import (
     FlightDurationOption,
     FoxgloveOption,
     ParticlesOption,
+    PublishOption,
     RerunOption,
+    RosDomainOption,
     RunDirOption,
     SeedOption,
     SensorOption,
@@ -195,6 +197,8 @@ def simulate(
     out: RunDirOption = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
+    publish: PublishOption = None,
+    ros_domain_id: RosDomainOption = None,
 ) -> None:
     """Run the closed loop: scan the background, then detect, track and follow the drone.
 
@@ -224,7 +228,8 @@ def simulate(
     folder = RunFolder(out if out is not None else default_run_dir())
     # the turret's links for the viewers; on a moving observer, the sensor's pose alone
     mount = None if cfg.observer is not None else turret_spec(cfg.turret).mount
-    with run_outputs(folder, foxglove, rerun) as viewers, progress_bar() as bar:
+    outputs = run_outputs(folder, foxglove, rerun, publish=publish, ros_domain_id=ros_domain_id)
+    with outputs as viewers, progress_bar() as bar:
         task = bar.add_task(f"simulating {cfg.name}", total=None)
         run = run_simulation(
             cfg,

@@ -39,6 +39,7 @@ from dronetrack.config.rig import resolve_turret, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.eval.log import TrackLog
+from dronetrack.formats.ros2_names import ROS2_SCHEME
 from dronetrack.jobs.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
 from dronetrack.jobs.replay import TARGET_MARGIN_M, recording_config
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
@@ -50,7 +51,9 @@ from dronetrack.sources.paced import FILE_SCHEME, PacedSource
 from dronetrack.types import Sample
 
 if TYPE_CHECKING:
+    from dronetrack.jobs.live_ros2 import Ros2Link
     from dronetrack.sources.livox2_udp import Livox2Client
+    from dronetrack.sources.ros2_dds import Ros2Source
 
 __all__ = [
     "LIDAR_SCHEMES",
@@ -65,7 +68,7 @@ __all__ = [
 
 Progress = Callable[[int, int], None]
 LogSink = Callable[[TrackLog], None]
-LIDAR_SCHEMES = ("livox://", "livox2://", FILE_SCHEME)
+LIDAR_SCHEMES = ("livox://", "livox2://", FILE_SCHEME, ROS2_SCHEME)
 OPEN_TIMEOUT_S = 5.0  # how long a LiDAR has to answer the connection and start sampling
 
 
@@ -103,7 +106,7 @@ def open_point_stream(uri: str, host_ip: str | None = None) -> OpenStream:
         return Livox2Client(_with_host(uri, host_ip))
     raise ConfigError(
         f"--lidar {uri!r}: give livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP "
-        "(Mid-360) or file://RECORDING"
+        "(Mid-360), ros2:///TOPIC (a ROS 2 point topic) or file://RECORDING"
     )
 
 
@@ -172,6 +175,8 @@ class LiveSetup:
     truth: Path | None = None
     host_ip: str | None = None
     max_frames: int = 2  # the frame queue's bound (sources.live)
+    ros_domain_id: int | None = None  # --ros-domain-id (None: ROS_DOMAIN_ID, else 0)
+    ros_wait_s: float = 10.0  # how long a ros2:// topic has to show a publisher
 
 
 @dataclass(frozen=True, slots=True)
@@ -216,11 +221,13 @@ def _frame_period(period: float, where: str) -> float:
 
 
 @contextmanager
-def _turret(uri: str, cfg: ScenarioConfig, failed: list[DeviceError]) -> Iterator[LimitGuard]:
+def _turret(
+    uri: str, cfg: ScenarioConfig, failed: list[DeviceError], domain_id: int | None = None
+) -> Iterator[LimitGuard]:
     """The opened turret; on leaving, it holds its present position and lets go.  When
     the run already failed (an exception, or a device error in ``failed``), a failure to
     hold is not raised over it: the turret may be what failed."""
-    guard = open_turret(uri, turret_spec(cfg.turret))
+    guard = open_turret(uri, turret_spec(cfg.turret), ros_domain_id=domain_id)
     try:
         yield guard
     except BaseException:
@@ -258,12 +265,18 @@ def run_live(
     check_turret_uri(setup.turret)
     truth = TruthFile(setup.truth) if setup.truth is not None else None
     radius = 0.5 * target_spec(cfg.drone.model).s_diag + TARGET_MARGIN_M
+    stream: OpenStream | None = None
+    ros2: Ros2Link | None = None
     if lidar.startswith(FILE_SCHEME):
         from dronetrack.sources.recordings import open_recording
 
         recording = open_recording(_recording_path(lidar))
         period = _frame_period(recording.period, lidar)
-        stream: OpenStream | None = None
+    elif lidar.startswith(ROS2_SCHEME):
+        from dronetrack.jobs.live_ros2 import Ros2Link
+
+        ros2 = Ros2Link(lidar, setup.ros_domain_id)
+        period = _frame_period(cfg.sensor.integration_time_s, "the scenario's sensor")
     else:
         stream = open_point_stream(lidar, setup.host_ip)
         period = _frame_period(cfg.sensor.integration_time_s, "the scenario's sensor")
@@ -277,46 +290,62 @@ def run_live(
     total_s = None if setup.duration_s is None else scan_s + setup.duration_s
     log = TrackLogSink(on_row=log_sink)
     failed: list[DeviceError] = []
-    with _turret(setup.turret, cfg, failed) as turret:
-        source: LiveSource | PacedSource
-        if stream is None:
-            from dronetrack.sources.playback import RecordingSource
-
-            played: Source = RecordingSource(recording, radius)
-            if truth is not None:
-                played = _TruthOverride(played, truth, radius)
-            source = PacedSource(
-                played, max_frames=setup.max_frames, duration_s=total_s, name=lidar
-            )
-        else:
-            stream.open(OPEN_TIMEOUT_S)
-        try:
-            if stream is not None:
-                reader = None if isinstance(turret.turret, FixedSensor) else turret
-                source = LiveSource(
-                    stream,
+    try:
+        with _turret(setup.turret, cfg, failed, setup.ros_domain_id) as turret:
+            source: LiveSource | PacedSource | Ros2Source
+            reader = None if isinstance(turret.turret, FixedSensor) else turret
+            if ros2 is not None:
+                source = ros2.source(
                     spec.mount,
                     reader,
                     period_s=period,
                     max_frames=setup.max_frames,
                     duration_s=total_s,
-                    truth=truth,
                     truth_radius=radius,
+                    wait_s=setup.ros_wait_s,
                 )
-            if on_start is not None:
-                on_start(cfg)
-            begin = time.perf_counter()
+            elif stream is None:
+                from dronetrack.sources.playback import RecordingSource
+
+                played: Source = RecordingSource(recording, radius)
+                if truth is not None:
+                    played = _TruthOverride(played, truth, radius)
+                source = PacedSource(
+                    played, max_frames=setup.max_frames, duration_s=total_s, name=lidar
+                )
+            else:
+                stream.open(OPEN_TIMEOUT_S)
             try:
-                stats = run(source, pipeline, turret, [log, *sinks], progress=progress)
-                interrupted = stats.interrupted
-            except DeviceError as exc:
-                failed.append(exc)
-                interrupted = False
-            wall = time.perf_counter() - begin
-        finally:
-            if stream is not None:
-                stream.close()
+                if stream is not None:
+                    source = LiveSource(
+                        stream,
+                        spec.mount,
+                        reader,
+                        period_s=period,
+                        max_frames=setup.max_frames,
+                        duration_s=total_s,
+                        truth=truth,
+                        truth_radius=radius,
+                    )
+                if on_start is not None:
+                    on_start(cfg)
+                begin = time.perf_counter()
+                try:
+                    stats = run(source, pipeline, turret, [log, *sinks], progress=progress)
+                    interrupted = stats.interrupted
+                except DeviceError as exc:
+                    failed.append(exc)
+                    interrupted = False
+                wall = time.perf_counter() - begin
+            finally:
+                if stream is not None:
+                    stream.close()
+    finally:
+        if ros2 is not None:
+            ros2.close()
     lost, malformed, dropped = _packet_counters(stream)
+    if ros2 is not None:
+        malformed = source.packets_malformed
     span = source.frames_delivered * period
     result = RunResult(cfg, log.log, pipeline, wall, span, kernels, interrupted)
     return LiveRun(

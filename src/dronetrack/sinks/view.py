@@ -121,6 +121,11 @@ class ViewerFeed:
         for viewer in self.viewers:
             viewer.log(view)
 
+    def close(self) -> None:
+        """Close every viewer (for a feed that owns its viewers, as ``live``'s does)."""
+        for viewer in self.viewers:
+            viewer.close()
+
 
 def xyz(points: FloatArray | None, what: str) -> FloatArray:
     """``points`` as a (N, 3) float64 array; None and any empty array give (0, 3)."""

@@ -19,7 +19,12 @@ __all__ = ["close_viewers", "open_viewers"]
 
 
 def open_viewers(
-    foxglove: Path | None, rerun: Path | None, *, start: float = 0.0
+    foxglove: Path | None,
+    rerun: Path | None,
+    *,
+    start: float = 0.0,
+    publish: str | None = None,
+    ros_domain_id: int | None = None,
 ) -> list[ViewerSink]:
     """The writers asked for, in the order (Foxglove, rerun); none when both are None.
 
@@ -36,6 +41,12 @@ def open_viewers(
     from dronetrack.sinks.rerun_out import RerunWriter, require_rerun
     from dronetrack.sinks.run_folder import prepare_output_file
 
+    if publish is not None and publish not in ("ros2",):
+        raise ConfigError(f"--publish {publish!r}: the one choice is ros2")
+    if publish is not None:
+        from dronetrack.sources.dds import require_cyclonedds
+
+        require_cyclonedds()
     if foxglove is not None:
         require_foxglove()
     if rerun is not None:
@@ -50,6 +61,10 @@ def open_viewers(
             sinks.append(_opened(FoxgloveWriter, foxglove, start, "--foxglove"))
         if rerun is not None:
             sinks.append(_opened(RerunWriter, rerun, start, "--rerun"))
+        if publish is not None:
+            from dronetrack.sinks.ros2_out import Ros2Publisher
+
+            sinks.append(Ros2Publisher(ros_domain_id))
     except BaseException:
         close_viewers(sinks)
         raise

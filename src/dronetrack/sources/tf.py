@@ -172,6 +172,25 @@ class TransformBuffer:
             out = out @ self._edges[child].at(tq)
         return out
 
+    def newest(self, root: str, frame: str) -> float | None:
+        """The time of the oldest newest sample of the moving edges between ``root``
+        and ``frame``: how far the chain is known (None if it has no moving edge)."""
+        ends = [max(self._edges[c].t) for c in self.chain(frame, root)[1:] if self._edges[c].t]
+        return min(ends) if ends else None
+
+    def prune(self, before: float) -> None:
+        """Forget moving samples older than ``before`` [s], keeping the last one before it
+        on each edge (a live buffer's history stays bounded)."""
+        for edge in self._edges.values():
+            if len(edge.t) < 2 or edge.t[1] >= before:
+                continue
+            ts = np.asarray(edge.t)
+            keep = max(int(np.searchsorted(ts, before, side="right")) - 1, 0)
+            if keep == 0 or np.any(np.diff(ts) < 0):
+                continue  # nothing to drop, or out of order: left as it is
+            edge.t, edge.p, edge.q = edge.t[keep:], edge.p[keep:], edge.q[keep:]
+            edge.table = None
+
     def sample_times(self, root: str, frame: str, t0: float, t1: float) -> FloatArray:
         """Times of the moving edges' samples between ``root`` and ``frame`` in (t0, t1)."""
         found = []

@@ -1,0 +1,94 @@
+"""``dronetrack live --lidar ros2:///…`` end to end on a loopback DDS domain: a
+recording of a short flight played by a separate publisher process (cyclonedds'
+public API and rosbags' bytes, ``tests/ros2_player.py``) is tracked live as
+``dronetrack track`` tracks the recording; bad ROS 2 options.  Every wait is bounded."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from dronetrack.cli.main import run
+from ros2_helpers import loopback_dds
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = """\
+base = "default"
+seed = 0
+[pipeline.background]
+scan_s = 4.0
+"""
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """12 s of the default flight (4 s of scan, 8 s of flight; first lock at 7.5 s),
+    as PointCloud2 in ROS 2 MCAP, and ``track``'s run of it next to it."""
+    folder = tmp_path_factory.mktemp("ros2")
+    (folder / "scenario.toml").write_text(SCENARIO)
+    bag = folder / "flight.mcap"
+    args = ["record", str(folder / "scenario.toml"), "--duration", "8", "--pointcloud2"]
+    assert run([*args, "--out", str(bag)]) == 0
+    assert run(["track", str(bag), "--out", str(folder / "track")]) == 0
+    return bag
+
+
+def test_live_over_dds_tracks_as_track_does(
+    flight: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    domain = loopback_dds(tmp_path, monkeypatch)
+    out = tmp_path / "live"
+    player = subprocess.Popen(
+        [sys.executable, str(ROOT / "tests" / "ros2_player.py"), str(flight), str(domain)],
+        env={**os.environ, "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}"},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        config = flight.parent / "track" / "config.toml"  # the recording's own scenario
+        lidar = "ros2:///livox/lidar?truth=/ground_truth/pose"
+        args = ["live", str(config), "--lidar", lidar, "--turret", "none"]
+        code = run([*args, "--ros-domain-id", str(domain), "--out", str(out)])
+        _, err = player.communicate(timeout=30)
+    finally:
+        player.kill()
+    assert code == 0
+    assert player.returncode == 0, err
+    live = json.loads((out / "metrics.json").read_text())
+    track = json.loads((flight.parent / "track" / "metrics.json").read_text())
+    assert live["frames"] == track["frames"]
+    assert live["frames_dropped"] == 0
+    assert abs(live["coverage_pct"] - track["coverage_pct"]) <= 2.0
+    assert track["coverage_pct"] > 30.0  # there is something to compare
+    assert live["latency_ms_p50"] < 100.0  # within a frame period
+
+
+@pytest.mark.parametrize(
+    ("lidar", "problem"),
+    [
+        ("ros2://host/livox/lidar", "no host"),
+        ("ros2:///livox//lidar", "must not repeat '/'"),
+        ("ros2://", "names no topic"),
+        ("ros2:///x?type=sensor_msgs/msg/Imu", "is not sensor_msgs/msg/PointCloud2 or"),
+    ],
+)
+def test_bad_ros2_lidar_is_one_error_line(
+    lidar: str,
+    problem: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    loopback_dds(tmp_path, monkeypatch)
+    args = ["live", "--lidar", lidar, "--turret", "none", "--out", str(tmp_path / "run")]
+    assert run(args) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1, err
+    assert err[0].startswith("error: ")
+    assert problem in err[0]

@@ -1,0 +1,145 @@
+"""A ROS 2 point topic as a live source, on a loopback DDS domain: the type found from
+discovery, frames with their /tf_static pose, the run's clock, a publisher leaving
+ends the stream, a silent one is a device error, and ``info ros2://``.  Every wait
+is bounded."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dronetrack.errors import DeviceError
+from dronetrack.formats.livox import LIVOX_POINT, LivoxCloud, encode_livox_cdr
+from dronetrack.formats.ros2_msgs import TF_MESSAGE, encode_tf
+from dronetrack.geometry.mount import MountGeometry
+from ros2_helpers import loopback_dds
+
+T0_NS = 1_767_225_600_000_000_000
+MOUNT = MountGeometry((0.0, 0.0, 1.0), (0.0, 0.0, 0.05), (0.025, 0.0, 0.086))
+
+
+def _cloud(k: int) -> bytes:
+    """Frame k: 10 points 20 m ahead, 10 ms apart, from 0.1 k s on."""
+    pts = np.zeros(10, dtype=LIVOX_POINT)
+    pts["x"], pts["y"], pts["z"] = 20.0, np.arange(10) * 0.1, 1.0 * k
+    pts["offset_time"] = np.arange(10) * 10_000_000
+    stamp = T0_NS + k * 100_000_000
+    return encode_livox_cdr(LivoxCloud(stamp, "lidar", stamp, pts))
+
+
+def _wait(cond: object, timeout_s: float) -> None:
+    end = time.monotonic() + timeout_s
+    while not cond():  # type: ignore[operator]
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.01)
+
+
+def test_frames_of_a_custommsg_topic_with_their_static_pose(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    domain_id = loopback_dds(tmp_path, monkeypatch)
+    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2_dds import CUSTOM_MSG, Ros2Source, point_type
+
+    pub = DdsDomain(domain_id)
+    sub = DdsDomain(domain_id)
+    try:
+        T = np.eye(4)
+        T[:3, 3] = (1.0, 2.0, 3.0)
+        static = pub.writer("/tf_static", TF_MESSAGE, "static")
+        static.write(encode_tf(T0_NS, [("world", "lidar", T)]))  # before anyone listens
+        points = pub.writer("/livox/lidar", CUSTOM_MSG, "default")
+        assert point_type(sub, "/livox/lidar", 5.0) == CUSTOM_MSG
+        source = Ros2Source(sub, "/livox/lidar", CUSTOM_MSG, MOUNT, period_s=0.1, max_frames=10)
+        source.start()
+        _wait(lambda: points.matched() > 0, 5.0)
+
+        def publish() -> None:
+            for k in range(5):
+                points.write(_cloud(k))
+                time.sleep(0.02)
+            time.sleep(0.2)
+            pub.close()  # the publisher leaves: the stream ends
+
+        threading.Thread(target=publish, daemon=True).start()
+        t_start = time.monotonic()
+        samples = list(source)
+        assert time.monotonic() - t_start < 5.0
+    finally:
+        pub.close()
+        sub.close()
+    assert len(samples) == 5
+    for k, s in enumerate(samples):
+        f = s.frame
+        assert f.stamp == pytest.approx(0.1 * k)  # seconds since the first stamp
+        assert f.t == pytest.approx(0.1 * k + np.arange(10) * 0.01)
+        np.testing.assert_allclose(f.poses[0], T)  # the transient-local /tf_static
+        np.testing.assert_allclose(f.world_points()[:, 2], 1.0 * k + 3.0, atol=1e-6)
+        assert s.received is not None
+        assert s.turret is None
+    assert source.frames_dropped == 0
+
+
+def test_a_silent_publisher_is_a_device_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    domain_id = loopback_dds(tmp_path, monkeypatch)
+    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2_dds import CUSTOM_MSG, Ros2Source
+
+    pub = DdsDomain(domain_id)
+    sub = DdsDomain(domain_id)
+    try:
+        points = pub.writer("/livox/lidar", CUSTOM_MSG, "default")
+        source = Ros2Source(sub, "/livox/lidar", CUSTOM_MSG, MOUNT, stall_s=0.5, first_s=3.0)
+        source.start()
+        _wait(lambda: points.matched() > 0, 5.0)
+        points.write(_cloud(0))
+        t0 = time.monotonic()
+        with pytest.raises(DeviceError, match=r"ros2:///livox/lidar: no message for 0.5 s"):
+            list(source)
+        assert time.monotonic() - t0 < 3.0
+    finally:
+        pub.close()
+        sub.close()
+
+
+def test_no_publisher_names_what_the_domain_has(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    domain_id = loopback_dds(tmp_path, monkeypatch)
+    from dronetrack.jobs.live_ros2 import probe_ros2
+    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2_dds import point_type
+
+    pub = DdsDomain(domain_id)
+    sub = DdsDomain(domain_id)
+    try:
+        tf = pub.writer("/tf", TF_MESSAGE, "tf")
+        with pytest.raises(DeviceError, match=r"no publisher of ROS 2 topic /x .*/tf \(tf2_msgs"):
+            point_type(sub, "/x", 1.0)
+        with pytest.raises(DeviceError, match="carries tf2_msgs/msg/TFMessage"):
+            point_type(sub, "/tf", 1.0)
+        lines = dict(probe_ros2("ros2://", domain_id, wait_s=2.0))
+        assert lines["/tf"].startswith("tf2_msgs/msg/TFMessage, 1 publisher(s)")
+        stop = threading.Event()
+
+        def publish() -> None:
+            while not stop.is_set():
+                tf.write(encode_tf(T0_NS, [("a", "b", np.eye(4))]))
+                time.sleep(0.02)
+
+        threading.Thread(target=publish, daemon=True).start()
+        try:
+            rate = dict(probe_ros2("ros2:///tf", domain_id, wait_s=2.0, sample_s=1.0))
+        finally:
+            stop.set()
+        hz = float(rate["rate over 1 s"].split(", ")[1].split(" Hz")[0])
+        assert 30.0 < hz < 55.0  # 50 Hz less the sleep's overrun
+    finally:
+        pub.close()
+        sub.close()
