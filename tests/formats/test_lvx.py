@@ -271,6 +271,15 @@ def test_extrinsic_of_inverts_extrinsic_pose(
     np.testing.assert_allclose(back, (roll, pitch, yaw, x, y, z), atol=1e-9)
 
 
+@given(angles, st.sampled_from([-90.0, 90.0]), angles)
+def test_extrinsic_of_looking_straight_up_or_down_gives_the_same_pose(
+    roll: float, pitch: float, yaw: float
+) -> None:
+    """At pitch ±90° roll and yaw turn about one axis: any pair giving the rotation."""
+    T = lvx.extrinsic_pose((roll, pitch, yaw, 1.0, 2.0, 3.0))
+    np.testing.assert_allclose(lvx.extrinsic_pose(lvx.extrinsic_of(T)), T, atol=1e-9)
+
+
 def test_encoded_header_is_the_hand_built_one() -> None:
     """Our encoder writes the bytes the specification gives (the decoder is checked above
     against hand-built bytes; this checks the writer against them too)."""

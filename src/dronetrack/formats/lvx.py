@@ -430,10 +430,14 @@ def extrinsic_pose(extrinsic: Sequence[float]) -> FloatArray:
 def extrinsic_of(pose: FloatArray) -> tuple[float, float, float, float, float, float]:
     """Roll, pitch, yaw [°] and x, y, z [m] of a (4, 4) pose, the inverse of
     ``extrinsic_pose`` with pitch in [−90°, 90°]:
-    pitch = −asin R₂₀, roll = atan2(R₂₁, R₂₂), yaw = atan2(R₁₀, R₀₀)."""
+    pitch = −asin R₂₀, roll = atan2(R₂₁, R₂₂), yaw = atan2(R₁₀, R₀₀); at pitch ±90°
+    only roll ∓ yaw counts: roll = 0, yaw = atan2(−R₀₁, R₁₁)."""
     R = np.asarray(pose, np.float64)[:3, :3]
     pitch = -math.asin(max(-1.0, min(1.0, float(R[2, 0]))))
-    roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
-    yaw = math.atan2(float(R[1, 0]), float(R[0, 0]))
+    if math.hypot(float(R[2, 1]), float(R[2, 2])) < 1e-12:  # cos(pitch) = 0
+        roll, yaw = 0.0, math.atan2(-float(R[0, 1]), float(R[1, 1]))
+    else:
+        roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
+        yaw = math.atan2(float(R[1, 0]), float(R[0, 0]))
     x, y, z = (float(v) for v in np.asarray(pose, np.float64)[:3, 3])
     return math.degrees(roll), math.degrees(pitch), math.degrees(yaw), x, y, z
