@@ -41,7 +41,7 @@ def test_frames_read_back_as_written(tmp_path: Path, fmt: str, sensor: str, rate
     the pose, the truth and the scenario beside the file."""
     rng = np.random.default_rng(7)
     path = tmp_path / f"f.{fmt}"
-    writer = LvxWriter(path, fmt, sensor, config_text="seed = 3\n")
+    writer = LvxWriter(path, fmt, sensor, "seed = 3\n")
     frames = [_frame(rng, 0.1 * i, 3000, rate) for i in range(5)]
     for i, f in enumerate(frames):
         writer.frame(f, np.array([10.0 + i, 0.5, 3.0]))
@@ -128,6 +128,8 @@ def test_a_moving_sensor_and_other_sensors_are_refused(tmp_path: Path) -> None:
         LvxWriter(tmp_path / "b.lvx", "lvx", "vlp16")
     with pytest.raises(ConfigError, match="exists"):
         LvxWriter(tmp_path / "m.lvx", "lvx", "avia")
+    with pytest.raises(ConfigError, match="moving observer"):
+        LvxWriter(tmp_path / "o.lvx2", "lvx2", "mid360", observer=True)
     (tmp_path / "c.truth.csv").write_text("")
     with pytest.raises(ConfigError, match=r"c\.truth\.csv exists"):
         LvxWriter(tmp_path / "c.lvx", "lvx", "avia")

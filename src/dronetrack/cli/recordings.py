@@ -374,14 +374,9 @@ def record(
     writer: RecordingWriter | LvxWriter
     if lvx:
         resolved = hold_still(resolved)
-        if resolved.observer is not None:
-            raise ConfigError(
-                f"--format {container} holds one fixed sensor pose, and this scenario's sensor "
-                "rides on a moving observer; record it as a bag"
-            )
-        writer = LvxWriter(
-            out, container, resolved.sensor.model, config_text=dump_scenario(resolved)
-        )
+        observer = resolved.observer is not None
+        config_text = dump_scenario(resolved)
+        writer = LvxWriter(out, container, resolved.sensor.model, config_text, observer)
     else:
         writer = RecordingWriter(
             out,
@@ -405,10 +400,8 @@ def record(
         writer.close()
     print_kernel_note(run.kernels)
     written = recording_info(out)
-    if isinstance(writer, LvxWriter):
-        summary = recording_summary(written, container, None, writer.frames_written)
-    else:
-        summary = recording_summary(written, container, writer.compression)
+    lvx_frames = writer.frames_written if isinstance(writer, LvxWriter) else None
+    summary = recording_summary(written, container, writer.compression, lvx_frames)
     stop_if_interrupted(run.interrupted, f"; kept {summary}")
     print_metrics(run.metrics(), out)
     typer.echo(f"wrote {summary}")

@@ -110,19 +110,26 @@ def firing_slots(t: FloatArray, t0: float, interval_s: float) -> np.ndarray:
 
 class LvxWriter:
     """Streams a simulated run's frames into an LVX or LVX2 file, the truth and scenario
-    beside it (module docstring); ``close`` finishes them."""
+    beside it (module docstring); ``close`` finishes them.  ``sensor``: the simulated
+    LiDAR's name; ``observer``: whether it rides on a moving observer (refused)."""
 
     def __init__(
         self,
         path: Path,
         fmt: str,
         sensor: str,
-        *,
         config_text: str | None = None,
+        observer: bool = False,
+        *,
         start_ns: int = DEFAULT_START_NS,
     ) -> None:
         if fmt not in LVX_FORMATS:
             raise ConfigError(f"{fmt!r} is not an LVX format ({', '.join(LVX_FORMATS)})")
+        if observer:
+            raise ConfigError(
+                f"--format {fmt} holds one fixed sensor pose, and this scenario's sensor rides "
+                "on a moving observer; record it as a bag"
+            )
         device = DEVICES.get(sensor)
         wanted = "avia or mid40" if fmt == "lvx" else "mid360"
         if device is None or device.major != LVX_FORMATS.index(fmt) + 1:
@@ -137,6 +144,7 @@ class LvxWriter:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path, self.truth_path, self.scenario_path = path, truth, scenario
         self.format = fmt
+        self.compression: str | None = None  # an LVX file is never compressed
         self.device = device
         self.start_ns = start_ns
         self.frames_written = 0
