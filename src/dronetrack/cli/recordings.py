@@ -29,6 +29,7 @@ from dronetrack.cli.options import (
     FlightDurationOption,
     FoxgloveOption,
     ParticlesOption,
+    ReplayTruthOption,
     RerunOption,
     RunDirOption,
     SeedOption,
@@ -147,14 +148,7 @@ def track(
     timestamps: Annotated[
         Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
     ] = None,
-    truth: Annotated[
-        Path | None,
-        typer.Option(
-            "--truth",
-            help="Ground truth from a CSV with columns t,x,y,z (t in s from the recording's "
-            "start, x, y, z in m in the world frame), instead of the recording's own.",
-        ),
-    ] = None,
+    truth: ReplayTruthOption = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
 ) -> None:
