@@ -25,7 +25,6 @@ __all__ = [
     "FlightDurationOption",
     "FoxgloveOption",
     "ParticlesOption",
-    "ReplayTruthOption",
     "RerunOption",
     "RunDirOption",
     "SeedOption",
@@ -67,14 +66,6 @@ FoxgloveOption = Annotated[
 ]
 RerunOption = Annotated[
     Path | None, typer.Option("--rerun", help="Also write a Rerun .rrd file (extra: rerun).")
-]
-ReplayTruthOption = Annotated[
-    Path | None,
-    typer.Option(
-        "--truth",
-        help="Ground truth from a CSV with columns t,x,y,z (t in s from the recording's start, "
-        "x, y, z in m in the world frame), instead of the recording's own.",
-    ),
 ]
 
 

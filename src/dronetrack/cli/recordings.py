@@ -29,7 +29,6 @@ from dronetrack.cli.options import (
     FlightDurationOption,
     FoxgloveOption,
     ParticlesOption,
-    ReplayTruthOption,
     RerunOption,
     RunDirOption,
     SeedOption,
@@ -94,10 +93,7 @@ def track(
     ],
     lidar_topic: Annotated[
         str | None,
-        typer.Option(
-            "--lidar-topic",
-            help="The point-cloud topic, or an LVX file's LiDAR (default: the only one).",
-        ),
+        typer.Option("--lidar-topic", help="Point topic or LVX LiDAR (default: the only one)."),
     ] = None,
     gt_topic: Annotated[
         str | None,
@@ -148,7 +144,14 @@ def track(
     timestamps: Annotated[
         Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
     ] = None,
-    truth: ReplayTruthOption = None,
+    truth: Annotated[
+        Path | None,
+        typer.Option(
+            "--truth",
+            help="Ground truth from a CSV with columns t,x,y,z (t in s from the recording's "
+            "start, x, y, z in m in the world frame), instead of the recording's own.",
+        ),
+    ] = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
 ) -> None:
@@ -407,8 +410,7 @@ def record(
 def recording_summary(
     info: RecordingInfo, container: str, compression: str | None, lvx_frames: int | None = None
 ) -> str:
-    """One line on a written recording: path, container, frames (an LVX file's 50 ms
-    frames if ``lvx_frames`` is given), length and size."""
+    """One line on a written recording: path, container, frames (or LVX frames), length, size."""
     from dronetrack.sinks.bag_writer import FORMAT_NAMES, LIDAR_TOPIC
 
     path = info.path
