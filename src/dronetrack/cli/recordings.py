@@ -89,13 +89,13 @@ def track(
         Path,
         typer.Argument(
             help="A ROS 1 bag, a ROS 2 bag folder, an MCAP or .db3 file, a PCD file or a folder "
-            "of them, a LAS/LAZ file, or a folder of seed 003's CSV logs; files are recognised "
-            "by their content, whatever their name."
+            "of them, a LAS/LAZ file, a Livox Viewer .lvx or .lvx2 file, or a folder of seed "
+            "003's CSV logs; files are recognised by their content, whatever their name."
         ),
     ],
     lidar_topic: Annotated[
         str | None,
-        typer.Option("--lidar-topic", help="The point-cloud topic (default: the only one)."),
+        typer.Option("--lidar-topic", help="Point topic or LVX LiDAR (default: the only one)."),
     ] = None,
     gt_topic: Annotated[
         str | None,
@@ -146,6 +146,14 @@ def track(
     timestamps: Annotated[
         Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
     ] = None,
+    truth: Annotated[
+        Path | None,
+        typer.Option(
+            "--truth",
+            help="Ground truth from a CSV with columns t,x,y,z (t in s from the recording's "
+            "start, x, y, z in m in the world frame), instead of the recording's own.",
+        ),
+    ] = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
     publish: PublishOption = None,
@@ -163,6 +171,7 @@ def track(
     from dronetrack.jobs.replay import recording_config, run_replay
     from dronetrack.jobs.run import RunFolder
     from dronetrack.sinks.run_folder import default_run_dir
+    from dronetrack.sources.live import read_truth_csv
     from dronetrack.sources.recording import ReplayOptions
     from dronetrack.sources.recordings import open_recording
 
@@ -179,6 +188,8 @@ def track(
         timestamps=timestamps,
     )
     source = open_recording(recording, options)
+    if truth is not None:
+        source.ground_truth = read_truth_csv(truth)
     base = load_scenario_file(config, SCENARIOS) if config is not None else None
     cfg = recording_config(
         source,
@@ -289,6 +300,8 @@ class RecordFormatName(StrEnum):
     ros1 = "ros1"
     ros2_sqlite3 = "ros2-sqlite3"
     ros2_mcap = "ros2-mcap"
+    lvx = "lvx"
+    lvx2 = "lvx2"
 
 
 @app.command()
@@ -299,7 +312,8 @@ def record(
             "--out",
             "-o",
             help="The recording to write: NAME.bag (ROS 1), NAME.mcap or NAME.db3 (one ROS 2 "
-            "file); without a suffix, a ROS 1 bag file, or a rosbag2 folder with a ros2 --format.",
+            "file), NAME.lvx or NAME.lvx2 (Livox Viewer 1 or 2); without a suffix, a ROS 1 bag "
+            "file, or a rosbag2 folder with a ros2 --format.",
         ),
     ],
     scenario: Annotated[
@@ -337,16 +351,22 @@ def record(
 ) -> None:
     """Write a simulated closed-loop flight as the recording a real rig would make.
 
-    It holds the LiDAR, /tf with the turret links, ground truth and the scenario,
-    so `dronetrack track FILE` replays it with the same settings.  Prints the
-    metrics of the run, then what it wrote.
+    A bag holds the LiDAR, /tf with the turret links, ground truth and the scenario,
+    so `dronetrack track FILE` replays it with the same settings.  An LVX file holds
+    the LiDAR's packets and its fixed pose (the turret holds still), with the truth
+    and the scenario beside it.  Prints the metrics of the run, then what it wrote.
     """
     from dronetrack.config.rig import turret_spec
     from dronetrack.config.run import dump_scenario
-    from dronetrack.jobs.simulate import resolve_run, run_simulation
+    from dronetrack.jobs.simulate import hold_still, resolve_run, run_simulation
     from dronetrack.sinks.bag_writer import RecordingWriter, record_format
+    from dronetrack.sinks.lvx_writer import LVX_FORMATS, LvxWriter, lvx_turret_mode
 
     container = record_format(out, fmt.value if fmt is not None else None)
+    lvx = container in LVX_FORMATS
+    turret_mode = turret.value if turret else None
+    if lvx:
+        turret_mode = lvx_turret_mode(container, turret_mode, compress, livox_custom)
     cfg = scenario_from_options(
         scenario,
         config,
@@ -358,19 +378,26 @@ def record(
         sensor=sensor,
         tracker=tracker,
         particles=particles,
-        turret_mode=turret.value if turret else None,
+        turret_mode=turret_mode,
     )
     resolved = resolve_run(cfg)
     check_run_dir(out.parent)
-    writer = RecordingWriter(
-        out,
-        container,
-        turret_spec(resolved.turret).mount,
-        livox_custom=livox_custom,
-        config_text=dump_scenario(resolved),
-        observer=resolved.observer is not None,
-        compress=compress,
-    )
+    writer: RecordingWriter | LvxWriter
+    if lvx:
+        resolved = hold_still(resolved)
+        observer = resolved.observer is not None
+        config_text = dump_scenario(resolved)
+        writer = LvxWriter(out, container, resolved.sensor.model, config_text, observer)
+    else:
+        writer = RecordingWriter(
+            out,
+            container,
+            turret_spec(resolved.turret).mount,
+            livox_custom=livox_custom,
+            config_text=dump_scenario(resolved),
+            observer=resolved.observer is not None,
+            compress=compress,
+        )
     try:
         with progress_bar() as bar:
             task = bar.add_task(f"recording {cfg.name}", total=None)
@@ -384,24 +411,30 @@ def record(
         writer.close()
     print_kernel_note(run.kernels)
     written = recording_info(out)
-    summary = recording_summary(written, container, writer.compression)
+    lvx_frames = writer.frames_written if isinstance(writer, LvxWriter) else None
+    summary = recording_summary(written, container, writer.compression, lvx_frames)
     stop_if_interrupted(run.interrupted, f"; kept {summary}")
     print_metrics(run.metrics(), out)
     typer.echo(f"wrote {summary}")
     _print_topics(written.topics)
+    if isinstance(writer, LvxWriter):
+        typer.echo("  " + writer.replay_hint(resolved.sensor.integration_time_s))
 
 
-def recording_summary(info: RecordingInfo, container: str, compression: str | None) -> str:
-    """One line on a written recording: path, container, frames, length and size."""
+def recording_summary(
+    info: RecordingInfo, container: str, compression: str | None, lvx_frames: int | None = None
+) -> str:
+    """One line on a written recording: path, container, frames (or LVX frames), length, size."""
     from dronetrack.sinks.bag_writer import FORMAT_NAMES, LIDAR_TOPIC
 
     path = info.path
     frames = sum(t.count for t in info.topics if t.topic == LIDAR_TOPIC)
+    counted = f"{frames} frames" if lvx_frames is None else f"{lvx_frames} frames of 50 ms"
     files = [p for p in path.rglob("*") if p.is_file()] if path.is_dir() else [path]
     size = sum(p.stat().st_size for p in files)
     packing = f", compressed ({compression})" if compression else ""
     return (
-        f"{path}: {FORMAT_NAMES[container]}{packing}, {frames} frames, "
+        f"{path}: {FORMAT_NAMES[container]}{packing}, {counted}, "
         f"{info.duration_s:.1f} s, {size / 1e6:.1f} MB"
     )
 

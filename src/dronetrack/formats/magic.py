@@ -20,14 +20,18 @@ MAGIC: tuple[tuple[bytes, str], ...] = (
     (MCAP_MAGIC, "mcap"),
     (b"SQLite format 3\x00", "sqlite3"),
     (b"LASF", "las"),
+    (b"livox_tech", "lvx"),  # LVX and LVX2 (Livox Viewer 1 and 2)
 )
 _PCD_KEYS = (b"VERSION", b"FIELDS")
 _HEAD = 4096  # bytes read to recognise a file (a PCD header's comments included)
-EXPECTED = "a ROS 1 bag ('#ROSBAG V2.0'), MCAP, a ROS 2 .db3 (SQLite), a PCD header or LAS ('LASF')"
+EXPECTED = (
+    "a ROS 1 bag ('#ROSBAG V2.0'), MCAP, a ROS 2 .db3 (SQLite), a PCD header, LAS ('LASF') "
+    "or Livox LVX ('livox_tech')"
+)
 
 
 def sniff_file(path: Path) -> str | None:
-    """ "ros1", "mcap", "sqlite3", "las" or "pcd" from the file's first bytes; None if
+    """ "ros1", "mcap", "sqlite3", "las", "lvx" or "pcd" from the file's first bytes; None if
     it is none of them."""
     with path.open("rb") as fh:
         head = fh.read(_HEAD)

@@ -37,6 +37,7 @@ from dronetrack.types import Sample, StepResult
 __all__ = [
     "CleanViewStart",
     "flight_config",
+    "hold_still",
     "place_at_start",
     "resolve_run",
     "run_lockstep",
@@ -176,6 +177,23 @@ def flight_config(cfg: ScenarioConfig) -> ScenarioConfig:
             )
         }
     )
+
+
+def hold_still(cfg: ScenarioConfig) -> ScenarioConfig:
+    """A resolved ``cfg`` whose turret never moves, as a rig with a fixed LiDAR: the
+    ``fixed`` mode at home, and the background scan held there too (its pan and tilt
+    ranges the home angles), so the background is what the fixed sensor sees."""
+    from dronetrack.config.rig import turret_spec
+
+    mount = turret_spec(cfg.turret).mount
+    pan, tilt = (math.degrees(a) for a in aim_angles(cfg.pipeline.controller.home_m, mount))
+    pipeline = cfg.pipeline
+    background = pipeline.background.model_copy(
+        update={"scan_pan_deg": (pan, pan), "scan_tilt_deg": (tilt, tilt)}
+    )
+    controller = pipeline.controller.model_copy(update={"mode": "fixed"})
+    update = {"background": background, "controller": controller}
+    return cfg.model_copy(update={"pipeline": pipeline.model_copy(update=update)})
 
 
 def start_angles(world: SimWorld, pipeline: Pipeline, mode: str) -> tuple[float, float] | None:

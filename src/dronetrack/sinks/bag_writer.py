@@ -17,7 +17,9 @@ Topics:
 Containers: ``ros1`` (``.bag``), ``ros2-sqlite3`` and ``ros2-mcap``.  A ROS 2 path
 ending in ``.db3`` or ``.mcap`` is written as that one bare file; any other path
 becomes a rosbag2 folder with ``metadata.yaml``.  ``record_format`` takes the
-container from the path's suffix and refuses a suffix that says another one.
+container from the path's suffix and refuses a suffix that says another one; it
+also knows Livox Viewer's ``lvx`` (``.lvx``) and ``lvx2`` (``.lvx2``), which
+``sinks.lvx_writer`` writes.
 
 Compression (``compress=True``): LZ4 chunks in a ROS 1 bag (rosbag's own choice
 for speed), zstd chunks in MCAP (the MCAP storage's), and zstd per message in a
@@ -69,7 +71,7 @@ __all__ = [
     "record_format",
 ]
 
-RecordFormat = Literal["ros1", "ros2-sqlite3", "ros2-mcap"]
+RecordFormat = Literal["ros1", "ros2-sqlite3", "ros2-mcap", "lvx", "lvx2"]
 RECORD_FORMATS: tuple[str, ...] = get_args(RecordFormat)
 LIDAR_TOPIC = "/livox/lidar"
 GT_TOPIC = "/ground_truth/pose"
@@ -82,18 +84,22 @@ SUFFIX_FORMATS: dict[str, RecordFormat] = {
     ".bag": "ros1",
     ".mcap": "ros2-mcap",
     ".db3": "ros2-sqlite3",
+    ".lvx": "lvx",
+    ".lvx2": "lvx2",
 }
 FORMAT_NAMES = {
     "ros1": "ROS 1 bag",
     "ros2-mcap": "ROS 2 bag, MCAP storage",
     "ros2-sqlite3": "ROS 2 bag, sqlite3 storage",
+    "lvx": "Livox Viewer LVX 1.1",
+    "lvx2": "Livox Viewer 2 LVX2",
 }
 COMPRESSION = {"ros1": "lz4", "ros2-mcap": "zstd", "ros2-sqlite3": "zstd, per message"}
 
 
 def record_format(path: Path, fmt: str | None) -> RecordFormat:
     """The container to write ``path`` as: ``fmt`` if given, else the one its suffix
-    names (.bag, .mcap, .db3), else ROS 1.  A ``ConfigError`` when the two disagree
+    names (.bag, .mcap, .db3, .lvx, .lvx2), else ROS 1.  A ``ConfigError`` when the two disagree
     (a .mcap file of ROS 1 bytes would be unreadable as MCAP)."""
     implied = SUFFIX_FORMATS.get(path.suffix.lower())
     if fmt is None:
@@ -102,10 +108,11 @@ def record_format(path: Path, fmt: str | None) -> RecordFormat:
         raise ConfigError(f"unknown format {fmt!r}; choose one of {', '.join(RECORD_FORMATS)}")
     if implied is not None and implied != fmt:
         wanted = {v: k for k, v in SUFFIX_FORMATS.items()}[cast(RecordFormat, fmt)]
+        folder = "" if fmt in ("lvx", "lvx2") else " (or a folder, for ROS 2)"
         raise ConfigError(
             f"--format {fmt} writes a {FORMAT_NAMES[fmt]}, but --out {path} ends in "
-            f"{path.suffix}, which is for {implied}; name it {path.stem}{wanted} "
-            f"(or a folder, for ROS 2), or give --format {implied}"
+            f"{path.suffix}, which is for {implied}; name it {path.stem}{wanted}{folder}, "
+            f"or give --format {implied}"
         )
     return cast(RecordFormat, fmt)
 
@@ -127,6 +134,8 @@ class RecordingWriter:
         compress: bool = False,
     ) -> None:
         fmt = record_format(path, fmt)  # the container the suffix names, if fmt agrees
+        if fmt in ("lvx", "lvx2"):
+            raise ConfigError(f"{fmt} is Livox Viewer's format, which sinks.lvx_writer writes")
         if path.exists():
             raise ConfigError(f"{path} exists; choose a new --out")
         if compress and fmt == "ros2-sqlite3" and path.suffix == ".db3":

@@ -70,7 +70,15 @@ from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth
 from dronetrack.types import Sample, TurretState
 
-__all__ = ["LEAD_S", "LiveSource", "PointStream", "PolledTurret", "TruthFile", "TurretReader"]
+__all__ = [
+    "LEAD_S",
+    "LiveSource",
+    "PointStream",
+    "PolledTurret",
+    "TruthFile",
+    "TurretReader",
+    "read_truth_csv",
+]
 
 POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 POSE_WAIT_S = 1.0  # longest a frame waits for a fresh turret reading
@@ -160,6 +168,15 @@ class TruthFile:
             a = self._rows[: self._n]
             self._built = GroundTruth(a[:, 0], a[:, 1:])
         return self._built
+
+
+def read_truth_csv(path: Path) -> GroundTruth:
+    """A whole truth CSV (t,x,y,z, as ``TruthFile`` reads it) as ground truth, for
+    ``track --truth``; InputError if it has no rows."""
+    truth = TruthFile(path).ground_truth()
+    if truth is None:
+        raise InputError(f"truth CSV {path} has no rows")
+    return truth
 
 
 class TurretReader(Protocol):

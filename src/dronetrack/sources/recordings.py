@@ -6,13 +6,14 @@ A file is recognised by its first bytes:
 - ``\x89MCAP0\r\n``: MCAP (a ROS 2 bag, or any other MCAP);
 - ``SQLite format 3``: a ROS 2 sqlite3 bag file (``.db3``);
 - ``LASF``: LAS or LAZ;
+- ``livox_tech``: a Livox Viewer recording, LVX or LVX2;
 - a PCD header (``VERSION`` or ``FIELDS`` after any ``#`` comments): PCD.
 
 A folder: a rosbag2 folder (``metadata.yaml``), split ROS 1 bags (``*.bag``), seed
 003's CSV logs (``filtered_points.csv``) or ``.pcd`` files.  ``READERS`` maps each
 kind to its reader (``sources.bag`` for ROS 1, MCAP and ``.db3`` bags,
-``sources.pcd_folder``, ``sources.las``, ``sources.field_logs``), each imported only
-when its kind of recording is opened.
+``sources.pcd_folder``, ``sources.las``, ``sources.lvx``, ``sources.field_logs``), each
+imported only when its kind of recording is opened.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from dronetrack.sources.recording import Recording, RecordingInfo, ReplayOptions
 
 __all__ = ["READERS", "RecordingKind", "open_recording", "recording_info", "recording_kind"]
 
-RecordingKind = Literal["bag", "pcd", "las", "field-logs"]
+RecordingKind = Literal["bag", "pcd", "las", "lvx", "field-logs"]
 Reader = Callable[[Path, ReplayOptions], Recording]
 
 
@@ -49,6 +50,12 @@ def _las(path: Path, options: ReplayOptions) -> Recording:
     return LasRecording(path, options)
 
 
+def _lvx(path: Path, options: ReplayOptions) -> Recording:
+    from dronetrack.sources.lvx import LvxRecording
+
+    return LvxRecording(path, options)
+
+
 def _field_logs(path: Path, options: ReplayOptions) -> Recording:
     from dronetrack.sources.field_logs import FieldLogRecording
 
@@ -59,6 +66,7 @@ READERS: dict[RecordingKind, Reader] = {
     "bag": _bag,  # a ROS 1 bag (or split bags), MCAP, a .db3 file or a rosbag2 folder
     "pcd": _pcd,  # a .pcd file or a folder of them
     "las": _las,  # a .las or .laz file
+    "lvx": _lvx,  # a Livox Viewer .lvx or .lvx2 file
     "field-logs": _field_logs,  # seed 003's CSV logs
 }
 
@@ -70,11 +78,12 @@ _FILE_KINDS: dict[str, RecordingKind] = {
     "sqlite3": "bag",
     "pcd": "pcd",
     "las": "las",
+    "lvx": "lvx",
 }
 
 
 def recording_kind(path: Path) -> RecordingKind:
-    """ "bag", "pcd", "las" or "field-logs"; RecordingError when it is none of them."""
+    """ "bag", "pcd", "las", "lvx" or "field-logs"; RecordingError when it is none of them."""
     if not path.exists():
         raise RecordingError(f"no such recording: {path}")
     if path.is_dir():
@@ -103,8 +112,14 @@ def recording_kind(path: Path) -> RecordingKind:
 
 def recording_info(path: Path) -> RecordingInfo:
     """Topics, types, counts and duration; a bag need not have a LiDAR topic, and an
-    MCAP file may have any profile (Foxglove's own files have none)."""
-    if recording_kind(path) == "bag":
+    MCAP file may have any profile (Foxglove's own files have none); an LVX file may
+    hold several LiDARs."""
+    kind = recording_kind(path)
+    if kind == "lvx":
+        from dronetrack.sources.lvx import LvxFile
+
+        return LvxFile(path).info()
+    if kind == "bag":
         from dronetrack.sources.bag import BagFile
 
         if path.is_file() and sniff_file(path) == "mcap":
