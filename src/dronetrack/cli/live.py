@@ -43,7 +43,8 @@ def live(
         str,
         typer.Option(
             "--turret",
-            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, or none (a fixed sensor).",
+            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, ptu://DEVICE?baud=9600 or "
+            "ptu://HOST:PORT (a FLIR pan-tilt unit), or none (a fixed sensor).",
         ),
     ],
     scenario: Annotated[

@@ -212,13 +212,15 @@ def info(
         typer.Argument(
             metavar="RECORDING|DEVICE",
             help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
-            "livox2://IP or dynamixel://DEVICE?baud=…&pan=…&tilt=….",
+            "livox2://IP, dynamixel://DEVICE?baud=…&pan=…&tilt=…, ptu://DEVICE?baud=… or "
+            "ptu://HOST:PORT.",
         ),
     ],
 ) -> None:
     """List a recording's topics, message types, counts and duration; or what a live
     device says of itself (a LiDAR's model, code or serial, firmware and a short
-    sample; the servos' model, firmware and present positions)."""
+    sample; the servos' model, firmware and present positions; a pan-tilt unit's
+    firmware, resolution, limits, speeds and positions)."""
     from rich.markup import escape
 
     if target.startswith(("livox://", "livox2://")):
@@ -229,6 +231,12 @@ def info(
         return
     if target.startswith("dynamixel://"):
         _servo_info(target)
+        return
+    if target.startswith("ptu://"):
+        from dronetrack.actuators.ptu_probe import probe_ptu
+
+        for name, value in probe_ptu(target):
+            typer.echo(f"{name}: {value}")
         return
     recording = Path(target)
     summary = recording_info(recording)
