@@ -5,9 +5,9 @@ Every query key is optional; the values shown are the defaults: the unit's power
 9600 baud (8N1; serial only), its present position read 20 times a second by a
 thread of its own (``poll_hz=0``: read once a frame, in the frame's path), e.g.
 ``ptu:///dev/ttyUSB0``, ``ptu:///dev/ttyUSB0?baud=38400`` or
-``ptu://192.168.1.110:4000``.  A DEVICE is anything that is not HOST:PORT (a path,
-``COM3``); a HOST:PORT ends in ``:`` and a port number, with IPv6 addresses in
-brackets (``ptu://[fe80::1]:4000``).
+``ptu://192.168.1.110:4000``.  A DEVICE is an absolute path or a Windows ``COMn``; a
+HOST:PORT ends in ``:`` and a port number, with IPv6 addresses in brackets
+(``ptu://[fe80::1]:4000``).
 
 At 9600 baud a byte takes 1.04 ms: one read of both positions (``PP TP`` and two
 replies, about 24 bytes) holds the line for about 24 ms, so the default 20 reads a
@@ -28,6 +28,7 @@ __all__ = ["DEFAULT_POLL_HZ", "MAX_POLL_HZ", "SCHEME", "PtuUri", "parse_ptu_uri"
 SCHEME = "ptu://"
 DEFAULT_POLL_HZ = 20.0
 MAX_POLL_HZ = 200.0
+_COM_PORT = re.compile(r"^COM[0-9]+$", re.IGNORECASE)
 _HOST_PORT = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(?P<port>[0-9]+)$")
 
 
@@ -82,6 +83,11 @@ def parse_ptu_uri(uri: str) -> PtuUri:
             raise ConfigError(f"FLIR PTU URI {uri!r}: port {port} is not in 1-65535")
         if "baud" in values:
             raise ConfigError(f"FLIR PTU URI {uri!r}: baud is for a serial line, not TCP")
+    elif not (where.startswith("/") or _COM_PORT.match(where)):
+        raise ConfigError(
+            f"FLIR PTU URI {uri!r}: give a serial device's path (ptu:///dev/ttyUSB0) or "
+            "HOST:PORT (ptu://192.168.1.110:4000)"
+        )
     try:
         baud = int(values.get("baud", DEFAULT_BAUD))
     except ValueError:

@@ -55,7 +55,16 @@ __all__ = ["FIRMWARE_BANNER", "EmulatedPtu", "PtuAxis", "ptu_axis"]
 
 FIRMWARE_BANNER = "Pan-Tilt Controller v3.0.0 (dronetrack emulated PTU-E46)"
 DEFAULT_ACCEL = 2000  # positions/s² before the host sets one (the D46 manual's example)
-_COMMAND = re.compile(r"^(?P<name>[A-Z@]+)(?P<value>.*)$")
+_MODES = {
+    "ED": ("echo", False),
+    "EE": ("echo", True),
+    "FT": ("terse", True),
+    "FV": ("terse", False),
+    "LE": ("limits_enabled", True),
+    "LD": ("limits_enabled", False),
+}
+_AXIS_COMMANDS = {a + c for a in "PT" for c in "PSABULNXR"}
+_NAMES = _AXIS_COMMANDS | set(_MODES) | {"CI", "CV", "I", "S", "E", "F", "L", "V"}
 _INTEGER = re.compile(r"^[-+]?[0-9]+$")
 
 
@@ -161,25 +170,23 @@ class EmulatedPtu:
     # -- the commands ---------------------------------------------------------------
 
     def _reply(self, text: str, t: float) -> str:
-        found = _COMMAND.match(text)
-        if found is None:
+        # the command is the longest name the text starts with; the rest is its value
+        name = text[:2] if text[:2] in _NAMES else text[:1]
+        if name not in _NAMES:
             return "! Illegal command"
-        name, raw = found.group("name"), found.group("value")
+        raw = text[len(name) :]
         if raw and not _INTEGER.match(raw):
             return "! Illegal argument"
         value = int(raw) if raw else None
-        if len(name) == 2 and name[0] in "PT" and name[1] in "PSABULNXR":
+        if name in _AXIS_COMMANDS:
             return self._axis(self.axes[name[0]], name[1], value, t)
-        modes = {"ED": ("echo", False), "EE": ("echo", True), "FT": ("terse", True)}
-        modes.update({"FV": ("terse", False), "LE": ("limits_enabled", True)})
-        modes["LD"] = ("limits_enabled", False)
-        if name in modes or name in ("CI", "I"):
+        if name in _MODES or name in ("CI", "I"):
             if value is not None:
                 return "! Illegal argument"
-            if name in modes:
-                setattr(self, *modes[name])
+            if name in _MODES:
+                setattr(self, *_MODES[name])
             return "*"
-        if value is not None and name in ("E", "F", "L", "V"):
+        if value is not None:
             return "! Illegal argument"
         if name == "E":
             return f"* Echoing {'ON' if self.echo else 'OFF'}"
@@ -190,9 +197,7 @@ class EmulatedPtu:
             return f"* Limit bounds are {state}"
         if name == "V":
             return f"* {FIRMWARE_BANNER}"
-        if name in ("CV", "S"):
-            return "! Mode not emulated"
-        return "! Illegal command"
+        return "! Mode not emulated"  # CV, S
 
     def _say(self, value: object, verbose: str) -> str:
         return f"* {value}" if self.terse else f"* {verbose}"

@@ -41,8 +41,9 @@ __all__ = ["LineTiming", "PtyPtuLink", "TcpPtuServer"]
 class LineTiming:
     """One session of the unit on a line (see the module docstring): ``receive`` the
     bytes read at a time, then ``step`` answers the commands whole by then and
-    returns the replies due; ``next_due`` says when to step again.  ``baud`` None:
-    no pacing."""
+    returns the replies due; ``next_due`` says when to step again.  Times are
+    ``time.monotonic``'s; ``baud`` None: no pacing (each command answered at the
+    unit's clock's now)."""
 
     def __init__(self, ptu: EmulatedPtu, baud: int | None) -> None:
         self.ptu = ptu
@@ -62,10 +63,12 @@ class LineTiming:
         self._in_free = start + len(data) * self.byte_s
 
     def step(self, t: float) -> list[bytes]:
-        """Answer the commands whole by ``t`` (each at its own time); the replies due."""
+        """Answer the commands whole by ``t`` (each at its own time: on the unit's clock,
+        that clock now less how long ago the command was whole); the replies due."""
         while self._commands and self._commands[0][0] <= t:
             at, text, delimiter = self._commands.popleft()
-            reply = self.ptu.handle(text, delimiter, at)
+            unit_t = self.ptu.clock() - (t - at) if self.byte_s else None
+            reply = self.ptu.handle(text, delimiter, unit_t)
             done = max(at, self._out_free) + len(reply) * self.byte_s
             self._out_free = done
             self._replies.append((done, reply))
