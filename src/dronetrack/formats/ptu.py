@@ -46,7 +46,6 @@ __all__ = [
     "Reply",
     "angle_to_position",
     "byte_time",
-    "check_value",
     "parse_number",
     "parse_reply",
     "position_to_angle",
@@ -160,11 +159,3 @@ class CommandSplitter:
     @property
     def pending(self) -> bool:
         return bool(self._partial)
-
-
-def check_value(text: str, what: str) -> int:
-    """A command's integer value; DecodeError naming ``what`` otherwise."""
-    try:
-        return int(text)
-    except ValueError:
-        raise DecodeError(f"{what}: {text!r} is not an integer") from None

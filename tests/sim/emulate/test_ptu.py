@@ -53,7 +53,7 @@ def test_it_powers_up_echoing_in_verbose_mode() -> None:
 
 def test_the_presets_resolution_limits_and_speeds_in_positions() -> None:
     # 0.0129° = 46.44″; pan ±159° → ±12325.6; tilt 31° up (+2403.1) and 47° down
-    # (-3643.4); 300°/s → 23255.8 positions/s; commas in the D46's words
+    # (-3643.4); 300°/s → 23255.8 positions/s; verbose answers in the D46 manual's words
     ptu = _unit()
     _say(ptu, "ED")
     assert _say(ptu, "PR") == "* 46.4400 seconds arc per Pan position\r\n"

@@ -11,7 +11,7 @@ import select
 import threading
 import time
 import tty
-from abc import abstractmethod
+from abc import ABC, abstractmethod
 from pathlib import Path
 from typing import Self
 
@@ -22,7 +22,7 @@ from dronetrack.sim.emulate.servo_bus import ServoBus
 __all__ = ["PtyLink", "PtyServoLink"]
 
 
-class PtyLink:
+class PtyLink(ABC):
     """A new pseudo-terminal served by a thread of its own (``_serve``, which subclasses
     write); ``device`` is what a driver opens.
 
