@@ -8,7 +8,9 @@ import json
 from pathlib import Path
 
 import pytest
+from rich.console import Console
 
+from dronetrack.cli.bench import live_table
 from dronetrack.cli.main import run
 from dronetrack.errors import ConfigError
 from dronetrack.experiments.bench import LiveSettings
@@ -27,7 +29,10 @@ def test_quick_live_bench_with_the_ptu(tmp_path: Path, capsys: pytest.CaptureFix
     assert 15 <= lat["frames"] + lat["frames_dropped"] <= 21
     assert 0 < lat["latency_ms_p50"] <= lat["latency_ms_p99"]
     assert data["live_soak"] is None
-    assert "FLIR PTU-E46 at 38400 baud" in out
+    assert out.strip().splitlines()[-1] == str(tmp_path / "bench_live.json")
+    wide = Console(width=200, record=True)
+    wide.print(live_table(data, tmp_path / "bench_live.json"))
+    assert "latency run: 2 s of flight, FLIR PTU-E46 at 38400 baud" in wide.export_text()
 
 
 @pytest.mark.parametrize(
