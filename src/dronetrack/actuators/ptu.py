@@ -132,7 +132,7 @@ class PtuTurret:
             self.axes = self._configure()
             here = self.line.transact(["PP", "TP"], "read the positions")
             self.goals = [
-                round(self._number(r, c)) for r, c in zip(here.replies, "PT", strict=True)
+                round(self._number(r, f"{c}P")) for r, c in zip(here.replies, "PT", strict=True)
             ]
         except BaseException:
             line.close()
