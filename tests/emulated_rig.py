@@ -25,6 +25,11 @@ class Emulator:
     truth: Path
     lines: list[str]
 
+    @property
+    def turret(self) -> str:
+        """The turret URI the emulator printed (``turret: URI  (…)``)."""
+        return self.lines[1].split()[1]
+
 
 @contextmanager
 def emulator(tmp_path: Path, scenario: str, *options: str) -> Iterator[Emulator]:

@@ -64,7 +64,8 @@ def test_the_none_turret_is_a_fixed_sensor() -> None:
 @pytest.mark.parametrize(
     ("uri", "problem"),
     [
-        ("ptu://192.168.1.5", "dynamixel://DEVICE"),
+        ("pantilt://192.168.1.5", "dynamixel://DEVICE"),
+        ("ptu://192.168.1.5", "HOST:PORT"),
         ("", "dynamixel://DEVICE"),
         ("dynamixel:///dev/ttyUSB0?baud=1234", "baud 1234"),
     ],

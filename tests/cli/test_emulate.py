@@ -116,6 +116,7 @@ def test_emulate_stopped_by_a_signal_exits_130_and_keeps_the_truth(
         (["walk-square"], "error: emulate runs Livox sensors (avia, mid40, mid360)"),
         (["nowhere"], "error: unknown scenario 'nowhere'"),
         (["--duration", "0"], "error: Invalid value for '--duration'"),
+        (["--ptu-baud", "1234"], "error: --ptu-baud 1234 is not a standard rate (1200, "),
         (["--lidar-ip", "192.0.2.1"], "error: emulated Livox: cannot bind 192.0.2.1:65000"),
     ],
 )

@@ -75,7 +75,9 @@ def _error_lines(err: str) -> list[str]:
     [
         (["--lidar", "http://192.168.1.3", "--turret", "none"], "livox://IP"),
         (["--lidar", "livox://999.1.1.1", "--turret", "none"], "not an IPv4"),
-        (["--lidar", "livox://192.168.1.3", "--turret", "ptu://x"], "--turret"),
+        (["--lidar", "livox://192.168.1.3", "--turret", "pantilt://x"], "--turret"),
+        (["--lidar", "livox://192.168.1.3", "--turret", "ptu://x"], "serial device's path"),
+        (["--lidar", "livox://192.168.1.3", "--turret", "ptu://h:1?baud=9600"], "not TCP"),
         (["--lidar", "livox://192.168.1.3", "--turret", "none", "--host-ip", "x"], "--host-ip"),
         (
             [

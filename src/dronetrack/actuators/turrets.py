@@ -1,8 +1,9 @@
 """The turrets a live run drives, by URI, and the guard on their limits.
 
 ``--turret`` takes ``dynamixel://DEVICE?baud=…&pan=…&tilt=…`` (``actuators.dynamixel``),
-``ros2:///NAMESPACE`` (``actuators.ros2_turret``) or ``none``: a fixed sensor, whose
-pose is the mount's at pan = tilt = 0; its commands go nowhere.
+``ros2:///NAMESPACE`` (``actuators.ros2_turret``), ``ptu://DEVICE?baud=…`` or
+``ptu://HOST:PORT`` (a FLIR pan-tilt unit, ``actuators.ptu``) or ``none``: a fixed
+sensor, whose pose is the mount's at pan = tilt = 0; its commands go nowhere.
 
 Whatever the tracker or controller says, a command reaches the turret only through
 ``LimitGuard``: goal angles are clamped into the configured joint limits,
@@ -12,7 +13,7 @@ Whatever the tracker or controller says, a command reaches the turret only throu
 and rates into ±ω_max of each axis; a non-finite value is passed as NaN, which the
 drivers take as "keep this axis's goal".  The Dynamixel driver clamps to the same
 limits again (written into the servos as their position limits), so the guard is
-the first of three.
+the first of three; the PTU driver clamps to them and to the unit's own limits.
 """
 
 from __future__ import annotations
@@ -104,7 +105,8 @@ class LimitGuard:
         return self.turret.state()
 
     def readings(self, until: float = -math.inf, timeout_s: float = 1.0) -> list[TurretState]:
-        """The turret's new measured states (``DynamixelTurret.readings``); a turret
+        """The turret's new measured states (``DynamixelTurret.readings``,
+        ``PtuTurret.readings``); a turret
         without them: its ``state`` now (none for a fixed sensor)."""
         read = getattr(self.turret, "readings", None)
         if read is not None:
@@ -122,7 +124,8 @@ class LimitGuard:
 
 
 def check_turret_uri(uri: str) -> None:
-    """ConfigError with one line unless ``uri`` is ``none`` or a valid dynamixel:// URI."""
+    """ConfigError with one line unless ``uri`` is ``none`` or a valid dynamixel:// or
+    ptu:// URI."""
     if uri.strip().lower() == NONE_URI:
         return
     if uri.startswith("dynamixel://"):
@@ -135,9 +138,14 @@ def check_turret_uri(uri: str) -> None:
 
         parse_ros2_turret_uri(uri)
         return
+    if uri.startswith("ptu://"):
+        from dronetrack.actuators.ptu_uri import parse_ptu_uri
+
+        parse_ptu_uri(uri)
+        return
     raise ConfigError(
         f"--turret {uri!r}: give dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, "
-        "ros2:///NAMESPACE or none"
+        "ptu://DEVICE?baud=9600, ptu://HOST:PORT, ros2:///NAMESPACE or none"
     )
 
 
@@ -157,6 +165,10 @@ def open_turret(
         from dronetrack.actuators.ros2_turret import Ros2Turret
 
         return LimitGuard(Ros2Turret(uri, ros_domain_id, clock=clock), spec)
+    if uri.startswith("ptu://"):
+        from dronetrack.actuators.ptu import PtuTurret
+
+        return LimitGuard(PtuTurret.from_uri(uri, turret=spec, clock=clock), spec)
     from dronetrack.actuators.dynamixel import DynamixelTurret
 
     return LimitGuard(DynamixelTurret.from_uri(uri, turret=spec, clock=clock), spec)

@@ -116,7 +116,8 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
         table.add_row(label, _cell(row[key], unit), *_target_cells(targets, f"{section}.{key}"))
 
     lat = results["live_latency"]
-    turret = "no turret" if not s["turret"] else "Dynamixel turret"
+    turrets = {"none": "no turret", "dynamixel": "Dynamixel turret"}
+    turret = turrets.get(s["turret"], f"FLIR PTU-E46 at {s['ptu_baud']} baud")
     table.add_row(f"latency run: {lat['flight_s']:g} s of flight, {turret}", "", "", "")
     for label, key, unit in (
         ("latency p50", "latency_ms_p50", " ms"),
@@ -159,6 +160,8 @@ def _live(
     latency_s: float | None,
     soak_s: float | None,
     warmup_s: float | None,
+    turret: str | None,
+    ptu_baud: int | None,
 ) -> None:
     """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
     from dataclasses import replace
@@ -167,7 +170,8 @@ def _live(
     from dronetrack.sinks.run_folder import prepare_run_dir
 
     settings = LIVE_QUICK if quick else LIVE_FULL
-    given = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
+    given: dict[str, Any] = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
+    given.update(turret=turret, ptu_baud=ptu_baud)
     settings = replace(settings, **{k: v for k, v in given.items() if v is not None})
     settings.checked()
     with progress_bar() as bar:
@@ -235,6 +239,18 @@ def bench(
             "--warmup-s", help="With --live: the soak's warm-up before memory counts [60 s]."
         ),
     ] = None,
+    turret: Annotated[
+        str | None,
+        typer.Option(
+            "--turret",
+            help="With --live: the emulated turret driven, dynamixel (the scenario's WidowX) "
+            "or ptu (a FLIR PTU-E46 on its ASCII line) [dynamixel].",
+        ),
+    ] = None,
+    ptu_baud: Annotated[
+        int | None,
+        typer.Option("--ptu-baud", help="With --live --turret ptu: the line's baud rate [9600]."),
+    ] = None,
 ) -> None:
     """Time the pipeline, every tracker, the simulator and replay on one core.
 
@@ -250,10 +266,15 @@ def bench(
     if live:
         if rounds is not None or repeats is not None or replay_seconds is not None:
             raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
-        _live(out_dir, quick, latency_s, soak_s, warmup_s)
+        if ptu_baud is not None and turret != "ptu":
+            raise ConfigError("--ptu-baud goes with --turret ptu")
+        _live(out_dir, quick, latency_s, soak_s, warmup_s, turret, ptu_baud)
         return
-    if latency_s is not None or soak_s is not None or warmup_s is not None:
-        raise ConfigError("--latency-s, --soak-s and --warmup-s go with --live")
+    live_only = (latency_s, soak_s, warmup_s, turret, ptu_baud)
+    if any(value is not None for value in live_only):
+        raise ConfigError(
+            "--latency-s, --soak-s, --warmup-s, --turret and --ptu-baud go with --live"
+        )
     from dronetrack.experiments.bench import bench as run_bench
     from dronetrack.experiments.bench import single_thread
 

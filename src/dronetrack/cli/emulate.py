@@ -1,6 +1,6 @@
 """``dronetrack emulate``: a scenario's simulator in real time behind an emulated Livox
-LiDAR (UDP) and Dynamixel turret (pseudo-terminal), to test the live chain without
-hardware."""
+LiDAR (UDP) and turret (pseudo-terminal: Dynamixel servos, or a FLIR PTU for the
+PTU-E46 preset), to test the live chain without hardware."""
 
 from __future__ import annotations
 
@@ -70,10 +70,18 @@ def emulate(
         Path | None,
         typer.Option(
             "--serial-link",
-            help="Also reach the servos' pseudo-terminal through this symlink "
-            "(dynamixel://PATH opens it).",
+            help="Also reach the turret's pseudo-terminal through this symlink "
+            "(dynamixel://PATH, or ptu://PATH for a PTU-E46 scenario, opens it).",
         ),
     ] = None,
+    ptu_baud: Annotated[
+        int,
+        typer.Option(
+            "--ptu-baud",
+            help="The emulated PTU's serial rate: its replies are paced as on a line at this "
+            "baud (8N1); a PTU-E46 scenario only.",
+        ),
+    ] = 9600,
     truth: Annotated[
         Path | None,
         typer.Option(
@@ -87,13 +95,15 @@ def emulate(
     'live' without hardware.
 
     The LiDAR is a Livox on UDP (SDK 1 for the Avia and Mid-40, SDK 2 for the
-    Mid-360); the turret is two XM430 servos on a pseudo-terminal.  The scenario
+    Mid-360); the turret, on a pseudo-terminal, is two XM430 servos, or a FLIR PTU
+    (ASCII commands) when the scenario's turret is the PTU-E46.  The scenario
     starts when a host starts sampling: the background scan, then the flight, as
     simulate runs them.  Prints the devices' addresses, then runs until the scenario
     has been streamed, and 2 s more while the host closes (exit 0), or until Ctrl-C
     or SIGTERM (exit 130; the truth file is kept).
     """
     from dronetrack.errors import ConfigError
+    from dronetrack.formats.ptu import BAUD_RATES
     from dronetrack.interrupt import stop_requested, stoppable
     from dronetrack.jobs.emulate import emulated_rig, emulated_seconds
     from dronetrack.jobs.factory import scan_duration
@@ -103,8 +113,13 @@ def emulate(
         ipaddress.IPv4Address(lidar_ip)
     except ValueError:
         raise ConfigError(f"--lidar-ip {lidar_ip!r} is not an IPv4 address") from None
+    if ptu_baud not in BAUD_RATES:
+        rates = ", ".join(map(str, BAUD_RATES))
+        raise ConfigError(f"--ptu-baud {ptu_baud} is not a standard rate ({rates})")
     cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
-    rig = emulated_rig(cfg, lidar_ip=lidar_ip, serial_link=serial_link, truth=truth)
+    rig = emulated_rig(
+        cfg, lidar_ip=lidar_ip, serial_link=serial_link, truth=truth, ptu_baud=ptu_baud
+    )
     model = DEVICES[cfg.sensor.model]
     # What is built stays: no full collection of it pauses a slice (measured 45 ms, once
     # about every 2 s of stream, without this; under 10 ms with it).
@@ -115,10 +130,11 @@ def emulate(
         ip, port = rig.address
         assert rig.link is not None
         typer.echo(f"lidar: {model.scheme}://{ip}  ({model.name}, UDP {ip}:{port})")
-        typer.echo(
-            f"turret: dynamixel://{rig.serial_device}  (2 XM430-W350, pan ID 1, tilt ID 2, "
-            f"on {rig.link.path})"
-        )
+        if rig.ptu is not None:
+            what = f"FLIR PTU-E46, {rig.ptu_baud} baud 8N1"
+        else:
+            what = "2 XM430-W350, pan ID 1, tilt ID 2"
+        typer.echo(f"turret: {rig.turret_uri}  ({what}, on {rig.link.path})")
         sys.stdout.flush()
         scan_s = scan_duration(cfg.pipeline)
         _say(

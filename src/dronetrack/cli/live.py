@@ -51,7 +51,8 @@ def live(
         str,
         typer.Option(
             "--turret",
-            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, ros2:///NAMESPACE (goals as "
+            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, ptu://DEVICE?baud=9600 or "
+            "ptu://HOST:PORT (a FLIR pan-tilt unit), ros2:///NAMESPACE (goals as "
             "JointState on NAMESPACE/command, or type=interbotix_xs_msgs/msg/JointGroupCommand; "
             "angles from NAMESPACE/joint_states), or none (a fixed sensor).",
         ),

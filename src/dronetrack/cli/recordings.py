@@ -229,15 +229,16 @@ def info(
         typer.Argument(
             metavar="RECORDING|DEVICE",
             help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
-            "livox2://IP, dynamixel://DEVICE?baud=…&pan=…&tilt=…, or a ROS 2 domain "
-            "(ros2://) or topic (ros2:///TOPIC).",
+            "livox2://IP, dynamixel://DEVICE?baud=…&pan=…&tilt=…, ptu://DEVICE?baud=…, "
+            "ptu://HOST:PORT, or a ROS 2 domain (ros2://) or topic (ros2:///TOPIC).",
         ),
     ],
     ros_domain_id: RosDomainOption = None,
 ) -> None:
     """List a recording's topics, message types, counts and duration; or what a live
     device says of itself (a LiDAR's model, code or serial, firmware and a short
-    sample; the servos' model, firmware and present positions)."""
+    sample; the servos' model, firmware and present positions; a pan-tilt unit's
+    firmware, resolution, limits, speeds and positions)."""
     from rich.markup import escape
 
     if target.startswith(("livox://", "livox2://")):
@@ -253,6 +254,12 @@ def info(
         from dronetrack.jobs.live_ros2 import probe_ros2
 
         for name, value in probe_ros2(target, ros_domain_id):
+            typer.echo(f"{name}: {value}")
+        return
+    if target.startswith("ptu://"):
+        from dronetrack.actuators.ptu_probe import probe_ptu
+
+        for name, value in probe_ptu(target):
             typer.echo(f"{name}: {value}")
         return
     recording = Path(target)

@@ -1,5 +1,7 @@
 """``dronetrack emulate``'s rig: a scenario's simulator in real time behind an emulated
-Livox LiDAR and Dynamixel turret (``sim.emulate.rig``), on ``simulate``'s timeline.
+Livox LiDAR and turret (``sim.emulate.rig``), on ``simulate``'s timeline.  The turret
+is the preset's: two XM430 servos for the WidowX, a FLIR PTU for the PTU-E46
+(``TURRET_EMULATORS``).
 
 The world is built as ``simulate`` builds it, from the same seed: the same flight,
 starting after the background scan, and the turret at the same start pose.  Only its
@@ -16,6 +18,7 @@ import numpy as np
 
 from dronetrack.config.rig import turret_spec
 from dronetrack.config.run import ScenarioConfig
+from dronetrack.formats.ptu import DEFAULT_BAUD
 from dronetrack.jobs.factory import scan_duration
 from dronetrack.jobs.run import run_seeds, turret_pipeline
 from dronetrack.jobs.simulate import flight_config, resolve_run, start_angles
@@ -24,11 +27,13 @@ from dronetrack.sim.emulate.rig import EmulatedRig, livox_device
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame
 
-__all__ = ["TAIL_FRAMES", "emulated_rig", "emulated_seconds"]
+__all__ = ["TAIL_FRAMES", "TURRET_EMULATORS", "emulated_rig", "emulated_seconds"]
 
 # Periods streamed past the scenario's end, so that a host closes its last frame (a
 # frame is complete when a later point arrives).
 TAIL_FRAMES = 2
+# turret preset → the emulated device that drives it
+TURRET_EMULATORS = {"widowx": "dynamixel", "ptu-e46": "ptu"}
 
 
 def emulated_seconds(cfg: ScenarioConfig) -> float:
@@ -46,8 +51,10 @@ def emulated_rig(
     any_ports: bool = False,
     warm_up: bool = True,
     on_slice: Callable[[Frame, FrameTruth], None] | None = None,
+    ptu_baud: int = DEFAULT_BAUD,
 ) -> EmulatedRig:
-    """The rig of scenario ``cfg`` (resolved first), not yet started.
+    """The rig of scenario ``cfg`` (resolved first), not yet started; a PTU-E46 turret
+    is an emulated PTU on a line paced at ``ptu_baud``.
 
     ConfigError if the scenario's sensor is not a Livox the emulator knows;
     DeviceError if the device's ports cannot be bound or the truth file written.
@@ -59,10 +66,11 @@ def emulated_rig(
     sim_seed, filter_seed = run_seeds(cfg.seed)
     flight = flight_config(cfg)
     # The pipeline only tells where simulate starts the turret.
+    spec = turret_spec(cfg.turret)
     lead = turret_pipeline(
         cfg,
         cfg.sensor.integration_time_s,
-        turret_spec(cfg.turret),
+        spec,
         np.random.default_rng(filter_seed),
     )
     mode = cfg.pipeline.controller.mode
@@ -88,4 +96,6 @@ def emulated_rig(
         serial_link=serial_link,
         truth=truth,
         on_slice=on_slice,
+        ptu=spec if TURRET_EMULATORS.get(spec.name) == "ptu" else None,
+        ptu_baud=ptu_baud,
     )

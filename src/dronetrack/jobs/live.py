@@ -13,7 +13,7 @@ passed, the stream ends (a ``file://`` recording) or the run is stopped.
 
 The LiDAR: ``livox://IP`` (SDK 1), ``livox2://IP`` (SDK 2), or ``file://RECORDING``,
 any recording ``track`` reads, played at wall-clock speed (``sources.paced``).  The
-turret: ``dynamixel://…`` or ``none`` (``actuators.turrets``).
+turret: ``dynamixel://…``, ``ptu://…`` or ``none`` (``actuators.turrets``).
 
 Ending.  A stop request (Ctrl-C, SIGTERM) ends the loop after the frame in hand: the
 run is reported as interrupted.  A device error (a silent LiDAR, a servo that does

@@ -5,6 +5,8 @@ an emulated Livox Avia on UDP at its full 240,000 points/s, and two emulated XM4
 servos on a pseudo-terminal) on a loopback address of its own, and ``run_live`` in
 this process against it through the real protocols, with the Dynamixel turret on the
 emulated servos (or ``none``), writing ``frames.csv`` as ``dronetrack live`` does.
+With ``turret="ptu"`` the scenario's turret is the PTU-E46 instead, and the emulator
+serves a FLIR PTU on the pseudo-terminal, paced at ``ptu_baud`` (``ptu://``).
 The emulator is a separate process as a device is separate hardware: it shares the
 machine's cores, not the host's interpreter.
 
@@ -30,21 +32,24 @@ and returns the dictionary ``dronetrack bench --live`` writes as bench_live.json
 from __future__ import annotations
 
 import os
-import select
-import subprocess
-import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from dronetrack.errors import ConfigError, DeviceError
+from dronetrack.errors import ConfigError
+from dronetrack.experiments.bench.emulator import (
+    TURRETS,
+    EmulatorProcess,
+    emulator_process,
+    scenario_with_turret,
+)
 from dronetrack.experiments.bench.machine import machine_info
 from dronetrack.experiments.bench.suite import Target, evaluate_targets
+from dronetrack.formats.ptu import BAUD_RATES
 
 __all__ = [
     "LATENCY_P99_TARGET_MS",
@@ -52,6 +57,7 @@ __all__ = [
     "LIVE_QUICK",
     "LIVE_TARGETS",
     "RSS_GROWTH_TARGET_PCT",
+    "TURRETS",
     "EmulatorProcess",
     "LiveRunFigures",
     "LiveSettings",
@@ -66,8 +72,6 @@ __all__ = [
 
 LATENCY_P99_TARGET_MS = 20.0  # issue 14: p99 ≤ 20 ms at the Avia's full point rate
 RSS_GROWTH_TARGET_PCT = 5.0  # issue 14: resident memory flat after warm-up, ≤ 5 %
-EMULATOR_START_S = 120.0  # emulate's start, compiling the simulator's kernels if not cached
-EMULATOR_STOP_S = 10.0
 
 LIVE_TARGETS: tuple[Target, ...] = (
     Target(("live_latency", "latency_ms_p99"), LATENCY_P99_TARGET_MS, "ms", "live latency p99"),
@@ -75,78 +79,6 @@ LIVE_TARGETS: tuple[Target, ...] = (
     Target(("live_soak", "packets_lost"), 0.0, "packets", "soak packets lost"),
     Target(("live_soak", "frames_dropped"), 0.0, "frames", "soak frames dropped"),
 )
-
-
-# --- the emulator ------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class EmulatorProcess:
-    """A running ``dronetrack emulate``: the URIs to open and its truth file."""
-
-    proc: subprocess.Popen[bytes]
-    lidar: str  # livox://IP with free host ports
-    turret: str  # dynamixel://LINK
-    truth: Path
-
-
-def _loopback_ip() -> str:
-    """A loopback address of this process's own (127.0.1.x), so that the emulator's
-    fixed device port meets no other run's."""
-    return f"127.0.1.{1 + os.getpid() % 250}"
-
-
-def _read_lines(proc: subprocess.Popen[bytes], count: int, timeout_s: float) -> bytes:
-    """The first ``count`` lines ``proc`` prints (fewer if it ends or the time is up)."""
-    assert proc.stdout is not None
-    out = b""
-    deadline = time.monotonic() + timeout_s
-    while out.count(b"\n") < count and time.monotonic() < deadline:
-        ready, _, _ = select.select([proc.stdout], [], [], 0.5)
-        if ready:
-            got = os.read(proc.stdout.fileno(), 4096)
-            if not got:
-                break
-            out += got
-    return out
-
-
-@contextmanager
-def emulator_process(
-    workdir: Path, scenario: str = "default", seed: int = 0, flight_s: float = 20.0
-) -> Iterator[EmulatorProcess]:
-    """``dronetrack emulate SCENARIO --seed SEED --duration FLIGHT_S`` in its own
-    process, once it has printed its two addresses; stopped (SIGTERM, then killed)
-    on leaving.  Its messages go to ``workdir/emulate.log``.  DeviceError if it does
-    not start within ``EMULATOR_START_S``."""
-    ip = _loopback_ip()
-    link, truth, log_path = workdir / "ttyDXL", workdir / "truth.csv", workdir / "emulate.log"
-    args = [scenario, "--seed", str(seed), "--duration", f"{flight_s:g}", "--lidar-ip", ip]
-    args += ["--serial-link", str(link), "--truth", str(truth)]
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "dronetrack", "emulate", *args],
-            stdout=subprocess.PIPE,
-            stderr=log,
-        )
-        try:
-            if _read_lines(proc, 2, EMULATOR_START_S).count(b"\n") < 2:
-                raise DeviceError(
-                    f"dronetrack emulate did not start (exit {proc.poll()}); see {log_path}"
-                )
-            # host ports 0: free ones, so that no other live run on this machine is met
-            lidar = f"livox://{ip}?cmd_port=0&data_port=0&broadcast_port=0"
-            yield EmulatorProcess(proc, lidar, f"dynamixel://{link}", truth)
-        finally:
-            if proc.poll() is None:
-                proc.terminate()
-                try:
-                    proc.wait(timeout=EMULATOR_STOP_S)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-            proc.wait(timeout=EMULATOR_STOP_S)
-            if proc.stdout is not None:
-                proc.stdout.close()
 
 
 # --- resident memory ---------------------------------------------------------------------
@@ -219,6 +151,8 @@ def run_against_emulator(
     flight_s: float,
     *,
     turret: bool = True,
+    turret_kind: str = "dynamixel",
+    ptu_baud: int = 9600,
     scenario: str = "default",
     seed: int = 0,
     scan_s: float | None = None,
@@ -228,8 +162,10 @@ def run_against_emulator(
     progress: Progress | None = None,
 ) -> LiveRunFigures:
     """Emulate ``scenario`` (seed ``seed``) for ``flight_s`` seconds of flight and run
-    ``live`` against it (the Dynamixel turret, or ``none`` without ``turret``) for as
-    long after its background scan (the scenario's, or ``scan_s``), writing
+    ``live`` against it (the Dynamixel turret, or with ``turret_kind="ptu"`` the
+    scenario with the PTU-E46 on an emulated FLIR PTU at ``ptu_baud``; ``none``
+    without ``turret``) for as long after its background scan (the scenario's, or
+    ``scan_s``), writing
     ``frames.csv`` in a temporary folder (in ``workdir``), scored against the
     emulator's truth if ``truth``; with ``sample_s``, resident memory every
     ``sample_s`` seconds.  The device error that ended the run is raised."""
@@ -239,8 +175,10 @@ def run_against_emulator(
 
     if not flight_s > 0:
         raise ConfigError(f"a live benchmark needs a flight of > 0 s, got {flight_s}")
-    cfg = live_config(get_scenario(scenario), duration_s=flight_s, scan_s=scan_s)
-    background = cfg.pipeline.background
+    if turret_kind not in TURRETS:
+        raise ConfigError(f"a live benchmark drives {' or '.join(TURRETS)}, not {turret_kind!r}")
+    # the turret changes nothing of the scan: its length from the scenario as named
+    background = live_config(get_scenario(scenario), scan_s=scan_s).pipeline.background
     total = (background.scan_s if background.enabled else 0.0) + flight_s
     sampler = _Sampler(sample_s) if sample_s is not None else None
     begin = [time.monotonic()]
@@ -255,8 +193,10 @@ def run_against_emulator(
             progress(min(time.monotonic() - begin[0], total), total)
 
     with tempfile.TemporaryDirectory(dir=workdir, prefix="dronetrack-live-bench-") as tmp:
+        named = scenario_with_turret(scenario, turret_kind, Path(tmp))
+        cfg = live_config(get_scenario(named), duration_s=flight_s, scan_s=scan_s)
         folder = RunFolder(Path(tmp) / "run")
-        with emulator_process(Path(tmp), scenario, seed, flight_s) as emu:
+        with emulator_process(Path(tmp), named, seed, flight_s, ptu_baud) as emu:
             setup = LiveSetup(
                 emu.lidar,
                 emu.turret if turret else "none",
@@ -292,6 +232,8 @@ def live_latency(
     flight_s: float = 20.0,
     *,
     turret: bool = True,
+    turret_kind: str = "dynamixel",
+    ptu_baud: int = 9600,
     scenario: str = "default",
     seed: int = 0,
     scan_s: float | None = None,
@@ -305,6 +247,8 @@ def live_latency(
     run = run_against_emulator(
         flight_s,
         turret=turret,
+        turret_kind=turret_kind,
+        ptu_baud=ptu_baud,
         scenario=scenario,
         seed=seed,
         scan_s=scan_s,
@@ -326,6 +270,8 @@ def live_soak(
     warmup_s: float = 60.0,
     sample_s: float = 5.0,
     turret: bool = True,
+    turret_kind: str = "dynamixel",
+    ptu_baud: int = 9600,
     scenario: str = "default",
     seed: int = 0,
     scan_s: float | None = None,
@@ -343,6 +289,8 @@ def live_soak(
     run = run_against_emulator(
         soak_s,
         turret=turret,
+        turret_kind=turret_kind,
+        ptu_baud=ptu_baud,
         scenario=scenario,
         seed=seed,
         scan_s=scan_s,
@@ -379,13 +327,16 @@ def live_soak(
 class LiveSettings:
     """How long each live measurement runs [s]: the latency run's flight, the soak's
     flight (0: no soak), its warm-up and sampling period, and the live side's
-    background scan (None: the scenario's)."""
+    background scan (None: the scenario's); and the emulated turret driven (``TURRETS``)
+    with, for the PTU, its line's baud rate."""
 
     latency_s: float = 20.0
     soak_s: float = 600.0
     warmup_s: float = 60.0
     sample_s: float = 5.0
     scan_s: float | None = None
+    turret: str = "dynamixel"
+    ptu_baud: int = 9600
 
     def checked(self) -> LiveSettings:
         """These settings, or ConfigError naming the bad value."""
@@ -400,6 +351,13 @@ class LiveSettings:
             )
         if not self.sample_s > 0:
             raise ConfigError(f"the soak's sampling period must be > 0 s, got {self.sample_s}")
+        if self.turret not in TURRETS:
+            raise ConfigError(
+                f"a live benchmark drives {' or '.join(TURRETS)}, not {self.turret!r}"
+            )
+        if self.ptu_baud not in BAUD_RATES:
+            rates = ", ".join(map(str, BAUD_RATES))
+            raise ConfigError(f"the PTU's baud {self.ptu_baud} is not a standard rate ({rates})")
         return self
 
 
@@ -432,6 +390,8 @@ def live_bench(
     latency = live_latency(
         cfg.latency_s,
         turret=turret,
+        turret_kind=cfg.turret,
+        ptu_baud=cfg.ptu_baud,
         scan_s=cfg.scan_s,
         workdir=workdir,
         progress=stage(f"live latency, {cfg.latency_s:g} s of flight"),
@@ -443,13 +403,15 @@ def live_bench(
             warmup_s=cfg.warmup_s,
             sample_s=cfg.sample_s,
             turret=turret,
+            turret_kind=cfg.turret,
+            ptu_baud=cfg.ptu_baud,
             scan_s=cfg.scan_s,
             workdir=workdir,
             progress=stage(f"live soak, {cfg.soak_s:g} s of flight"),
         )
     results: dict[str, Any] = {
         "machine": machine_info(),
-        "settings": {**asdict(cfg), "quick": quick, "turret": turret},
+        "settings": {**asdict(cfg), "quick": quick, "turret": cfg.turret if turret else "none"},
         "live_latency": latency,
         "live_soak": soak,
     }

@@ -1,6 +1,6 @@
 """A whole rig emulated in real time: the simulator behind a Livox LiDAR on UDP and a
-pan-tilt turret of two XM430 servos on a pseudo-terminal, for ``dronetrack live`` (or
-any host) to drive with no hardware.
+pan-tilt turret on a pseudo-terminal (two XM430 servos, or a FLIR PTU speaking its
+ASCII commands), for ``dronetrack live`` (or any host) to drive with no hardware.
 
 Clock.  Scenario time s starts when the host starts sampling: s = τ − τ₀, with τ the
 host's ``time.monotonic()`` and τ₀ the moment the device took the start command.  The
@@ -29,7 +29,8 @@ start pose (goals wait for the clock); after the stream ends, or after a stop, r
 move the plant on to their own time.  The profile velocity and acceleration the host
 writes are kept in the control table but do not change the simulated dynamics, which
 are the scenario's turret preset's.  Protocol errors are the servo emulator's
-(``servos``).
+(``servos``).  A PTU (``ptu``) drives the same two joints: a ``PP``/``TP`` goal is
+queued on the plant the same way, and a position query answers the same path.
 
 Truth.  With a truth file, each start rewrites it: a header ``t,x,y,z`` and one row
 per slice end (and one at s = 0): the target's true position [m] in the world frame at
@@ -48,8 +49,10 @@ from typing import IO, Self
 
 import numpy as np
 
+from dronetrack.config.rig import TurretSpec
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.formats import livox_sdk1 as s1
+from dronetrack.formats.ptu import DEFAULT_BAUD
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.emulate.livox import AVIA, MID40, EmulatedLivox
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
@@ -59,6 +62,9 @@ from dronetrack.sim.emulate.livox_stream import (
     StreamingDevice,
     frame_chunks,
 )
+from dronetrack.sim.emulate.ptu import EmulatedPtu
+from dronetrack.sim.emulate.ptu_link import PtyPtuLink
+from dronetrack.sim.emulate.pty_link import PtyLink
 from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame
@@ -203,7 +209,8 @@ class SimJoint:
 
 class EmulatedRig:
     """The simulator in real time behind an emulated Livox device and two emulated
-    XM430 servos on a pseudo-terminal (see the module docstring).
+    XM430 servos, or with ``ptu`` (a turret preset) an emulated FLIR PTU paced at
+    ``ptu_baud``, on a pseudo-terminal (see the module docstring).
 
     ``make_world(slice_s)`` builds the scenario's world with integration time
     ``slice_s`` (called once now and again at each restart of sampling);
@@ -231,6 +238,8 @@ class EmulatedRig:
         tilt_id: int = 2,
         clock: Callable[[], float] = time.monotonic,
         on_slice: Callable[[Frame, FrameTruth], None] | None = None,
+        ptu: TurretSpec | None = None,
+        ptu_baud: int = DEFAULT_BAUD,
     ) -> None:
         if not duration_s > 0:
             raise ConfigError(f"the emulated run needs a positive duration, got {duration_s} s")
@@ -267,14 +276,23 @@ class EmulatedRig:
         self.bus: ServoBus = turret_bus(
             pan_id, tilt_id, clock=clock, pan=SimJoint(self, "pan"), tilt=SimJoint(self, "tilt")
         )
-        self.link: PtyServoLink | None = None
+        self.ptu = (
+            EmulatedPtu.from_turret(ptu, SimJoint(self, "pan"), SimJoint(self, "tilt"), clock)
+            if ptu is not None
+            else None
+        )
+        self.ptu_baud = ptu_baud
+        self.link: PtyLink | None = None
 
     # -- life cycle ---------------------------------------------------------------------
 
     def start(self) -> Self:
-        """Open the servos' pseudo-terminal (and its link) and start the device."""
+        """Open the turret's pseudo-terminal (and its link) and start the device."""
         if self.link is None:
-            self.link = PtyServoLink(self.bus, self.serial_link)
+            if self.ptu is not None:
+                self.link = PtyPtuLink(self.ptu, self.serial_link, baud=self.ptu_baud)
+            else:
+                self.link = PtyServoLink(self.bus, self.serial_link)
             self.device.start()
         return self
 
@@ -303,10 +321,19 @@ class EmulatedRig:
 
     @property
     def serial_device(self) -> str:
-        """The path a host opens for the servos: the link if asked for, else the pty."""
+        """The path a host opens for the turret: the link if asked for, else the pty."""
         if self.link is None:
             raise DeviceError("the emulated rig is not started")
         return self.link.device
+
+    @property
+    def turret_uri(self) -> str:
+        """The ``--turret`` URI a host opens: ``ptu://PATH`` (with ``?baud=`` unless the
+        unit's power-up 9600) or ``dynamixel://PATH``."""
+        if self.ptu is None:
+            return f"dynamixel://{self.serial_device}"
+        baud = "" if self.ptu_baud == DEFAULT_BAUD else f"?baud={self.ptu_baud}"
+        return f"ptu://{self.serial_device}{baud}"
 
     # -- the clock --------------------------------------------------------------------
 
