@@ -10,7 +10,7 @@ against it through the real protocols (``ptu://``).
   nothing lost or dropped (as the Livox + Dynamixel test in test_live_end_to_end.py).
   Measured on seed 0, 3 runs at load averages of 1-5: live 95.0 %, 89.5 %, 89.5 %;
   simulate 95.0 %.  The sweep's pan was 0.31 s late, within 0.46-0.59° of the wave
-  away from its bounces.  The two tests take about 50 s here.
+  away from its bounces on a quiet machine, 2.0° at a load average of 3.  The two tests take about 50 s here.
 """
 
 from __future__ import annotations
@@ -92,7 +92,11 @@ def test_a_sweep_moves_the_emulated_ptu_as_the_strategy_says(tmp_path: Path) -> 
     straight = away > 0.35
     assert 0.1 <= delay <= 0.4
     assert straight.sum() >= 30
-    assert np.abs(pan - expected)[straight].max() < 1.5
+    off = np.abs(pan - expected)[straight]
+    assert float(np.median(off)) < 1.0
+    # A frame handled late on a loaded machine logs a reading up to a frame period and
+    # a poll period (20 Hz) old: (0.1 + 0.05) s · 30°/s = 4.5° (2.0° seen at load 3).
+    assert off.max() < (0.1 + 0.05) * rate
     assert pan.max() > hi - 2.0
     assert pan.min() < lo + 2.0
     assert np.abs(tilt).max() < 0.02  # the sweep's tilt, 0°, to the unit's resolution
