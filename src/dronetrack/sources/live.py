@@ -70,7 +70,15 @@ from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth
 from dronetrack.types import Sample, TurretState
 
-__all__ = ["LEAD_S", "LiveSource", "PointStream", "PolledTurret", "TruthFile", "TurretReader"]
+__all__ = [
+    "LEAD_S",
+    "LiveSource",
+    "PointStream",
+    "PolledTurret",
+    "RunTruth",
+    "TruthFile",
+    "TurretReader",
+]
 
 POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 POSE_WAIT_S = 1.0  # longest a frame waits for a fresh turret reading
@@ -162,6 +170,29 @@ class TruthFile:
         return self._built
 
 
+class RunTruth:
+    """``--truth`` looked up on a live run's clock: the target's positions in the
+    sensor's time base (a ``TruthFile`` is read as it grows), shifted by the time t₀ of
+    the run's start on that base; a return within ``radius`` [m] of the true position
+    counts as the target's."""
+
+    def __init__(self, truth: GroundTruth | TruthFile, radius: float) -> None:
+        self.truth = truth
+        self.radius = radius
+        self._shifted: tuple[GroundTruth, GroundTruth] | None = None  # (given, shifted)
+
+    def at(self, t: float, t0_ns: int) -> RecordedTruth | None:
+        """The truth at ``t`` [s] on the run's clock, whose 0 is ``t0_ns`` on the
+        sensor's; None while there is none."""
+        g = self.truth.ground_truth() if isinstance(self.truth, TruthFile) else self.truth
+        if g is None:
+            return None
+        if self._shifted is None or self._shifted[0] is not g:
+            self._shifted = (g, GroundTruth(g.t - t0_ns / NS, g.position, g.max_gap_s))
+        shifted = self._shifted[1]
+        return RecordedTruth(shifted, shifted.at(t)[0], self.radius)
+
+
 class TurretReader(Protocol):
     """What the source needs of a turret: its measured state (seams.Actuator.state)."""
 
@@ -217,7 +248,7 @@ class LiveSource:
         self.duration_s = duration_s
         self.truth = truth
         self.truth_radius = truth_radius
-        self._run_truth: tuple[GroundTruth, GroundTruth] | None = None  # (given, shifted)
+        self._run_truth = None if truth is None else RunTruth(truth, truth_radius)
         self.clock = clock
         self.assembler = FrameAssembler(period_s)
         self.poses = PoseHistory(mount, keep_s=max(2.0, 4 * period_s), lead_s=LEAD_S)
@@ -374,13 +405,7 @@ class LiveSource:
 
     def _truth_at(self, t: float, t0_ns: int) -> RecordedTruth | None:
         """The truth at ``t`` on the run's clock (None without ``truth``)."""
-        g = self.truth.ground_truth() if isinstance(self.truth, TruthFile) else self.truth
-        if g is None:
-            return None
-        if self._run_truth is None or self._run_truth[0] is not g:
-            self._run_truth = (g, GroundTruth(g.t - t0_ns / NS, g.position, g.max_gap_s))
-        run_truth = self._run_truth[1]
-        return RecordedTruth(run_truth, run_truth.at(t)[0], self.truth_radius)
+        return None if self._run_truth is None else self._run_truth.at(t, t0_ns)
 
     def stop(self) -> None:
         """Stop the reader thread (the stream is closed by whoever opened it)."""

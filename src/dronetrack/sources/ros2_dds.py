@@ -21,7 +21,10 @@ arrival)), and without a turret, the mount at pan = tilt = 0.
 
 Truth.  With ``truth_topic`` (``geometry_msgs/PoseStamped`` in the pose frame, as
 ``dronetrack record`` writes ``/ground_truth/pose``) the run is scored as ``track``
-scores a bag; a frame waits up to ``TF_WAIT_S`` for the truth at its end.
+scores a bag; a frame waits up to ``TF_WAIT_S`` for the truth at its end.  Else
+``truth`` (``--truth FILE``, as ``dronetrack emulate`` writes it) gives the target's
+positions on the stamps' clock in seconds, shifted by the first stamp, as
+``sources.live`` shifts it.
 
 Queue and ending.  A reader thread takes the samples as they come; complete frames
 wait in a queue of ``max_frames``, the oldest dropped and counted when processing
@@ -51,7 +54,7 @@ from dronetrack.formats.ros2_msgs import NS, POINTCLOUD2, TF_MESSAGE, decode_tf,
 from dronetrack.geometry.mount import MountGeometry, sensor_poses
 from dronetrack.interrupt import stop_requested
 from dronetrack.sources.dds import DdsDomain, ReaderSet
-from dronetrack.sources.live import TurretReader
+from dronetrack.sources.live import RunTruth, TruthFile, TurretReader
 from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth, fixed_pose_frame
 from dronetrack.sources.tf import TransformBuffer
@@ -118,6 +121,7 @@ class Ros2Source:
         duration_s: float | None = None,
         pose_frame: str | None = None,
         truth_topic: str | None = None,
+        truth: GroundTruth | TruthFile | None = None,
         truth_radius: float = 0.5,
         first_s: float = 10.0,
         stall_s: float = 2.0,
@@ -148,6 +152,7 @@ class Ros2Source:
         self._tf_pending: list[Any] = []
         self._truth_rows: list[tuple[int, float, float, float]] = []
         self._truth: GroundTruth | None = None
+        self._truth_file = None if truth is None else RunTruth(truth, truth_radius)
         self._truth_used = 0
         self._queue: deque[_Cloud] = deque()
         self._cond = threading.Condition()
@@ -308,7 +313,7 @@ class Ros2Source:
             root = self.pose_frame or self.tf.root(frame_id)
             if root != frame_id:
                 newest = self.tf.newest(root, frame_id)
-                behind = newest is not None and newest < end
+                behind = newest is not None and newest < end - 1e-6  # float rounding
         if self._truth_reader is not None:
             behind = behind or self._truth is None or float(self._truth.t[-1]) < end - 1e-6
         return behind
@@ -381,6 +386,8 @@ class Ros2Source:
                 if self._truth is not None:
                     pos = self._truth.at(frame.end)[0]
                     truth = RecordedTruth(self._truth, pos, self.truth_radius)
+                elif self._truth_file is not None:
+                    truth = self._truth_file.at(frame.end, self._origin_ns)
                 self.frames_delivered += 1
                 yield Sample(frame, truth, state, cloud.received)
                 if self.duration_s is not None and frame.end >= self.duration_s:

@@ -44,7 +44,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import IO, Self
+from typing import IO, Any, Protocol, Self
 
 import numpy as np
 
@@ -68,12 +68,35 @@ __all__ = [
     "DeviceFactory",
     "EmulatedRig",
     "LivoxModel",
+    "RigDevice",
     "SimJoint",
     "TurretTimeline",
     "livox_device",
 ]
 
-DeviceFactory = Callable[[PointSource], StreamingDevice]
+
+class RigDevice(Protocol):
+    """What the rig needs of its LiDAR: ``livox_stream.StreamingDevice`` or the ROS 2
+    driver of ``sim.emulate.ros2``.  It calls its source at each start of sampling."""
+
+    @property
+    def block_ns(self) -> int: ...
+
+    @property
+    def stream_start(self) -> float: ...
+
+    sampling: bool
+    points_built: int
+
+    @property
+    def packets_sent(self) -> int: ...
+
+    def start(self) -> Any: ...
+
+    def close(self) -> None: ...
+
+
+DeviceFactory = Callable[[PointSource], RigDevice]
 WorldFactory = Callable[[float], SimWorld]  # slice length [s] → a fresh world
 RATE_HALF_WINDOW_S = 0.01  # present velocity: slope of the path over ±10 ms
 KEEP_PATH_S = 2.0  # how much of the turret's path the timeline keeps [s]
@@ -213,6 +236,9 @@ class EmulatedRig:
     starts the device; ``close`` stops both and closes the truth file.
 
     ``on_slice(frame, truth)`` sees each slice as it is made (in the device's thread).
+    ``servos`` False opens no pseudo-terminal: a device that takes the turret's goals
+    itself (``sim.emulate.ros2``) calls ``command_axis``, ``turret_at`` and
+    ``turret_rate``.
 
     Events: ``started`` (a host started sampling), ``finished`` (the stream of
     ``duration_s`` has been sent).  Counters: ``slices``, ``points`` (returns made),
@@ -231,6 +257,7 @@ class EmulatedRig:
         tilt_id: int = 2,
         clock: Callable[[], float] = time.monotonic,
         on_slice: Callable[[Frame, FrameTruth], None] | None = None,
+        servos: bool = True,
     ) -> None:
         if not duration_s > 0:
             raise ConfigError(f"the emulated run needs a positive duration, got {duration_s} s")
@@ -268,14 +295,19 @@ class EmulatedRig:
             pan_id, tilt_id, clock=clock, pan=SimJoint(self, "pan"), tilt=SimJoint(self, "tilt")
         )
         self.link: PtyServoLink | None = None
+        self._servos = servos
+        self._running = False
 
     # -- life cycle ---------------------------------------------------------------------
 
     def start(self) -> Self:
-        """Open the servos' pseudo-terminal (and its link) and start the device."""
-        if self.link is None:
-            self.link = PtyServoLink(self.bus, self.serial_link)
+        """Open the servos' pseudo-terminal (and its link; not with ``servos`` False, when
+        the device drives the turret itself) and start the device."""
+        if not self._running:
+            if self._servos:
+                self.link = PtyServoLink(self.bus, self.serial_link)
             self.device.start()
+            self._running = True
         return self
 
     def close(self) -> None:
