@@ -102,6 +102,7 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
         title=(
             f"dronetrack bench --live: {m['cpu']}, {m['cores']} cores; Python {m['python']}; "
             "emulate and live on loopback, the Avia at 240,000 points/s"
+            + (" over ROS 2 (DDS)" if s.get("chain") == "ros2" else "")
         ),
         caption=f"as dronetrack live runs (threads not pinned){quick}; {path}",
         box=box.SIMPLE_HEAD,
@@ -116,7 +117,8 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
         table.add_row(label, _cell(row[key], unit), *_target_cells(targets, f"{section}.{key}"))
 
     lat = results["live_latency"]
-    turret = "no turret" if not s["turret"] else "Dynamixel turret"
+    kind = "ROS 2 turret" if s.get("chain") == "ros2" else "Dynamixel turret"
+    turret = "no turret" if not s["turret"] else kind
     table.add_row(f"latency run: {lat['flight_s']:g} s of flight, {turret}", "", "", "")
     for label, key, unit in (
         ("latency p50", "latency_ms_p50", " ms"),
@@ -159,6 +161,7 @@ def _live(
     latency_s: float | None,
     soak_s: float | None,
     warmup_s: float | None,
+    chain: str = "livox",
 ) -> None:
     """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
     from dataclasses import replace
@@ -176,7 +179,7 @@ def _live(
         def report(what: str, done: float, total: float) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
-        results = live_bench(settings, quick=quick, progress=report)
+        results = live_bench(settings, quick=quick, progress=report, chain=chain)
     prepare_run_dir(out_dir)
     path = out_dir / "bench_live.json"
     path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
@@ -235,6 +238,15 @@ def bench(
             "--warmup-s", help="With --live: the soak's warm-up before memory counts [60 s]."
         ),
     ] = None,
+    ros2: Annotated[
+        bool,
+        typer.Option(
+            "--ros2",
+            help="With --live: over ROS 2 (emulate --ros2; live --lidar ros2:///livox/lidar "
+            "--turret ros2:///turret, on a DDS domain of its own) instead of the Livox and "
+            "Dynamixel protocols.",
+        ),
+    ] = False,
 ) -> None:
     """Time the pipeline, every tracker, the simulator and replay on one core.
 
@@ -250,10 +262,10 @@ def bench(
     if live:
         if rounds is not None or repeats is not None or replay_seconds is not None:
             raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
-        _live(out_dir, quick, latency_s, soak_s, warmup_s)
+        _live(out_dir, quick, latency_s, soak_s, warmup_s, "ros2" if ros2 else "livox")
         return
-    if latency_s is not None or soak_s is not None or warmup_s is not None:
-        raise ConfigError("--latency-s, --soak-s and --warmup-s go with --live")
+    if latency_s is not None or soak_s is not None or warmup_s is not None or ros2:
+        raise ConfigError("--latency-s, --soak-s, --warmup-s and --ros2 go with --live")
     from dronetrack.experiments.bench import bench as run_bench
     from dronetrack.experiments.bench import single_thread
 

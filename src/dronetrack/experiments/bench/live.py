@@ -22,6 +22,11 @@ machine's cores, not the host's interpreter.
   ≤ ``RSS_GROWTH_TARGET_PCT``, with no packet lost and no frame dropped.  It runs as
   a rig does, without a truth file (whose rows a run keeps, as data, not a leak).
 
+With ``chain`` "ros2" both run over ROS 2 instead: ``emulate --ros2`` (livox_ros_driver2's
+CustomMsg on /livox/lidar, /tf, the turret on /turret/command and joint_states) on a
+DDS domain of this process's own, and ``live --lidar ros2:///livox/lidar --turret
+ros2:///turret`` (Cyclone reads ``CYCLONEDDS_URI`` in both processes).
+
 These are benchmarks, not tests: the flight is flown at wall-clock speed and the
 figures depend on the machine's load.  ``live_bench`` runs both with ``LiveSettings``
 and returns the dictionary ``dronetrack bench --live`` writes as bench_live.json.
@@ -47,6 +52,7 @@ from dronetrack.experiments.bench.machine import machine_info
 from dronetrack.experiments.bench.suite import Target, evaluate_targets
 
 __all__ = [
+    "CHAINS",
     "LATENCY_P99_TARGET_MS",
     "LIVE_FULL",
     "LIVE_QUICK",
@@ -80,14 +86,24 @@ LIVE_TARGETS: tuple[Target, ...] = (
 # --- the emulator ------------------------------------------------------------------------
 
 
+CHAINS = ("livox", "ros2")  # the Livox SDK 1 and Dynamixel protocols, or ROS 2 over DDS
+
+
 @dataclass(frozen=True, slots=True)
 class EmulatorProcess:
-    """A running ``dronetrack emulate``: the URIs to open and its truth file."""
+    """A running ``dronetrack emulate``: the URIs to open, its truth file, and the ROS 2
+    domain (None for the Livox chain)."""
 
     proc: subprocess.Popen[bytes]
-    lidar: str  # livox://IP with free host ports
-    turret: str  # dynamixel://LINK
+    lidar: str  # livox://IP with free host ports, or ros2:///livox/lidar
+    turret: str  # dynamixel://LINK, or ros2:///turret
     truth: Path
+    ros_domain_id: int | None = None
+
+
+def _ros_domain() -> int:
+    """A ROS 2 domain of this process's own (1-100), so that no other run is met."""
+    return 1 + os.getpid() % 100
 
 
 def _loopback_ip() -> str:
@@ -113,16 +129,27 @@ def _read_lines(proc: subprocess.Popen[bytes], count: int, timeout_s: float) -> 
 
 @contextmanager
 def emulator_process(
-    workdir: Path, scenario: str = "default", seed: int = 0, flight_s: float = 20.0
+    workdir: Path,
+    scenario: str = "default",
+    seed: int = 0,
+    flight_s: float = 20.0,
+    chain: str = "livox",
 ) -> Iterator[EmulatorProcess]:
     """``dronetrack emulate SCENARIO --seed SEED --duration FLIGHT_S`` in its own
-    process, once it has printed its two addresses; stopped (SIGTERM, then killed)
-    on leaving.  Its messages go to ``workdir/emulate.log``.  DeviceError if it does
-    not start within ``EMULATOR_START_S``."""
+    process (``chain`` "ros2": with ``--ros2`` on a domain of this process's own), once
+    it has printed its two addresses; stopped (SIGTERM, then killed) on leaving.  Its
+    messages go to ``workdir/emulate.log``.  DeviceError if it does not start within
+    ``EMULATOR_START_S``."""
+    if chain not in CHAINS:
+        raise ConfigError(f"the live chain is one of {', '.join(CHAINS)}, not {chain!r}")
     ip = _loopback_ip()
     link, truth, log_path = workdir / "ttyDXL", workdir / "truth.csv", workdir / "emulate.log"
-    args = [scenario, "--seed", str(seed), "--duration", f"{flight_s:g}", "--lidar-ip", ip]
-    args += ["--serial-link", str(link), "--truth", str(truth)]
+    args = [scenario, "--seed", str(seed), "--duration", f"{flight_s:g}", "--truth", str(truth)]
+    domain = _ros_domain() if chain == "ros2" else None
+    if domain is not None:
+        args += ["--ros2", "--ros-domain-id", str(domain)]
+    else:
+        args += ["--lidar-ip", ip, "--serial-link", str(link)]
     with log_path.open("wb") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "dronetrack", "emulate", *args],
@@ -134,9 +161,12 @@ def emulator_process(
                 raise DeviceError(
                     f"dronetrack emulate did not start (exit {proc.poll()}); see {log_path}"
                 )
-            # host ports 0: free ones, so that no other live run on this machine is met
-            lidar = f"livox://{ip}?cmd_port=0&data_port=0&broadcast_port=0"
-            yield EmulatorProcess(proc, lidar, f"dynamixel://{link}", truth)
+            if domain is not None:
+                yield EmulatorProcess(proc, "ros2:///livox/lidar", "ros2:///turret", truth, domain)
+            else:
+                # host ports 0: free ones, so that no other live run on this machine is met
+                lidar = f"livox://{ip}?cmd_port=0&data_port=0&broadcast_port=0"
+                yield EmulatorProcess(proc, lidar, f"dynamixel://{link}", truth)
         finally:
             if proc.poll() is None:
                 proc.terminate()
@@ -226,13 +256,16 @@ def run_against_emulator(
     truth: bool = True,
     workdir: Path | None = None,
     progress: Progress | None = None,
+    chain: str = "livox",
 ) -> LiveRunFigures:
     """Emulate ``scenario`` (seed ``seed``) for ``flight_s`` seconds of flight and run
     ``live`` against it (the Dynamixel turret, or ``none`` without ``turret``) for as
     long after its background scan (the scenario's, or ``scan_s``), writing
     ``frames.csv`` in a temporary folder (in ``workdir``), scored against the
     emulator's truth if ``truth``; with ``sample_s``, resident memory every
-    ``sample_s`` seconds.  The device error that ended the run is raised."""
+    ``sample_s`` seconds; ``chain`` "ros2": over ROS 2 (``emulate --ros2``, ``live
+    --lidar ros2:///livox/lidar --turret ros2:///turret``; no turret: ``none``).  The
+    device error that ended the run is raised."""
     from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.live import LiveSetup, live_config, run_live
     from dronetrack.jobs.run import RunFolder
@@ -256,12 +289,13 @@ def run_against_emulator(
 
     with tempfile.TemporaryDirectory(dir=workdir, prefix="dronetrack-live-bench-") as tmp:
         folder = RunFolder(Path(tmp) / "run")
-        with emulator_process(Path(tmp), scenario, seed, flight_s) as emu:
+        with emulator_process(Path(tmp), scenario, seed, flight_s, chain) as emu:
             setup = LiveSetup(
                 emu.lidar,
                 emu.turret if turret else "none",
                 duration_s=flight_s,
                 truth=emu.truth if truth else None,
+                ros_domain_id=emu.ros_domain_id,
             )
             try:
                 result = run_live(
@@ -297,6 +331,7 @@ def live_latency(
     scan_s: float | None = None,
     workdir: Path | None = None,
     progress: Progress | None = None,
+    chain: str = "livox",
 ) -> dict[str, Any]:
     """The latency of a live run against the emulator (``run_against_emulator``):
     ``latency_ms_p50``, ``latency_ms_p99``, the frames logged and dropped, the packets
@@ -310,8 +345,9 @@ def live_latency(
         scan_s=scan_s,
         workdir=workdir,
         progress=progress,
+        chain=chain,
     )
-    out = _figures(run, scenario=scenario, seed=seed, flight_s=flight_s)
+    out = _figures(run, scenario=scenario, seed=seed, flight_s=flight_s, chain=chain)
     p99 = out["latency_ms_p99"]
     out.update(
         target_p99_ms=LATENCY_P99_TARGET_MS,
@@ -331,6 +367,7 @@ def live_soak(
     scan_s: float | None = None,
     workdir: Path | None = None,
     progress: Progress | None = None,
+    chain: str = "livox",
 ) -> dict[str, Any]:
     """A long live run against the emulator: ``soak_s`` seconds of flight after the
     scan, no truth file, resident memory every ``sample_s`` seconds; its growth after
@@ -350,11 +387,18 @@ def live_soak(
         truth=False,
         workdir=workdir,
         progress=progress,
+        chain=chain,
     )
     growth = rss_growth_pct(run.rss, warmup_s)
     after = [rss for t, rss in run.rss if t >= warmup_s]
     out = _figures(
-        run, scenario=scenario, seed=seed, soak_s=soak_s, warmup_s=warmup_s, sample_s=sample_s
+        run,
+        scenario=scenario,
+        seed=seed,
+        soak_s=soak_s,
+        warmup_s=warmup_s,
+        sample_s=sample_s,
+        chain=chain,
     )
     out.update(
         rss_mb_warm=after[0],
@@ -417,6 +461,7 @@ def live_bench(
     turret: bool = True,
     progress: StageProgress | None = None,
     workdir: Path | None = None,
+    chain: str = "livox",
 ) -> dict[str, Any]:
     """The latency run, then the soak (unless ``soak_s`` is 0); the contents of
     bench_live.json: the machine, the settings, ``live_latency``, ``live_soak`` (None
@@ -435,6 +480,7 @@ def live_bench(
         scan_s=cfg.scan_s,
         workdir=workdir,
         progress=stage(f"live latency, {cfg.latency_s:g} s of flight"),
+        chain=chain,
     )
     soak = None
     if cfg.soak_s > 0:
@@ -446,10 +492,11 @@ def live_bench(
             scan_s=cfg.scan_s,
             workdir=workdir,
             progress=stage(f"live soak, {cfg.soak_s:g} s of flight"),
+            chain=chain,
         )
     results: dict[str, Any] = {
         "machine": machine_info(),
-        "settings": {**asdict(cfg), "quick": quick, "turret": turret},
+        "settings": {**asdict(cfg), "quick": quick, "turret": turret, "chain": chain},
         "live_latency": latency,
         "live_soak": soak,
     }
