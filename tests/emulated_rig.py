@@ -34,11 +34,13 @@ class Emulator:
 @contextmanager
 def emulator(tmp_path: Path, scenario: str, *options: str) -> Iterator[Emulator]:
     """``dronetrack emulate SCENARIO OPTIONS`` with a serial link and a truth file in
-    ``tmp_path``, once it has printed its two addresses."""
+    ``tmp_path`` (with ``--ros2`` among the options: the truth file only), once it has
+    printed its two addresses."""
     ip = f"127.0.0.{20 + os.getpid() % 200}"
     link, truth = tmp_path / "ttyDXL", tmp_path / "truth.csv"
-    args = [scenario, *options, "--lidar-ip", ip]
-    args += ["--serial-link", str(link), "--truth", str(truth)]
+    args = [scenario, *options, "--truth", str(truth)]
+    if "--ros2" not in options:
+        args += ["--lidar-ip", ip, "--serial-link", str(link)]
     proc = subprocess.Popen(
         [sys.executable, "-m", "dronetrack", "emulate", *args],
         stdout=subprocess.PIPE,

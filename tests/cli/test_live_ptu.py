@@ -10,7 +10,8 @@ against it through the real protocols (``ptu://``).
   nothing lost or dropped (as the Livox + Dynamixel test in test_live_end_to_end.py).
   Measured on seed 0, 3 runs at load averages of 1-5: live 95.0 %, 89.5 %, 89.5 %;
   simulate 95.0 %.  The sweep's pan was 0.31 s late, within 0.46-0.59° of the wave
-  away from its bounces on a quiet machine, 2.0° at a load average of 3.  The two tests take about 50 s here.
+  away from its bounces on a quiet machine, 2.0° at a load average of 3.  The two
+  tests take about 50 s here.
 """
 
 from __future__ import annotations

@@ -16,6 +16,7 @@ from dronetrack.errors import DeviceError
 from dronetrack.formats.livox import LIVOX_POINT, LivoxCloud, encode_livox_cdr
 from dronetrack.formats.ros2_msgs import TF_MESSAGE, encode_tf
 from dronetrack.geometry.mount import MountGeometry
+from dronetrack.types import TurretState
 from ros2_helpers import loopback_dds
 
 T0_NS = 1_767_225_600_000_000_000
@@ -143,3 +144,71 @@ def test_no_publisher_names_what_the_domain_has(
     finally:
         pub.close()
         sub.close()
+
+
+class _RampTurret:
+    """A polled turret whose pan turns at 1 rad/s on the host's clock (tilt 0.2 rad):
+    ``readings`` gives one reading per 10 ms since the last call, stamped then."""
+
+    RATE = 1.0
+
+    def __init__(self) -> None:
+        self.t_ref = time.monotonic()
+        self.last = self.t_ref
+
+    def _state(self, t: float) -> TurretState:
+        return TurretState(t, self.RATE * (t - self.t_ref), 0.2, self.RATE, 0.0)
+
+    def state(self) -> TurretState:
+        return self._state(time.monotonic())
+
+    def readings(self, until: float = -np.inf, timeout_s: float = 1.0) -> list[TurretState]:
+        stamps = np.arange(self.last + 0.01, time.monotonic(), 0.01)
+        if len(stamps):
+            self.last = float(stamps[-1])
+        return [self._state(float(t)) for t in stamps]
+
+
+def test_without_tf_the_turret_readings_give_each_pose_by_interpolation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No /tf for the cloud's frame: the poses come from the turret's time-stamped
+    readings, interpolated within the frame (the pan turns 0.1 rad over a frame), not
+    the newest reading held over it."""
+    domain_id = loopback_dds(tmp_path, monkeypatch)
+    from dronetrack.geometry.mount import pointing_angles
+    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2_dds import CUSTOM_MSG, Ros2Source
+
+    pub = DdsDomain(domain_id)
+    sub = DdsDomain(domain_id)
+    try:
+        points = pub.writer("/livox/lidar", CUSTOM_MSG, "default")
+        turret = _RampTurret()
+        source = Ros2Source(
+            sub, "/livox/lidar", CUSTOM_MSG, MOUNT, turret, period_s=0.1, max_frames=10
+        )
+        source.start()
+        _wait(lambda: points.matched() > 0, 5.0)
+
+        def publish() -> None:
+            start = time.monotonic()
+            for k in range(6):  # each frame once its period has passed, as a driver does
+                time.sleep(max(start + 0.1 * (k + 1) - time.monotonic(), 0.0))
+                points.write(_cloud(k))
+            time.sleep(0.2)
+            pub.close()
+
+        threading.Thread(target=publish, daemon=True).start()
+        samples = list(source)
+    finally:
+        pub.close()
+        sub.close()
+    assert len(samples) == 6
+    for s in samples[1:]:
+        pan, tilt = pointing_angles(s.frame.poses)
+        np.testing.assert_allclose(tilt, 0.2, atol=1e-9)
+        # pan(t) = ω t + c across the frame's poses: ω = 1 rad/s, as the turret turned
+        slope = np.polyfit(s.frame.pose_t, pan, 1)[0]
+        assert slope == pytest.approx(_RampTurret.RATE, rel=0.02)
+        assert s.turret is not None

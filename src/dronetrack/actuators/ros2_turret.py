@@ -13,9 +13,12 @@ rename them).  A rate command becomes a goal 0.1 s ahead of the newest reading, 
 the Dynamixel driver does.  Commands are reliable KEEP_LAST 10, states read best
 effort (a sensor stream).
 
-``state`` is the newest reading, stamped on the host's clock when it was taken;
-opening waits for the first one, and a turret that sends none is a DeviceError
-naming the topic.
+Readings.  Opening waits for the first joint state (a turret that sends none is a
+DeviceError naming the topic); then a thread of the turret's own
+(``state_poller.StatePoller``) takes each one as it arrives, stamped on the host's
+clock then, so ``readings`` gives a live frame every reading since the last frame
+(``sources.live`` interpolates the pose per point between them).  ``state`` is the
+newest.  No joint state for 3 × ``STATE_WAIT_S`` ends the run, naming the topic.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import time
 from collections.abc import Callable
 from urllib.parse import parse_qsl, urlsplit
 
+from dronetrack.actuators.state_poller import StatePoller
 from dronetrack.errors import ConfigError, DecodeError, DeviceError
 from dronetrack.formats.ros2_msgs import (
     JOINT_GROUP_COMMAND,
@@ -40,6 +44,8 @@ from dronetrack.types import TurretCommand, TurretState
 __all__ = ["Ros2Turret", "Ros2TurretUri", "parse_ros2_turret_uri"]
 
 LEAD_S = 0.1  # a rate command's goal is this far ahead of the newest reading
+STATE_WAIT_S = 0.5  # a reading is missed after this long without a joint state
+STALE_S = 0.1  # ``readings`` waits for one newer than this before the time asked for
 KEYS = ("command", "states", "type", "pan", "tilt", "group")
 
 
@@ -107,6 +113,25 @@ class Ros2Turret:
                     f"on {self.uri.states} within {wait_s:g} s"
                 )
             self._reader.wait(0.05)
+        # from here on only the poller's thread takes from the reader
+        self.poller = StatePoller(self._next_reading, 1000.0, name=self.name)
+        self.poller.start()
+
+    def _next_reading(self) -> TurretState:
+        """The next joint state as it arrives (the poller's read); DeviceError (a miss)
+        after STATE_WAIT_S without one."""
+        before = self._newest
+        end = time.monotonic() + STATE_WAIT_S
+        while True:
+            newest = self._take()
+            if newest is not None and newest is not before:
+                return newest
+            left = end - time.monotonic()
+            if left <= 0:
+                raise DeviceError(
+                    f"{self.name}: no joint state on {self.uri.states} for {STATE_WAIT_S:g} s"
+                )
+            self._reader.wait(min(left, 0.05))
 
     def _take(self) -> TurretState | None:
         """Take in the readings that came; the newest."""
@@ -125,10 +150,21 @@ class Ros2Turret:
         return self._newest
 
     def state(self) -> TurretState | None:
-        return self._take()
+        return self._newest  # the poller's thread replaces it whole
+
+    @property
+    def reads_missed(self) -> int:
+        """Waits of STATE_WAIT_S that saw no joint state."""
+        return self.poller.misses
+
+    def readings(self, until: float = -math.inf, timeout_s: float = 1.0) -> list[TurretState]:
+        """The joint states taken since the last call, oldest first, stamped on ``clock``
+        as they arrived, once the newest is no more than STALE_S older than ``until``
+        (waiting up to ``timeout_s``); DeviceError if they stopped coming."""
+        return self.poller.take(until - STALE_S, timeout_s)
 
     def command(self, command: TurretCommand) -> None:
-        newest = self._take()
+        newest = self._newest
         pan, tilt = command.pan, command.tilt
         if command.mode == "velocity":
             if newest is None:
@@ -152,8 +188,9 @@ class Ros2Turret:
 
     def close(self) -> None:
         """Hold the present position, then leave the domain."""
+        self.poller.stop()
         try:
-            newest = self._take()
+            newest = self._newest
             if newest is not None:
                 self._send(newest.pan, newest.tilt)
         finally:

@@ -102,6 +102,7 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
         title=(
             f"dronetrack bench --live: {m['cpu']}, {m['cores']} cores; Python {m['python']}; "
             "emulate and live on loopback, the Avia at 240,000 points/s"
+            + (" over ROS 2 (DDS)" if s.get("chain") == "ros2" else "")
         ),
         caption=f"as dronetrack live runs (threads not pinned){quick}; {path}",
         box=box.SIMPLE_HEAD,
@@ -118,6 +119,8 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
     lat = results["live_latency"]
     turrets = {"none": "no turret", "dynamixel": "Dynamixel turret"}
     turret = turrets.get(s["turret"], f"FLIR PTU-E46 at {s['ptu_baud']} baud")
+    if s.get("chain") == "ros2" and s["turret"] != "none":
+        turret = "ROS 2 turret"
     table.add_row(f"latency run: {lat['flight_s']:g} s of flight, {turret}", "", "", "")
     for label, key, unit in (
         ("latency p50", "latency_ms_p50", " ms"),
@@ -162,6 +165,7 @@ def _live(
     warmup_s: float | None,
     turret: str | None,
     ptu_baud: int | None,
+    chain: str = "livox",
 ) -> None:
     """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
     from dataclasses import replace
@@ -180,7 +184,7 @@ def _live(
         def report(what: str, done: float, total: float) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
-        results = live_bench(settings, quick=quick, progress=report)
+        results = live_bench(settings, quick=quick, progress=report, chain=chain)
     prepare_run_dir(out_dir)
     path = out_dir / "bench_live.json"
     path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
@@ -251,6 +255,15 @@ def bench(
         int | None,
         typer.Option("--ptu-baud", help="With --live --turret ptu: the line's baud rate [9600]."),
     ] = None,
+    ros2: Annotated[
+        bool,
+        typer.Option(
+            "--ros2",
+            help="With --live: over ROS 2 (emulate --ros2; live --lidar ros2:///livox/lidar "
+            "--turret ros2:///turret, on a DDS domain of its own) instead of the Livox and "
+            "Dynamixel protocols.",
+        ),
+    ] = False,
 ) -> None:
     """Time the pipeline, every tracker, the simulator and replay on one core.
 
@@ -268,12 +281,23 @@ def bench(
             raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
         if ptu_baud is not None and turret != "ptu":
             raise ConfigError("--ptu-baud goes with --turret ptu")
-        _live(out_dir, quick, latency_s, soak_s, warmup_s, turret, ptu_baud)
+        if ros2 and turret is not None:
+            raise ConfigError("--ros2 drives the emulated ROS 2 turret; --turret goes without it")
+        _live(
+            out_dir,
+            quick,
+            latency_s,
+            soak_s,
+            warmup_s,
+            turret,
+            ptu_baud,
+            "ros2" if ros2 else "livox",
+        )
         return
     live_only = (latency_s, soak_s, warmup_s, turret, ptu_baud)
-    if any(value is not None for value in live_only):
+    if ros2 or any(value is not None for value in live_only):
         raise ConfigError(
-            "--latency-s, --soak-s, --warmup-s, --turret and --ptu-baud go with --live"
+            "--latency-s, --soak-s, --warmup-s, --turret, --ptu-baud and --ros2 go with --live"
         )
     from dronetrack.experiments.bench import bench as run_bench
     from dronetrack.experiments.bench import single_thread

@@ -20,7 +20,12 @@ from typing import Annotated
 import typer
 
 from dronetrack.cli.app import RunInterruptedError, app
-from dronetrack.cli.options import FlightDurationOption, SeedOption, scenario_from_options
+from dronetrack.cli.options import (
+    FlightDurationOption,
+    RosDomainOption,
+    SeedOption,
+    scenario_from_options,
+)
 from dronetrack.cli.output import err_console
 
 __all__ = ["emulate"]
@@ -49,6 +54,23 @@ def _sigterm_sets(stop: threading.Event) -> Iterator[None]:
 
 def _say(text: str) -> None:
     err_console.print(text, markup=False, highlight=False, soft_wrap=True)
+
+
+def _print_ros2(device: object, options: object) -> None:
+    """The two lines a host needs: the ros2:// URIs of the LiDAR and the turret."""
+    from dronetrack.sim.emulate.ros2 import Ros2Device, Ros2Options
+
+    assert isinstance(device, Ros2Device)
+    assert isinstance(options, Ros2Options)
+    tf = "/tf and /tf_static" if options.tf else "no /tf"
+    typer.echo(
+        f"lidar: ros2://{options.topic}  ({options.msg_type}, {options.frame_id}; {tf}; "
+        f"ROS 2 domain {device.domain.domain_id})"
+    )
+    typer.echo(
+        f"turret: ros2://{options.turret_ns}  (sensor_msgs/JointState goals on "
+        f"{options.command_topic}, states on {options.states_topic})"
+    )
 
 
 @app.command()
@@ -90,6 +112,32 @@ def emulate(
             "time base (seconds since sampling started, as the packets' stamps).",
         ),
     ] = None,
+    ros2: Annotated[
+        bool,
+        typer.Option(
+            "--ros2",
+            help="Instead: publish on ROS 2 over DDS as livox_ros_driver2 (CustomMsg on "
+            "/livox/lidar), /tf and /tf_static, and take goals on /turret/command "
+            "(JointState), publishing /turret/joint_states (extra: ros2).",
+        ),
+    ] = False,
+    ros_domain_id: RosDomainOption = None,
+    pointcloud2: Annotated[
+        bool,
+        typer.Option(
+            "--pointcloud2",
+            help="With --ros2: the points as sensor_msgs/PointCloud2 (livox_ros_driver2's "
+            "layout) instead of CustomMsg.",
+        ),
+    ] = False,
+    tf: Annotated[
+        bool,
+        typer.Option(
+            "--tf/--no-tf",
+            help="With --ros2: publish the turret's joints on /tf (--no-tf: the host takes "
+            "the sensor's pose from the joint states).",
+        ),
+    ] = True,
 ) -> None:
     """Run a scenario's simulator in real time behind an emulated rig, for testing
     'live' without hardware.
@@ -98,9 +146,10 @@ def emulate(
     Mid-360); the turret, on a pseudo-terminal, is two XM430 servos, or a FLIR PTU
     (ASCII commands) when the scenario's turret is the PTU-E46.  The scenario
     starts when a host starts sampling: the background scan, then the flight, as
-    simulate runs them.  Prints the devices' addresses, then runs until the scenario
-    has been streamed, and 2 s more while the host closes (exit 0), or until Ctrl-C
-    or SIGTERM (exit 130; the truth file is kept).
+    simulate runs them.  With --ros2, both are ROS 2 topics instead, and the
+    scenario starts when the point topic gets a subscriber.  Prints the devices'
+    addresses, then runs until the scenario has been streamed, and 2 s more while the
+    host closes (exit 0), or until Ctrl-C or SIGTERM (exit 130; the truth file is kept).
     """
     from dronetrack.errors import ConfigError
     from dronetrack.formats.ptu import BAUD_RATES
@@ -116,29 +165,49 @@ def emulate(
     if ptu_baud not in BAUD_RATES:
         rates = ", ".join(map(str, BAUD_RATES))
         raise ConfigError(f"--ptu-baud {ptu_baud} is not a standard rate ({rates})")
+    if not ros2 and (pointcloud2 or not tf or ros_domain_id is not None):
+        raise ConfigError("--pointcloud2, --no-tf and --ros-domain-id go with --ros2")
+    if ros2 and serial_link is not None:
+        raise ConfigError("--serial-link is for the emulated turret's line; --ros2 has none")
     cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
+    options = None
+    if ros2:
+        from dronetrack.sim.emulate.ros2 import Ros2Options
+
+        options = Ros2Options(pointcloud2=pointcloud2, tf=tf)
     rig = emulated_rig(
-        cfg, lidar_ip=lidar_ip, serial_link=serial_link, truth=truth, ptu_baud=ptu_baud
+        cfg,
+        lidar_ip=lidar_ip,
+        serial_link=serial_link,
+        truth=truth,
+        ptu_baud=ptu_baud,
+        ros2=options,
+        ros_domain_id=ros_domain_id,
     )
-    model = DEVICES[cfg.sensor.model]
     # What is built stays: no full collection of it pauses a slice (measured 45 ms, once
     # about every 2 s of stream, without this; under 10 ms with it).
     gc.collect()
     gc.freeze()
     stop = threading.Event()
     with rig, _sigterm_sets(stop), stoppable():
-        ip, port = rig.address
-        assert rig.link is not None
-        typer.echo(f"lidar: {model.scheme}://{ip}  ({model.name}, UDP {ip}:{port})")
-        if rig.ptu is not None:
-            what = f"FLIR PTU-E46, {rig.ptu_baud} baud 8N1"
+        if options is not None:
+            _print_ros2(rig.device, options)
+            waiting = "a subscriber of " + options.topic
         else:
-            what = "2 XM430-W350, pan ID 1, tilt ID 2"
-        typer.echo(f"turret: {rig.turret_uri}  ({what}, on {rig.link.path})")
+            model = DEVICES[cfg.sensor.model]
+            ip, port = rig.address
+            assert rig.link is not None
+            typer.echo(f"lidar: {model.scheme}://{ip}  ({model.name}, UDP {ip}:{port})")
+            if rig.ptu is not None:
+                what = f"FLIR PTU-E46, {rig.ptu_baud} baud 8N1"
+            else:
+                what = "2 XM430-W350, pan ID 1, tilt ID 2"
+            typer.echo(f"turret: {rig.turret_uri}  ({what}, on {rig.link.path})")
+            waiting = "a host to start sampling"
         sys.stdout.flush()
         scan_s = scan_duration(cfg.pipeline)
         _say(
-            f"{cfg.name}: waiting for a host to start sampling; then {scan_s:g} s of "
+            f"{cfg.name}: waiting for {waiting}; then {scan_s:g} s of "
             f"background scan and {cfg.duration_s:g} s of flight "
             f"({emulated_seconds(cfg):g} s streamed)"
         )
@@ -154,11 +223,12 @@ def emulate(
                 # the host closes after its last frame: stop sampling, park the turret
                 linger_until = time.monotonic() + LINGER_S
     device = rig.device
+    what = "point messages" if options is not None else "point packets"
     kept = f"; truth ({rig.truth_rows} rows) kept in {truth}" if truth is not None else ""
     if not rig.finished.is_set():
-        raise RunInterruptedError(f"{kept}; {device.packets_sent} point packets sent")
+        raise RunInterruptedError(f"{kept}; {device.packets_sent} {what} sent")
     _say(
         f"streamed {rig.slices * rig.slice_s:.2f} s of {cfg.name}: "
-        f"{device.packets_sent} point packets, {device.points_built} points"
+        f"{device.packets_sent} {what}, {device.points_built} points"
         + (f"; truth: {rig.truth_rows} rows in {truth}" if truth is not None else "")
     )

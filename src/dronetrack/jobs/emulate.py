@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,9 +24,13 @@ from dronetrack.jobs.factory import scan_duration
 from dronetrack.jobs.run import run_seeds, turret_pipeline
 from dronetrack.jobs.simulate import flight_config, resolve_run, start_angles
 from dronetrack.sim.build import build_world
-from dronetrack.sim.emulate.rig import EmulatedRig, livox_device
+from dronetrack.sim.emulate.livox_stream import PointSource
+from dronetrack.sim.emulate.rig import DeviceFactory, EmulatedRig, livox_device
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame
+
+if TYPE_CHECKING:
+    from dronetrack.sim.emulate.ros2 import Ros2Options
 
 __all__ = ["TAIL_FRAMES", "TURRET_EMULATORS", "emulated_rig", "emulated_seconds"]
 
@@ -52,6 +57,8 @@ def emulated_rig(
     warm_up: bool = True,
     on_slice: Callable[[Frame, FrameTruth], None] | None = None,
     ptu_baud: int = DEFAULT_BAUD,
+    ros2: Ros2Options | None = None,
+    ros_domain_id: int | None = None,
 ) -> EmulatedRig:
     """The rig of scenario ``cfg`` (resolved first), not yet started; a PTU-E46 turret
     is an emulated PTU on a line paced at ``ptu_baud``.
@@ -60,13 +67,30 @@ def emulated_rig(
     DeviceError if the device's ports cannot be bound or the truth file written.
     ``warm_up`` compiles the simulator's kernels first, so the first slices are on time;
     ``any_ports`` and ``on_slice`` as ``livox_device`` and ``EmulatedRig`` say.
+    With ``ros2``, the rig is on ROS 2 domain ``ros_domain_id`` instead
+    (``sim.emulate.ros2``: livox_ros_driver2's topic, /tf and the turret's topics; no
+    UDP device, no pseudo-terminal; any sensor model).
     """
     cfg = resolve_run(cfg)
-    make_device = livox_device(cfg.sensor.model, lidar_ip, any_ports=any_ports)
+    spec = turret_spec(cfg.turret)
+    make_device: DeviceFactory
+    if ros2 is None:
+        make_device = livox_device(cfg.sensor.model, lidar_ip, any_ports=any_ports)
+    else:
+        from dronetrack.sim.emulate.ros2 import Ros2Device
+
+        options, period, mount = ros2, cfg.sensor.integration_time_s, spec.mount
+
+        def ros2_device(source: PointSource) -> Ros2Device:
+            return Ros2Device(
+                source, period_s=period, mount=mount, options=options, domain_id=ros_domain_id
+            )
+
+        make_device = ros2_device
+
     sim_seed, filter_seed = run_seeds(cfg.seed)
     flight = flight_config(cfg)
     # The pipeline only tells where simulate starts the turret.
-    spec = turret_spec(cfg.turret)
     lead = turret_pipeline(
         cfg,
         cfg.sensor.integration_time_s,
@@ -89,7 +113,7 @@ def emulated_rig(
             world.place_turret(*start[0])
         return world
 
-    return EmulatedRig(
+    rig = EmulatedRig(
         make_world,
         make_device,
         duration_s=emulated_seconds(cfg),
@@ -98,4 +122,9 @@ def emulated_rig(
         on_slice=on_slice,
         ptu=spec if TURRET_EMULATORS.get(spec.name) == "ptu" else None,
         ptu_baud=ptu_baud,
+        servos=ros2 is None,
     )
+    attach = getattr(rig.device, "attach", None)
+    if attach is not None:
+        attach(rig)
+    return rig

@@ -302,6 +302,7 @@ def run_live(
                     max_frames=setup.max_frames,
                     duration_s=total_s,
                     truth_radius=radius,
+                    truth=truth,
                     wait_s=setup.ros_wait_s,
                 )
             elif stream is None:

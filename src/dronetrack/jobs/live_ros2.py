@@ -16,7 +16,7 @@ from dronetrack.errors import ConfigError
 from dronetrack.formats.ros2_names import parse_ros2_uri
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.sources.dds import DdsDomain
-from dronetrack.sources.live import TurretReader
+from dronetrack.sources.live import TruthFile, TurretReader
 from dronetrack.sources.ros2_dds import POINT_TYPES, Ros2Source, point_type
 
 __all__ = ["Ros2Link", "probe_ros2"]
@@ -44,6 +44,7 @@ class Ros2Link:
         max_frames: int,
         duration_s: float | None,
         truth_radius: float,
+        truth: TruthFile | None = None,
         wait_s: float = 10.0,
     ) -> Ros2Source:
         topic = self.uri.topic
@@ -60,6 +61,7 @@ class Ros2Link:
             duration_s=duration_s,
             pose_frame=self.uri.frame,
             truth_topic=self.uri.truth,
+            truth=truth,
             truth_radius=truth_radius,
             first_s=wait_s,
         )

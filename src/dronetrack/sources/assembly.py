@@ -234,6 +234,11 @@ class PoseHistory:
             tilt = tilt + last.tilt_rate * ahead
         return pan, tilt
 
+    def poses(self, t: NDArray[np.float64]) -> FloatArray:
+        """world_T_sensor (K, 4, 4) at times ``t`` [s] (``angles`` through the mount)."""
+        pan, tilt = self.angles(t)
+        return sensor_poses(pan, tilt, self.mount)
+
     def frame(self, frame: StreamFrame, t0_ns: int, samples: int = 5) -> Frame:
         """``frame`` as the pipeline's Frame on the run's clock (seconds since ``t0_ns``),
         with ``samples`` sensor poses spread over its period."""
@@ -241,7 +246,6 @@ class PoseHistory:
         start = (frame.start_ns - t0_ns) / NS
         duration = frame.period_ns / NS
         pose_t = start + duration * np.linspace(0.0, 1.0, max(samples, 2))
-        pan, tilt = self.angles(pose_t)
         return Frame(
             stamp=start,
             duration=duration,
@@ -250,5 +254,5 @@ class PoseHistory:
             line=pts.line,
             intensity=pts.reflectivity.astype(np.float32),
             pose_t=pose_t,
-            poses=sensor_poses(pan, tilt, self.mount),
+            poses=self.poses(pose_t),
         )

@@ -75,7 +75,9 @@ __all__ = [
     "LiveSource",
     "PointStream",
     "PolledTurret",
+    "RunTruth",
     "TruthFile",
+    "TurretPoses",
     "TurretReader",
     "read_truth_csv",
 ]
@@ -179,6 +181,29 @@ def read_truth_csv(path: Path) -> GroundTruth:
     return truth
 
 
+class RunTruth:
+    """``--truth`` looked up on a live run's clock: the target's positions in the
+    sensor's time base (a ``TruthFile`` is read as it grows), shifted by the time t₀ of
+    the run's start on that base; a return within ``radius`` [m] of the true position
+    counts as the target's."""
+
+    def __init__(self, truth: GroundTruth | TruthFile, radius: float) -> None:
+        self.truth = truth
+        self.radius = radius
+        self._shifted: tuple[GroundTruth, GroundTruth] | None = None  # (given, shifted)
+
+    def at(self, t: float, t0_ns: int) -> RecordedTruth | None:
+        """The truth at ``t`` [s] on the run's clock, whose 0 is ``t0_ns`` on the
+        sensor's; None while there is none."""
+        g = self.truth.ground_truth() if isinstance(self.truth, TruthFile) else self.truth
+        if g is None:
+            return None
+        if self._shifted is None or self._shifted[0] is not g:
+            self._shifted = (g, GroundTruth(g.t - t0_ns / NS, g.position, g.max_gap_s))
+        shifted = self._shifted[1]
+        return RecordedTruth(shifted, shifted.at(t)[0], self.radius)
+
+
 class TurretReader(Protocol):
     """What the source needs of a turret: its measured state (seams.Actuator.state)."""
 
@@ -191,6 +216,45 @@ class PolledTurret(TurretReader, Protocol):
     ``until``, waiting at most ``timeout_s``; stamps on the host's clock."""
 
     def readings(self, until: float = ..., timeout_s: float = ...) -> list[TurretState]: ...
+
+
+class TurretPoses:
+    """A live source's turret readings as sensor poses (``PoseHistory``), on the run's
+    clock: a ``PolledTurret``'s every reading since the last frame (waiting up to
+    POSE_WAIT_S for one fresh for the frame's end), another turret's one ``state`` a
+    frame, or, without a turret, a fixed sensor at pan = tilt = 0.  Shared by the
+    Livox and ROS 2 sources."""
+
+    def __init__(self, turret: TurretReader | None, mount: MountGeometry, period_s: float):
+        self.turret = turret
+        self.history = PoseHistory(mount, keep_s=max(2.0, 4 * period_s), lead_s=LEAD_S)
+        self.newest: TurretState | None = None  # the newest reading, run clock
+
+    def read(
+        self, frame_end: float, to_run: Callable[[float], float], to_host: Callable[[float], float]
+    ) -> TurretState:
+        """Add the turret's new readings for a frame ending at ``frame_end`` (run clock);
+        the newest.  ``to_run`` and ``to_host`` move a time from the host's clock onto
+        the run's and back."""
+        if self.turret is None:
+            self.newest = TurretState(frame_end, 0.0, 0.0)
+            self.history.add(self.newest)
+            return self.newest
+        read = getattr(self.turret, "readings", None)
+        if read is None:
+            state = self.turret.state()
+            if state is None:
+                raise DeviceError("the turret reports no joint state")
+            states = [state]
+        else:
+            states = read(to_host(frame_end), POSE_WAIT_S)
+        for state in states:
+            stamp = to_run(state.stamp)
+            self.newest = TurretState(stamp, state.pan, state.tilt, state.pan_rate, state.tilt_rate)
+            self.history.add(self.newest)
+        if self.newest is None:
+            raise DeviceError("the turret reports no joint state")
+        return self.newest
 
 
 @dataclass(frozen=True, slots=True)
@@ -234,11 +298,11 @@ class LiveSource:
         self.duration_s = duration_s
         self.truth = truth
         self.truth_radius = truth_radius
-        self._run_truth: tuple[GroundTruth, GroundTruth] | None = None  # (given, shifted)
+        self._run_truth = None if truth is None else RunTruth(truth, truth_radius)
         self.clock = clock
         self.assembler = FrameAssembler(period_s)
-        self.poses = PoseHistory(mount, keep_s=max(2.0, 4 * period_s), lead_s=LEAD_S)
-        self._newest: TurretState | None = None  # the newest turret reading, run clock
+        self._turret_poses = TurretPoses(turret, mount, period_s)
+        self.poses = self._turret_poses.history
         self._period = period_s
         self.frames_dropped = 0
         self.frames_delivered = 0
@@ -343,32 +407,12 @@ class LiveSource:
             return float("nan")
         return t - self._offset + t0 / NS
 
-    def _on_run_clock(self, state: TurretState) -> TurretState:
-        """A reading stamped on the host's clock, moved onto the run's."""
-        stamp = self.run_time(state.stamp)
-        return TurretState(stamp, state.pan, state.tilt, state.pan_rate, state.tilt_rate)
-
     def _read_turret(self, frame_end: float) -> TurretState:
         """Add the turret's new readings to the pose history (for a frame ending at
         ``frame_end`` on the run's clock); the newest reading."""
-        if self.turret is None:
-            self._newest = TurretState(self.sensor_time(), 0.0, 0.0)
-            self.poses.add(self._newest)
-            return self._newest
-        read = getattr(self.turret, "readings", None)
-        if read is None:
-            state = self.turret.state()
-            if state is None:
-                raise DeviceError("the turret reports no joint state")
-            states = [state]
-        else:
-            states = read(self.host_time(frame_end), POSE_WAIT_S)
-        for state in states:
-            self._newest = self._on_run_clock(state)
-            self.poses.add(self._newest)
-        if self._newest is None:
-            raise DeviceError("the turret reports no joint state")
-        return self._newest
+        if self.turret is None:  # a fixed sensor: its pose now
+            frame_end = self.sensor_time()
+        return self._turret_poses.read(frame_end, self.run_time, self.host_time)
 
     def __iter__(self) -> Iterator[Sample]:
         self.start()
@@ -391,13 +435,7 @@ class LiveSource:
 
     def _truth_at(self, t: float, t0_ns: int) -> RecordedTruth | None:
         """The truth at ``t`` on the run's clock (None without ``truth``)."""
-        g = self.truth.ground_truth() if isinstance(self.truth, TruthFile) else self.truth
-        if g is None:
-            return None
-        if self._run_truth is None or self._run_truth[0] is not g:
-            self._run_truth = (g, GroundTruth(g.t - t0_ns / NS, g.position, g.max_gap_s))
-        run_truth = self._run_truth[1]
-        return RecordedTruth(run_truth, run_truth.at(t)[0], self.truth_radius)
+        return None if self._run_truth is None else self._run_truth.at(t, t0_ns)
 
     def stop(self) -> None:
         """Stop the reader thread (the stream is closed by whoever opened it)."""

@@ -15,13 +15,18 @@ Poses.  ``/tf`` and ``/tf_static`` give the chain from the root of the tree (or
 ``pose_frame``) to the cloud's ``frame_id``, interpolated at the frame's times
 (``sources.tf``).  A frame waits up to ``TF_WAIT_S`` for /tf to reach its end, as
 tf2's message filter would.  Without a transform to its frame_id, the turret's
-newest measured joints give the pose through the mount, held over the frame (the
-reading moves onto the stamps' clock by δ = max(t_last point − t_host at
-arrival)), and without a turret, the mount at pan = tilt = 0.
+time-stamped joint readings give the poses through the mount, interpolated between
+readings as ``sources.live`` does (``live.TurretPoses``: every reading since the
+last frame, stamped on the host's clock as it came, moved onto the stamps' clock by
+δ = max(t_last point − t_host at arrival)), and without a turret, the mount at
+pan = tilt = 0.
 
 Truth.  With ``truth_topic`` (``geometry_msgs/PoseStamped`` in the pose frame, as
 ``dronetrack record`` writes ``/ground_truth/pose``) the run is scored as ``track``
-scores a bag; a frame waits up to ``TF_WAIT_S`` for the truth at its end.
+scores a bag; a frame waits up to ``TF_WAIT_S`` for the truth at its end.  Else
+``truth`` (``--truth FILE``, as ``dronetrack emulate`` writes it) gives the target's
+positions on the stamps' clock in seconds, shifted by the first stamp, as
+``sources.live`` shifts it.
 
 Queue and ending.  A reader thread takes the samples as they come; complete frames
 wait in a queue of ``max_frames``, the oldest dropped and counted when processing
@@ -33,7 +38,6 @@ none for ``stall_s`` while a publisher is there, is a DeviceError naming the top
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 from collections import Counter, deque
@@ -48,10 +52,10 @@ from dronetrack.formats.livox import decode_livox_cdr, livox_points
 from dronetrack.formats.pointcloud2 import CloudPoints, cloud_points
 from dronetrack.formats.pointcloud2_raw import decode_pointcloud2_cdr
 from dronetrack.formats.ros2_msgs import NS, POINTCLOUD2, TF_MESSAGE, decode_tf, ros2_typestore
-from dronetrack.geometry.mount import MountGeometry, sensor_poses
+from dronetrack.geometry.mount import MountGeometry
 from dronetrack.interrupt import stop_requested
 from dronetrack.sources.dds import DdsDomain, ReaderSet
-from dronetrack.sources.live import TurretReader
+from dronetrack.sources.live import RunTruth, TruthFile, TurretPoses, TurretReader
 from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth, fixed_pose_frame
 from dronetrack.sources.tf import TransformBuffer
@@ -67,6 +71,7 @@ POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 TF_WAIT_S = 0.03  # longest a frame waits for /tf (or the truth) to reach its end
 TF_KEEP_S = 10.0  # how much /tf history is kept
+POSE_SAMPLES = 5  # sensor poses over a frame from the turret's readings
 
 
 def point_type(domain: DdsDomain, topic: str, wait_s: float) -> str:
@@ -118,6 +123,7 @@ class Ros2Source:
         duration_s: float | None = None,
         pose_frame: str | None = None,
         truth_topic: str | None = None,
+        truth: GroundTruth | TruthFile | None = None,
         truth_radius: float = 0.5,
         first_s: float = 10.0,
         stall_s: float = 2.0,
@@ -143,11 +149,13 @@ class Ros2Source:
         self.packets_lost = 0  # DDS reports no per-sample loss to a best-effort reader
         self.skipped: Counter[str] = Counter()
         self.tf = TransformBuffer()
+        self._turret_poses = TurretPoses(turret, mount, period_s)
         self._origin_ns: int | None = None
         self._offset: float | None = None  # δ [s]
         self._tf_pending: list[Any] = []
         self._truth_rows: list[tuple[int, float, float, float]] = []
         self._truth: GroundTruth | None = None
+        self._truth_file = None if truth is None else RunTruth(truth, truth_radius)
         self._truth_used = 0
         self._queue: deque[_Cloud] = deque()
         self._cond = threading.Condition()
@@ -308,7 +316,7 @@ class Ros2Source:
             root = self.pose_frame or self.tf.root(frame_id)
             if root != frame_id:
                 newest = self.tf.newest(root, frame_id)
-                behind = newest is not None and newest < end
+                behind = newest is not None and newest < end - 1e-6  # float rounding
         if self._truth_reader is not None:
             behind = behind or self._truth is None or float(self._truth.t[-1]) < end - 1e-6
         return behind
@@ -343,29 +351,23 @@ class Ros2Source:
                 stamp, self._period, pts.points, t, pts.intensity, pts.line, poses, times
             )
             return frame, None
-        state = self._turret_state(cloud, origin)
-        pan = np.array([state.pan, state.pan])
-        tilt = np.array([state.tilt, state.tilt])
-        poses = sensor_poses(pan, tilt, self.mount)
-        times = np.array([stamp, end])
+        # the turret's readings, moved onto the run's clock by δ, interpolated per pose
+        offset = self._offset if self._offset is not None else 0.0
+        shift = offset - origin / NS  # t_run = t_host + δ − t₀
+
+        def to_run(host: float) -> float:
+            return host + shift
+
+        def to_host(t: float) -> float:
+            return t - shift
+
+        state = self._turret_poses.read(end, to_run, to_host)
+        times = stamp + self._period * np.linspace(0.0, 1.0, POSE_SAMPLES)
+        poses = self._turret_poses.history.poses(times)
         frame = fixed_pose_frame(
             stamp, self._period, pts.points, t, pts.intensity, pts.line, poses, times
         )
         return frame, state
-
-    def _turret_state(self, cloud: _Cloud, origin: int) -> TurretState:
-        """The turret's newest reading on the run's clock (pan = tilt = 0 without one)."""
-        stamp = (cloud.stamp_ns - origin) / NS
-        if self.turret is None:
-            return TurretState(stamp, 0.0, 0.0)
-        read = getattr(self.turret, "readings", None)
-        states = read(-math.inf, 1.0) if read is not None else [self.turret.state()]
-        state = next((s for s in reversed(states) if s is not None), None)
-        if state is None:
-            raise DeviceError("the turret reports no joint state")
-        offset = self._offset if self._offset is not None else 0.0
-        t = state.stamp + offset - origin / NS
-        return TurretState(t, state.pan, state.tilt, state.pan_rate, state.tilt_rate)
 
     def __iter__(self) -> Iterator[Sample]:
         self.start()
@@ -381,6 +383,8 @@ class Ros2Source:
                 if self._truth is not None:
                     pos = self._truth.at(frame.end)[0]
                     truth = RecordedTruth(self._truth, pos, self.truth_radius)
+                elif self._truth_file is not None:
+                    truth = self._truth_file.at(frame.end, self._origin_ns)
                 self.frames_delivered += 1
                 yield Sample(frame, truth, state, cloud.received)
                 if self.duration_s is not None and frame.end >= self.duration_s:

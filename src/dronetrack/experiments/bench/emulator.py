@@ -17,6 +17,7 @@ from pathlib import Path
 from dronetrack.errors import ConfigError, DeviceError
 
 __all__ = [
+    "CHAINS",
     "EMULATOR_START_S",
     "EMULATOR_STOP_S",
     "TURRETS",
@@ -27,16 +28,24 @@ __all__ = [
 
 EMULATOR_START_S = 120.0  # emulate's start, compiling the simulator's kernels if not cached
 EMULATOR_STOP_S = 10.0
+CHAINS = ("livox", "ros2")  # the Livox SDK 1 and turret protocols, or ROS 2 over DDS
 
 
 @dataclass(frozen=True, slots=True)
 class EmulatorProcess:
-    """A running ``dronetrack emulate``: the URIs to open and its truth file."""
+    """A running ``dronetrack emulate``: the URIs to open, its truth file, and the ROS 2
+    domain (None for the Livox chain)."""
 
     proc: subprocess.Popen[bytes]
-    lidar: str  # livox://IP with free host ports
-    turret: str  # dynamixel://LINK or ptu://LINK, as the emulator printed it
+    lidar: str  # livox://IP with free host ports, or ros2:///livox/lidar
+    turret: str  # dynamixel://LINK, ptu://LINK or ros2:///turret, as the emulator printed it
     truth: Path
+    ros_domain_id: int | None = None
+
+
+def _ros_domain() -> int:
+    """A ROS 2 domain of this process's own (1-100), so that no other run is met."""
+    return 1 + os.getpid() % 100
 
 
 def _loopback_ip() -> str:
@@ -67,15 +76,23 @@ def emulator_process(
     seed: int = 0,
     flight_s: float = 20.0,
     ptu_baud: int = 9600,
+    chain: str = "livox",
 ) -> Iterator[EmulatorProcess]:
     """``dronetrack emulate SCENARIO --seed SEED --duration FLIGHT_S`` in its own
-    process, once it has printed its two addresses; stopped (SIGTERM, then killed)
-    on leaving.  Its messages go to ``workdir/emulate.log``.  DeviceError if it does
-    not start within ``EMULATOR_START_S``."""
+    process (``chain`` "ros2": with ``--ros2`` on a domain of this process's own), once
+    it has printed its two addresses; stopped (SIGTERM, then killed) on leaving.  Its
+    messages go to ``workdir/emulate.log``.  DeviceError if it does not start within
+    ``EMULATOR_START_S``."""
+    if chain not in CHAINS:
+        raise ConfigError(f"the live chain is one of {', '.join(CHAINS)}, not {chain!r}")
     ip = _loopback_ip()
     link, truth, log_path = workdir / "ttyDXL", workdir / "truth.csv", workdir / "emulate.log"
-    args = [scenario, "--seed", str(seed), "--duration", f"{flight_s:g}", "--lidar-ip", ip]
-    args += ["--serial-link", str(link), "--truth", str(truth), "--ptu-baud", str(ptu_baud)]
+    args = [scenario, "--seed", str(seed), "--duration", f"{flight_s:g}", "--truth", str(truth)]
+    domain = _ros_domain() if chain == "ros2" else None
+    if domain is not None:
+        args += ["--ros2", "--ros-domain-id", str(domain)]
+    else:
+        args += ["--lidar-ip", ip, "--serial-link", str(link), "--ptu-baud", str(ptu_baud)]
     with log_path.open("wb") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "dronetrack", "emulate", *args],
@@ -88,10 +105,11 @@ def emulator_process(
                 raise DeviceError(
                     f"dronetrack emulate did not start (exit {proc.poll()}); see {log_path}"
                 )
-            # host ports 0: free ones, so that no other live run on this machine is met
-            lidar = f"livox://{ip}?cmd_port=0&data_port=0&broadcast_port=0"
-            turret = printed.decode().splitlines()[1].split()[1]  # "turret: URI  (…)"
-            yield EmulatorProcess(proc, lidar, turret, truth)
+            lidar, turret = (line.split()[1] for line in printed.decode().splitlines()[:2])
+            if domain is None:
+                # host ports 0: free ones, so that no other live run on this machine is met
+                lidar = f"livox://{ip}?cmd_port=0&data_port=0&broadcast_port=0"
+            yield EmulatorProcess(proc, lidar, turret, truth, domain)
         finally:
             if proc.poll() is None:
                 proc.terminate()

@@ -24,6 +24,11 @@ machine's cores, not the host's interpreter.
   ≤ ``RSS_GROWTH_TARGET_PCT``, with no packet lost and no frame dropped.  It runs as
   a rig does, without a truth file (whose rows a run keeps, as data, not a leak).
 
+With ``chain`` "ros2" both run over ROS 2 instead: ``emulate --ros2`` (livox_ros_driver2's
+CustomMsg on /livox/lidar, /tf, the turret on /turret/command and joint_states) on a
+DDS domain of this process's own, and ``live --lidar ros2:///livox/lidar --turret
+ros2:///turret`` (Cyclone reads ``CYCLONEDDS_URI`` in both processes).
+
 These are benchmarks, not tests: the flight is flown at wall-clock speed and the
 figures depend on the machine's load.  ``live_bench`` runs both with ``LiveSettings``
 and returns the dictionary ``dronetrack bench --live`` writes as bench_live.json.
@@ -160,6 +165,7 @@ def run_against_emulator(
     truth: bool = True,
     workdir: Path | None = None,
     progress: Progress | None = None,
+    chain: str = "livox",
 ) -> LiveRunFigures:
     """Emulate ``scenario`` (seed ``seed``) for ``flight_s`` seconds of flight and run
     ``live`` against it (the Dynamixel turret, or with ``turret_kind="ptu"`` the
@@ -168,7 +174,9 @@ def run_against_emulator(
     ``scan_s``), writing
     ``frames.csv`` in a temporary folder (in ``workdir``), scored against the
     emulator's truth if ``truth``; with ``sample_s``, resident memory every
-    ``sample_s`` seconds.  The device error that ended the run is raised."""
+    ``sample_s`` seconds; ``chain`` "ros2": over ROS 2 (``emulate --ros2``, ``live
+    --lidar ros2:///livox/lidar --turret ros2:///turret``; no turret: ``none``).  The
+    device error that ended the run is raised."""
     from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.live import LiveSetup, live_config, run_live
     from dronetrack.jobs.run import RunFolder
@@ -196,12 +204,13 @@ def run_against_emulator(
         named = scenario_with_turret(scenario, turret_kind, Path(tmp))
         cfg = live_config(get_scenario(named), duration_s=flight_s, scan_s=scan_s)
         folder = RunFolder(Path(tmp) / "run")
-        with emulator_process(Path(tmp), named, seed, flight_s, ptu_baud) as emu:
+        with emulator_process(Path(tmp), named, seed, flight_s, ptu_baud, chain) as emu:
             setup = LiveSetup(
                 emu.lidar,
                 emu.turret if turret else "none",
                 duration_s=flight_s,
                 truth=emu.truth if truth else None,
+                ros_domain_id=emu.ros_domain_id,
             )
             try:
                 result = run_live(
@@ -239,6 +248,7 @@ def live_latency(
     scan_s: float | None = None,
     workdir: Path | None = None,
     progress: Progress | None = None,
+    chain: str = "livox",
 ) -> dict[str, Any]:
     """The latency of a live run against the emulator (``run_against_emulator``):
     ``latency_ms_p50``, ``latency_ms_p99``, the frames logged and dropped, the packets
@@ -254,8 +264,9 @@ def live_latency(
         scan_s=scan_s,
         workdir=workdir,
         progress=progress,
+        chain=chain,
     )
-    out = _figures(run, scenario=scenario, seed=seed, flight_s=flight_s)
+    out = _figures(run, scenario=scenario, seed=seed, flight_s=flight_s, chain=chain)
     p99 = out["latency_ms_p99"]
     out.update(
         target_p99_ms=LATENCY_P99_TARGET_MS,
@@ -277,6 +288,7 @@ def live_soak(
     scan_s: float | None = None,
     workdir: Path | None = None,
     progress: Progress | None = None,
+    chain: str = "livox",
 ) -> dict[str, Any]:
     """A long live run against the emulator: ``soak_s`` seconds of flight after the
     scan, no truth file, resident memory every ``sample_s`` seconds; its growth after
@@ -298,11 +310,18 @@ def live_soak(
         truth=False,
         workdir=workdir,
         progress=progress,
+        chain=chain,
     )
     growth = rss_growth_pct(run.rss, warmup_s)
     after = [rss for t, rss in run.rss if t >= warmup_s]
     out = _figures(
-        run, scenario=scenario, seed=seed, soak_s=soak_s, warmup_s=warmup_s, sample_s=sample_s
+        run,
+        scenario=scenario,
+        seed=seed,
+        soak_s=soak_s,
+        warmup_s=warmup_s,
+        sample_s=sample_s,
+        chain=chain,
     )
     out.update(
         rss_mb_warm=after[0],
@@ -375,6 +394,7 @@ def live_bench(
     turret: bool = True,
     progress: StageProgress | None = None,
     workdir: Path | None = None,
+    chain: str = "livox",
 ) -> dict[str, Any]:
     """The latency run, then the soak (unless ``soak_s`` is 0); the contents of
     bench_live.json: the machine, the settings, ``live_latency``, ``live_soak`` (None
@@ -395,6 +415,7 @@ def live_bench(
         scan_s=cfg.scan_s,
         workdir=workdir,
         progress=stage(f"live latency, {cfg.latency_s:g} s of flight"),
+        chain=chain,
     )
     soak = None
     if cfg.soak_s > 0:
@@ -408,10 +429,16 @@ def live_bench(
             scan_s=cfg.scan_s,
             workdir=workdir,
             progress=stage(f"live soak, {cfg.soak_s:g} s of flight"),
+            chain=chain,
         )
     results: dict[str, Any] = {
         "machine": machine_info(),
-        "settings": {**asdict(cfg), "quick": quick, "turret": cfg.turret if turret else "none"},
+        "settings": {
+            **asdict(cfg),
+            "quick": quick,
+            "turret": cfg.turret if turret else "none",
+            "chain": chain,
+        },
         "live_latency": latency,
         "live_soak": soak,
     }

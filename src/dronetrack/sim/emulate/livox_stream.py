@@ -65,13 +65,17 @@ class PointChunk:
     # No later chunk holds a point before end_ns (None: unknown).  A device can then
     # build the packets up to end_ns without waiting for the next chunk.
     end_ns: int | None = None
+    # The scan line of each point (N,) uint8, where the source knows it (the Livox
+    # packets do not carry it; a ROS 2 driver's messages do).
+    line: NDArray[np.uint8] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.t_ns)
-        if self.xyz.shape != (n, 3) or self.reflectivity.shape != (n,):
+        bad_line = self.line is not None and self.line.shape != (n,)
+        if self.xyz.shape != (n, 3) or self.reflectivity.shape != (n,) or bad_line:
             raise InputError(
-                f"a point chunk needs xyz (N, 3), N times and N reflectivities; got "
-                f"{self.xyz.shape}, {self.t_ns.shape}, {self.reflectivity.shape}"
+                f"a point chunk needs xyz (N, 3), N times, N reflectivities (and N lines); "
+                f"got {self.xyz.shape}, {self.t_ns.shape}, {self.reflectivity.shape}"
             )
 
 
@@ -83,12 +87,13 @@ PointSource = Iterable[PointChunk] | Callable[[], Iterable[PointChunk]]
 def frame_chunks(frames: Iterable[Frame], t0_s: float = 0.0) -> Iterator[PointChunk]:
     """Simulator frames as point chunks: the sensor-frame points, their times as ns
     since ``t0_s`` (t_ns = round((t − t0)·10⁹)), in time order, and their intensity
-    (already in the Livox reflectivity scale) clipped to 0-255."""
+    (already in the Livox reflectivity scale) clipped to 0-255, with their scan lines."""
     for frame in frames:
         order = np.argsort(frame.t, kind="stable")
         t_ns = np.rint((frame.t[order] - t0_s) * 1e9).astype(np.int64)
         refl = np.clip(np.rint(frame.intensity[order]), 0, 255).astype(np.uint8)
-        yield PointChunk(np.asarray(frame.points[order], np.float64), t_ns, refl)
+        line = np.asarray(frame.line[order], np.uint8)
+        yield PointChunk(np.asarray(frame.points[order], np.float64), t_ns, refl, line=line)
 
 
 def grid_points(k: NDArray[np.int64]) -> FloatArray:

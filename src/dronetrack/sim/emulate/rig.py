@@ -45,7 +45,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import IO, Self
+from typing import IO, Any, Protocol, Self
 
 import numpy as np
 
@@ -74,12 +74,35 @@ __all__ = [
     "DeviceFactory",
     "EmulatedRig",
     "LivoxModel",
+    "RigDevice",
     "SimJoint",
     "TurretTimeline",
     "livox_device",
 ]
 
-DeviceFactory = Callable[[PointSource], StreamingDevice]
+
+class RigDevice(Protocol):
+    """What the rig needs of its LiDAR: ``livox_stream.StreamingDevice`` or the ROS 2
+    driver of ``sim.emulate.ros2``.  It calls its source at each start of sampling."""
+
+    @property
+    def block_ns(self) -> int: ...
+
+    @property
+    def stream_start(self) -> float: ...
+
+    sampling: bool
+    points_built: int
+
+    @property
+    def packets_sent(self) -> int: ...
+
+    def start(self) -> Any: ...
+
+    def close(self) -> None: ...
+
+
+DeviceFactory = Callable[[PointSource], RigDevice]
 WorldFactory = Callable[[float], SimWorld]  # slice length [s] → a fresh world
 RATE_HALF_WINDOW_S = 0.01  # present velocity: slope of the path over ±10 ms
 KEEP_PATH_S = 2.0  # how much of the turret's path the timeline keeps [s]
@@ -220,6 +243,9 @@ class EmulatedRig:
     starts the device; ``close`` stops both and closes the truth file.
 
     ``on_slice(frame, truth)`` sees each slice as it is made (in the device's thread).
+    ``servos`` False opens no pseudo-terminal: a device that takes the turret's goals
+    itself (``sim.emulate.ros2``) calls ``command_axis``, ``turret_at`` and
+    ``turret_rate``.
 
     Events: ``started`` (a host started sampling), ``finished`` (the stream of
     ``duration_s`` has been sent).  Counters: ``slices``, ``points`` (returns made),
@@ -240,6 +266,7 @@ class EmulatedRig:
         on_slice: Callable[[Frame, FrameTruth], None] | None = None,
         ptu: TurretSpec | None = None,
         ptu_baud: int = DEFAULT_BAUD,
+        servos: bool = True,
     ) -> None:
         if not duration_s > 0:
             raise ConfigError(f"the emulated run needs a positive duration, got {duration_s} s")
@@ -283,17 +310,21 @@ class EmulatedRig:
         )
         self.ptu_baud = ptu_baud
         self.link: PtyLink | None = None
+        self._servos = servos
+        self._running = False
 
     # -- life cycle ---------------------------------------------------------------------
 
     def start(self) -> Self:
-        """Open the turret's pseudo-terminal (and its link) and start the device."""
-        if self.link is None:
-            if self.ptu is not None:
+        """Open the turret's pseudo-terminal (and its link; not with ``servos`` False, when
+        the device drives the turret itself) and start the device."""
+        if not self._running:
+            if self._servos and self.ptu is not None:
                 self.link = PtyPtuLink(self.ptu, self.serial_link, baud=self.ptu_baud)
-            else:
+            elif self._servos:
                 self.link = PtyServoLink(self.bus, self.serial_link)
             self.device.start()
+            self._running = True
         return self
 
     def close(self) -> None:
