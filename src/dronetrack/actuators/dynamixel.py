@@ -44,6 +44,7 @@ from dronetrack.actuators.dynamixel_uri import (
     DynamixelUri,
     parse_dynamixel_uri,
 )
+from dronetrack.actuators.goals import goal_angles
 from dronetrack.actuators.state_poller import StatePoller
 from dronetrack.config.rig import AxisSpec, TurretSpec, make_turret
 from dronetrack.errors import ConfigError, DeviceError
@@ -221,21 +222,9 @@ class DynamixelTurret:
 
     def command(self, command: TurretCommand) -> None:
         """Send both goals at once (real time: the stamp is not waited for)."""
-        if command.mode == "velocity":
-            # q* = q + ω T: one horizon ahead of the measured position (the poller's
-            # newest reading when there is one: no read in the caller's path)
-            newest = self.poller.newest if self.poller is not None else None
-            now = newest if newest is not None else self.state()
-            goal = (
-                now.pan + command.pan * self.rate_horizon,
-                now.tilt + command.tilt * self.rate_horizon,
-            )
-        elif command.mode == "position":
-            goal = (command.pan, command.tilt)
-        else:
-            raise ConfigError(
-                f"turret command mode must be position or velocity, got {command.mode!r}"
-            )
+        # velocity: one horizon ahead of the measured position (actuators.goals)
+        newest = self.poller.newest if self.poller is not None else None
+        goal = goal_angles(command, newest, self.state, self.rate_horizon)
         self._send_goals((self._goal_ticks(0, goal[0]), self._goal_ticks(1, goal[1])))
 
     def state(self) -> TurretState:

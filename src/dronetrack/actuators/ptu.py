@@ -37,6 +37,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from dronetrack.actuators.goals import goal_angles
 from dronetrack.actuators.ptu_line import PtuLine, open_line
 from dronetrack.actuators.ptu_uri import DEFAULT_POLL_HZ, PtuUri, parse_ptu_uri
 from dronetrack.actuators.state_poller import StatePoller
@@ -221,19 +222,8 @@ class PtuTurret:
     def command(self, command: TurretCommand) -> None:
         """Send the goals that changed and wait for the unit's ``*`` (real time: the stamp
         is not waited for)."""
-        if command.mode == "velocity":
-            newest = self.poller.newest if self.poller is not None else None
-            now = newest if newest is not None else self.state()
-            goal = (
-                now.pan + command.pan * self.rate_horizon,
-                now.tilt + command.tilt * self.rate_horizon,
-            )
-        elif command.mode == "position":
-            goal = (command.pan, command.tilt)
-        else:
-            raise ConfigError(
-                f"turret command mode must be position or velocity, got {command.mode!r}"
-            )
+        newest = self.poller.newest if self.poller is not None else None
+        goal = goal_angles(command, newest, self.state, self.rate_horizon)
         self._send_goals((self._goal(0, goal[0]), self._goal(1, goal[1])))
 
     def state(self) -> TurretState:
