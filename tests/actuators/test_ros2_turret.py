@@ -95,6 +95,8 @@ def test_goals_out_and_angles_in(
         _until(lambda: turret._writer.matched() > 0)
         turret.command(TurretCommand(0.0, 0.5, float("nan"), "position"))  # tilt kept
         _until(lambda: len(node.goals) == 1)
+        # a rate command leads the newest joint state: wait until it shows the goal
+        _until(lambda: turret.state().pan == pytest.approx(0.5, abs=1e-6))  # type: ignore[union-attr]
         turret.command(TurretCommand(0.0, 1.0, -1.0, "velocity"))  # 0.1 s ahead
         _until(lambda: len(node.goals) == 2)
         _until(lambda: turret.state().pan == pytest.approx(0.6, abs=1e-6))  # type: ignore[union-attr]
