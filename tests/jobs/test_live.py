@@ -95,10 +95,11 @@ def test_a_live_run_scans_tracks_and_commands_the_servos(rig: Rig) -> None:
     m = result.metrics()
     assert m["latency_ms_p50"] == pytest.approx(float(np.median(latency)))
     assert (m["packets_lost"], m["packets_malformed"]) == (0, 0)
-    # A goal a frame reached the servos (the scan raster's, then the search's), and on
-    # closing the turret holds: torque on, the last goal its present position then.
+    # A goal a frame reached the servos (the scan raster's, then the search's; a dropped
+    # frame sends none, so 20 frames less the drops, as the frame count above allows),
+    # and on closing the turret holds: torque on, the last goal its present position then.
     goals = rig.bus.servo(1).goals
-    assert len(goals) >= 20
+    assert len(goals) >= 20 - result.frames_dropped
     assert len(set(goals[-20:])) > 5  # the turret was moved, not held still
     assert rig.bus.value(1, ADDR.TORQUE_ENABLE) == 1
     held = rig.bus.value(1, ADDR.GOAL_POSITION)
