@@ -1,6 +1,6 @@
-"""``dronetrack emulate``: a scenario's simulator in real time behind an emulated Livox
-LiDAR (UDP) and Dynamixel turret (pseudo-terminal), to test the live chain without
-hardware."""
+"""``dronetrack emulate``: a scenario's simulator in real time behind an emulated LiDAR
+(a Livox or a Velodyne VLP-16, UDP) and Dynamixel turret (pseudo-terminal), to test the
+live chain without hardware."""
 
 from __future__ import annotations
 
@@ -51,6 +51,22 @@ def _say(text: str) -> None:
     err_console.print(text, markup=False, highlight=False, soft_wrap=True)
 
 
+def _destination(text: str) -> tuple[str, int]:
+    """``IP[:PORT]`` (port 2368 if not given); ConfigError naming the problem."""
+    from dronetrack.errors import ConfigError
+
+    ip, colon, port = text.rpartition(":")
+    if not colon:
+        ip, port = text, "2368"
+    try:
+        ipaddress.IPv4Address(ip)
+    except ValueError:
+        raise ConfigError(f"--lidar-dest {text!r}: {ip!r} is not an IPv4 address") from None
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ConfigError(f"--lidar-dest {text!r}: {port!r} is not a UDP port in 1..65535")
+    return ip, int(port)
+
+
 @app.command()
 def emulate(
     scenario: Annotated[
@@ -66,6 +82,14 @@ def emulate(
             help="The emulated LiDAR's IPv4 address, one of this host's (127.0.0.1: loopback).",
         ),
     ] = "127.0.0.1",
+    lidar_dest: Annotated[
+        str | None,
+        typer.Option(
+            "--lidar-dest",
+            help="VLP-16 only: where it sends its packets, IP[:PORT] (its Host and Data "
+            "Port settings; default 127.0.0.1:2368 from a loopback --lidar-ip).",
+        ),
+    ] = None,
     serial_link: Annotated[
         Path | None,
         typer.Option(
@@ -87,24 +111,31 @@ def emulate(
     'live' without hardware.
 
     The LiDAR is a Livox on UDP (SDK 1 for the Avia and Mid-40, SDK 2 for the
-    Mid-360); the turret is two XM430 servos on a pseudo-terminal.  The scenario
-    starts when a host starts sampling: the background scan, then the flight, as
-    simulate runs them.  Prints the devices' addresses, then runs until the scenario
-    has been streamed, and 2 s more while the host closes (exit 0), or until Ctrl-C
-    or SIGTERM (exit 130; the truth file is kept).
+    Mid-360) or a VLP-16 sending to --lidar-dest; the turret is two XM430 servos on a
+    pseudo-terminal.  The scenario starts when a host starts sampling (a VLP-16: when
+    a host listens): the background scan, then the flight, as simulate runs them.
+    Prints the devices' addresses, then runs until the scenario has been streamed, and
+    2 s more while the host closes (exit 0), or until Ctrl-C or SIGTERM (exit 130; the
+    truth file is kept).
     """
     from dronetrack.errors import ConfigError
     from dronetrack.interrupt import stop_requested, stoppable
     from dronetrack.jobs.emulate import emulated_rig, emulated_seconds
     from dronetrack.jobs.factory import scan_duration
-    from dronetrack.sim.emulate.rig import DEVICES
+    from dronetrack.sim.emulate.lidars import DEVICES, host_uri
 
     try:
         ipaddress.IPv4Address(lidar_ip)
     except ValueError:
         raise ConfigError(f"--lidar-ip {lidar_ip!r} is not an IPv4 address") from None
+    dest = _destination(lidar_dest) if lidar_dest is not None else None
     cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
-    rig = emulated_rig(cfg, lidar_ip=lidar_ip, serial_link=serial_link, truth=truth)
+    model = DEVICES.get(cfg.sensor.model)
+    if dest is not None and (model is None or model.scheme != "velodyne"):
+        raise ConfigError("--lidar-dest is for a VLP-16; this scenario's LiDAR takes a host")
+    rig = emulated_rig(
+        cfg, lidar_ip=lidar_ip, serial_link=serial_link, truth=truth, lidar_dest=dest
+    )
     model = DEVICES[cfg.sensor.model]
     # What is built stays: no full collection of it pauses a slice (measured 45 ms, once
     # about every 2 s of stream, without this; under 10 ms with it).
@@ -114,7 +145,14 @@ def emulate(
     with rig, _sigterm_sets(stop), stoppable():
         ip, port = rig.address
         assert rig.link is not None
-        typer.echo(f"lidar: {model.scheme}://{ip}  ({model.name}, UDP {ip}:{port})")
+        uri = host_uri(model, rig.device)
+        velodyne = model.scheme == "velodyne"
+        if velodyne:
+            wire = f"UDP from {ip}:{port} to {uri.removeprefix('velodyne://')}"
+            waits = "a host to listen"
+        else:
+            wire, waits = f"UDP {ip}:{port}", "a host to start sampling"
+        typer.echo(f"lidar: {uri}  ({model.name}, {wire})")
         typer.echo(
             f"turret: dynamixel://{rig.serial_device}  (2 XM430-W350, pan ID 1, tilt ID 2, "
             f"on {rig.link.path})"
@@ -122,7 +160,7 @@ def emulate(
         sys.stdout.flush()
         scan_s = scan_duration(cfg.pipeline)
         _say(
-            f"{cfg.name}: waiting for a host to start sampling; then {scan_s:g} s of "
+            f"{cfg.name}: waiting for {waits}; then {scan_s:g} s of "
             f"background scan and {cfg.duration_s:g} s of flight "
             f"({emulated_seconds(cfg):g} s streamed)"
         )
@@ -131,7 +169,8 @@ def emulate(
         while not (stop.is_set() or stop_requested()) and time.monotonic() < linger_until:
             if rig.starts > announced:
                 announced = rig.starts
-                _say("sampling started: the scenario clock runs")
+                began = "a host listens" if velodyne else "sampling started"
+                _say(f"{began}: the scenario clock runs")
             if linger_until < math.inf:
                 time.sleep(POLL_S)
             elif rig.finished.wait(POLL_S):

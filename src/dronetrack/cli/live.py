@@ -35,8 +35,9 @@ def live(
         str,
         typer.Option(
             "--lidar",
-            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), or "
-            "file://RECORDING (any recording track reads, played at wall-clock speed).",
+            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), "
+            "velodyne://[IP:]PORT (VLP-16, e.g. velodyne://2368), or file://RECORDING (any "
+            "recording track reads, played at wall-clock speed).",
         ),
     ],
     turret: Annotated[
@@ -133,7 +134,8 @@ def live(
 
     def started(resolved: ScenarioConfig) -> None:
         scan = resolved.pipeline.background
-        first = f"{scan.scan_s:g} s of background scan, then " if scan.file is None else ""
+        scans = scan.enabled and scan.file is None and scan.scan_s > 0
+        first = f"{scan.scan_s:g} s of background scan, then " if scans else ""
         _say(f"live: {lidar} with turret {turret}: {first}tracking; Ctrl-C stops")
 
     with handling_sigterm(), run_outputs(folder, None, None), progress_bar() as bar:

@@ -212,7 +212,7 @@ def info(
         typer.Argument(
             metavar="RECORDING|DEVICE",
             help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
-            "livox2://IP or dynamixel://DEVICE?baud=…&pan=…&tilt=….",
+            "livox2://IP, velodyne://[IP:]PORT or dynamixel://DEVICE?baud=…&pan=…&tilt=….",
         ),
     ],
 ) -> None:
@@ -221,7 +221,7 @@ def info(
     sample; the servos' model, firmware and present positions)."""
     from rich.markup import escape
 
-    if target.startswith(("livox://", "livox2://")):
+    if target.startswith(("livox://", "livox2://", "velodyne://")):
         from dronetrack.jobs.live import probe_lidar
 
         for name, value in probe_lidar(target):

@@ -1,5 +1,6 @@
 """``dronetrack emulate``'s rig: a scenario's simulator in real time behind an emulated
-Livox LiDAR and Dynamixel turret (``sim.emulate.rig``), on ``simulate``'s timeline.
+LiDAR (a Livox, or a VLP-16) and Dynamixel turret (``sim.emulate.rig``), on
+``simulate``'s timeline.
 
 The world is built as ``simulate`` builds it, from the same seed: the same flight,
 starting after the background scan, and the turret at the same start pose.  Only its
@@ -20,7 +21,7 @@ from dronetrack.jobs.factory import scan_duration
 from dronetrack.jobs.run import run_seeds, turret_pipeline
 from dronetrack.jobs.simulate import flight_config, resolve_run, start_angles
 from dronetrack.sim.build import build_world
-from dronetrack.sim.emulate.rig import EmulatedRig, livox_device
+from dronetrack.sim.emulate.rig import EmulatedRig, lidar_device
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame
 
@@ -44,18 +45,20 @@ def emulated_rig(
     serial_link: Path | None = None,
     truth: Path | None = None,
     any_ports: bool = False,
+    lidar_dest: tuple[str, int] | None = None,
     warm_up: bool = True,
     on_slice: Callable[[Frame, FrameTruth], None] | None = None,
 ) -> EmulatedRig:
     """The rig of scenario ``cfg`` (resolved first), not yet started.
 
-    ConfigError if the scenario's sensor is not a Livox the emulator knows;
-    DeviceError if the device's ports cannot be bound or the truth file written.
-    ``warm_up`` compiles the simulator's kernels first, so the first slices are on time;
-    ``any_ports`` and ``on_slice`` as ``livox_device`` and ``EmulatedRig`` say.
+    ConfigError if the scenario's sensor is not one the emulator knows; DeviceError if
+    the device's ports cannot be bound or the truth file written.  ``warm_up``
+    compiles the simulator's kernels first, so the first slices are on time;
+    ``any_ports``, ``lidar_dest`` (where a VLP-16 sends) and ``on_slice`` as
+    ``lidar_device`` and ``EmulatedRig`` say.
     """
     cfg = resolve_run(cfg)
-    make_device = livox_device(cfg.sensor.model, lidar_ip, any_ports=any_ports)
+    make_device = lidar_device(cfg.sensor, lidar_ip, any_ports=any_ports, dest=lidar_dest)
     sim_seed, filter_seed = run_seeds(cfg.seed)
     flight = flight_config(cfg)
     # The pipeline only tells where simulate starts the turret.

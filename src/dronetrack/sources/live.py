@@ -86,6 +86,9 @@ __all__ = [
 POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 POSE_WAIT_S = 1.0  # longest a frame waits for a fresh turret reading
 LEAD_S = 0.05  # how far the newest reading's rates carry the pose beyond it [s]
+# A frame ending this close before the duration ends the run: a revolution ends where
+# the azimuth passes the cut angle, to a few µs of the nominal period.
+END_SLACK_S = 1e-4
 
 
 class PointStream(Protocol):
@@ -204,7 +207,7 @@ class LiveSource:
     (None: a fixed sensor at pan = tilt = 0); ``period_s``: the
     integration time (the pipeline's frame period); ``assembler``: how frames are cut
     (None: by ``period_s``, ``FrameAssembler``); ``max_frames``: the queue bound;
-    ``duration_s``: stop after
+    ``duration_s``: stop after the frame that ends at (within ``END_SLACK_S``) or after
     this much sensor time (None: until the stream ends or the run is stopped);
     ``truth``: the target's positions in the sensor's time base (``--truth``; a
     ``TruthFile`` is read as it grows), and
@@ -384,7 +387,7 @@ class LiveSource:
                 frame = self.poses.frame(done.frame, t0_ns)
                 self.frames_delivered += 1
                 yield Sample(frame, self._truth_at(frame.end, t0_ns), state, done.received)
-                if self.duration_s is not None and frame.end >= self.duration_s:
+                if self.duration_s is not None and frame.end >= self.duration_s - END_SLACK_S:
                     return
         finally:
             self.stop()

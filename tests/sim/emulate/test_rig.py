@@ -54,6 +54,8 @@ def test_each_livox_sensor_gets_its_device(sensor: str, kind: type, dev_type: in
         dev.close()
 
 
-def test_a_sensor_no_livox_emulates_is_refused() -> None:
-    with pytest.raises(ConfigError, match=r"Livox sensors \(avia, mid40, mid360\).*'vlp16'"):
-        livox_device("vlp16")
+def test_a_sensor_no_device_emulates_is_refused() -> None:
+    with pytest.raises(
+        ConfigError, match=r"sensors avia, mid40, mid360, vlp16, vlp16-side;.*'file:scan.npy'"
+    ):
+        livox_device("file:scan.npy")

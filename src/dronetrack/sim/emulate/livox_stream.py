@@ -199,6 +199,11 @@ class StreamingDevice:
     def _data_socket(self) -> socket.socket:
         raise NotImplementedError
 
+    def _send_failed(self, exc: OSError) -> bool:
+        """A point packet could not be sent; True stops this round of sending (the
+        packet is skipped either way)."""
+        return False
+
     def _encode(self, xyz: FloatArray, refl: NDArray[np.uint8], first_packet: int) -> list[bytes]:
         """Packets of firings ``xyz`` (a whole number of packets), the first being
         packet ``first_packet`` of the stream."""
@@ -314,7 +319,9 @@ class StreamingDevice:
                 continue
             try:
                 self._data_socket().sendto(packet, target)
-            except OSError:
+            except OSError as exc:
+                if self._send_failed(exc):
+                    return None
                 continue
             self.packets_sent += 1
         return now
