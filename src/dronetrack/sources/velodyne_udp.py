@@ -65,7 +65,8 @@ _HINT = "velodyne:// needs velodyne-decoder: pip install 'dronetrack[velodyne]'"
 @dataclass(frozen=True)
 class VelodyneEndpoint:
     """Where the host listens for a VLP-16: the local address (0.0.0.0: every
-    interface) and UDP port, and the sensor's address if packets are taken from it only."""
+    interface) and UDP port (0 here: a free one, for tests), and the sensor's address
+    if packets are taken from it only."""
 
     bind_ip: str = "0.0.0.0"
     port: int = fv.DATA_PORT
@@ -197,6 +198,14 @@ class VelodyneClient:
         return f"VLP-16 on UDP {e.bind_ip}:{e.port}{source}"
 
     @property
+    def address(self) -> tuple[str, int]:
+        """(ip, port) the client listens on (the port the kernel gave for port 0)."""
+        if self._sock is None:
+            return self.endpoint.bind_ip, self.endpoint.port
+        ip, port = self._sock.getsockname()[:2]
+        return str(ip), int(port)
+
+    @property
     def packets_received(self) -> int:
         return self._queue.received
 
@@ -213,12 +222,12 @@ class VelodyneClient:
 
     # -- the link ---------------------------------------------------------------------
 
-    def open(self, timeout_s: float = 3.0) -> None:
-        """Listen, and wait for the first packet; DeviceError if none comes within
-        ``timeout_s`` or the port cannot be bound."""
+    def bind(self) -> None:
+        """Bind the port and start the reader (``open`` does it if needed);
+        DeviceError if the port cannot be bound."""
         if self._closed:
             raise DeviceError(f"{self.name}: the client is closed")
-        if self._opened_at is not None:
+        if self._sock is not None:
             return
         e = self.endpoint
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -233,12 +242,19 @@ class VelodyneClient:
         self._sock = sock
         self._thread = threading.Thread(target=self._read_loop, name="velodyne-reader", daemon=True)
         self._thread.start()
+
+    def open(self, timeout_s: float = 3.0) -> None:
+        """Listen, and wait for the first packet; DeviceError if none comes within
+        ``timeout_s`` or the port cannot be bound."""
+        if self._opened_at is not None:
+            return
+        self.bind()
         self._opened_at = time.monotonic()
         if not self._first.wait(timeout_s):
             self.close()
             raise DeviceError(
                 f"{self.name}: no packet within {timeout_s:g} s (is the sensor's destination "
-                f"this host's address, port {e.port}?)"
+                f"this host's address, port {self.endpoint.port}?)"
             )
 
     def _read_loop(self) -> None:
