@@ -92,6 +92,12 @@ def _cell(value: Any, unit: str = "") -> str:
     return f"{value}{unit}"
 
 
+def _lidar_of(scenario: str) -> str:
+    if scenario == "default":
+        return "the Avia at 240,000 points/s"
+    return f"the LiDAR of {scenario}"
+
+
 def live_table(results: dict[str, Any], path: Path) -> Table:
     """The table ``dronetrack bench --live`` prints: the machine in the title, then each
     figure of the latency run and the soak with its target, where it has one."""
@@ -101,7 +107,7 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
     table = Table(
         title=(
             f"dronetrack bench --live: {m['cpu']}, {m['cores']} cores; Python {m['python']}; "
-            "emulate and live on loopback, the Avia at 240,000 points/s"
+            f"emulate and live on loopback, {_lidar_of(s.get('scenario', 'default'))}"
         ),
         caption=f"as dronetrack live runs (threads not pinned){quick}; {path}",
         box=box.SIMPLE_HEAD,
@@ -159,6 +165,8 @@ def _live(
     latency_s: float | None,
     soak_s: float | None,
     warmup_s: float | None,
+    scenario: str | None = None,
+    turret: bool = True,
 ) -> None:
     """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
     from dataclasses import replace
@@ -167,8 +175,10 @@ def _live(
     from dronetrack.sinks.run_folder import prepare_run_dir
 
     settings = LIVE_QUICK if quick else LIVE_FULL
-    given = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
+    given: dict[str, Any] = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
     settings = replace(settings, **{k: v for k, v in given.items() if v is not None})
+    if scenario is not None:
+        settings = replace(settings, scenario=scenario)
     settings.checked()
     with progress_bar() as bar:
         task = bar.add_task("live benchmarks", total=None)
@@ -176,7 +186,7 @@ def _live(
         def report(what: str, done: float, total: float) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
-        results = live_bench(settings, quick=quick, progress=report)
+        results = live_bench(settings, quick=quick, turret=turret, progress=report)
     prepare_run_dir(out_dir)
     path = out_dir / "bench_live.json"
     path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
@@ -235,6 +245,21 @@ def bench(
             "--warmup-s", help="With --live: the soak's warm-up before memory counts [60 s]."
         ),
     ] = None,
+    scenario: Annotated[
+        str | None,
+        typer.Option(
+            "--scenario",
+            help="With --live: the scenario emulated, and so its LiDAR (e.g. walk-line for "
+            "a VLP-16) [default].",
+        ),
+    ] = None,
+    turret: Annotated[
+        bool,
+        typer.Option(
+            "--turret/--no-turret",
+            help="With --live: drive the emulated Dynamixel turret, or run a fixed sensor.",
+        ),
+    ] = True,
 ) -> None:
     """Time the pipeline, every tracker, the simulator and replay on one core.
 
@@ -250,10 +275,16 @@ def bench(
     if live:
         if rounds is not None or repeats is not None or replay_seconds is not None:
             raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
-        _live(out_dir, quick, latency_s, soak_s, warmup_s)
+        if scenario is not None:
+            from dronetrack.config.scenarios import get_scenario
+
+            get_scenario(scenario)  # an unknown one is an error before anything runs
+        _live(out_dir, quick, latency_s, soak_s, warmup_s, scenario, turret)
         return
     if latency_s is not None or soak_s is not None or warmup_s is not None:
         raise ConfigError("--latency-s, --soak-s and --warmup-s go with --live")
+    if scenario is not None or not turret:
+        raise ConfigError("--scenario and --no-turret go with --live")
     from dronetrack.experiments.bench import bench as run_bench
     from dronetrack.experiments.bench import single_thread
 

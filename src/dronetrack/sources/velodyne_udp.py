@@ -33,6 +33,7 @@ the Puck LITE) raise DeviceError: its elevations differ.
 
 from __future__ import annotations
 
+import functools
 import ipaddress
 import socket
 import threading
@@ -326,7 +327,7 @@ class VelodyneClient:
         span = np.where(mode == fv.DUAL, 12, 24).astype(np.int64) * fv.FIRING_CYCLE_NS
         t_pkt = self._clock.times_ns(heads.stamp_us, span)
         self.packets_lost = self._clock.lost
-        offsets = np.stack([fv.firing_offsets_ns(int(m)) for m in mode])  # (n, 12, 32)
+        offsets = np.stack([_offsets(int(m)) for m in mode])  # (n, 12, 32)
         block_t = (t_pkt[:, None] + offsets[:, :, 0]).ravel()
         order = np.argsort(block_t, kind="stable")
         self._count_spin(block_t[order], heads.azimuth.ravel()[order])
@@ -392,6 +393,12 @@ class VelodyneClient:
         line = np.asarray(fv.LASER_OF_RING, np.uint8)[ring]
         refl = np.clip(np.rint(pts[:, 3]), 0, 255).astype(np.uint8)
         return np.ascontiguousarray(pts[:, :3]), t_ns, refl, line
+
+
+@functools.cache
+def _offsets(return_mode: int) -> NDArray[np.int64]:
+    """``fv.firing_offsets_ns``, made once per return mode."""
+    return fv.firing_offsets_ns(return_mode)
 
 
 def _empty() -> PointBatch:

@@ -1,10 +1,11 @@
 """The live chain on one machine, timed: latency and a memory soak.
 
 Both run ``dronetrack emulate`` in its own process (the simulator in real time behind
-an emulated Livox Avia on UDP at its full 240,000 points/s, and two emulated XM430
-servos on a pseudo-terminal) on a loopback address of its own, and ``run_live`` in
-this process against it through the real protocols, with the Dynamixel turret on the
-emulated servos (or ``none``), writing ``frames.csv`` as ``dronetrack live`` does.
+an emulated Livox Avia on UDP at its full 240,000 points/s, or the LiDAR of another
+scenario, e.g. a VLP-16's 754 packets/s, and two emulated XM430 servos on a
+pseudo-terminal) on a loopback address of its own, and ``run_live`` in this process
+against it through the real protocols, with the Dynamixel turret on the emulated
+servos (or ``none``), writing ``frames.csv`` as ``dronetrack live`` does.
 The emulator is a separate process as a device is separate hardware: it shares the
 machine's cores, not the host's interpreter.
 
@@ -85,7 +86,7 @@ class EmulatorProcess:
     """A running ``dronetrack emulate``: the URIs to open and its truth file."""
 
     proc: subprocess.Popen[bytes]
-    lidar: str  # livox://IP with free host ports
+    lidar: str  # livox://IP with free host ports, or velodyne://IP:2368
     turret: str  # dynamixel://LINK
     truth: Path
 
@@ -117,12 +118,19 @@ def emulator_process(
 ) -> Iterator[EmulatorProcess]:
     """``dronetrack emulate SCENARIO --seed SEED --duration FLIGHT_S`` in its own
     process, once it has printed its two addresses; stopped (SIGTERM, then killed)
-    on leaving.  Its messages go to ``workdir/emulate.log``.  DeviceError if it does
-    not start within ``EMULATOR_START_S``."""
+    on leaving.  Its messages go to ``workdir/emulate.log``.  A VLP-16 sends to port
+    2368 of the emulator's own address.  DeviceError if it does not start within
+    ``EMULATOR_START_S``."""
+    from dronetrack.config.scenarios import get_scenario
+    from dronetrack.config.spinning import SPINNING
+
     ip = _loopback_ip()
     link, truth, log_path = workdir / "ttyDXL", workdir / "truth.csv", workdir / "emulate.log"
     args = [scenario, "--seed", str(seed), "--duration", f"{flight_s:g}", "--lidar-ip", ip]
     args += ["--serial-link", str(link), "--truth", str(truth)]
+    velodyne = get_scenario(scenario).sensor.model in SPINNING
+    if velodyne:
+        args += ["--lidar-dest", f"{ip}:2368"]
     with log_path.open("wb") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "dronetrack", "emulate", *args],
@@ -136,6 +144,8 @@ def emulator_process(
                 )
             # host ports 0: free ones, so that no other live run on this machine is met
             lidar = f"livox://{ip}?cmd_port=0&data_port=0&broadcast_port=0"
+            if velodyne:
+                lidar = f"velodyne://{ip}:2368"
             yield EmulatorProcess(proc, lidar, f"dynamixel://{link}", truth)
         finally:
             if proc.poll() is None:
@@ -379,13 +389,14 @@ def live_soak(
 class LiveSettings:
     """How long each live measurement runs [s]: the latency run's flight, the soak's
     flight (0: no soak), its warm-up and sampling period, and the live side's
-    background scan (None: the scenario's)."""
+    background scan (None: the scenario's); and the scenario emulated (its LiDAR)."""
 
     latency_s: float = 20.0
     soak_s: float = 600.0
     warmup_s: float = 60.0
     sample_s: float = 5.0
     scan_s: float | None = None
+    scenario: str = "default"
 
     def checked(self) -> LiveSettings:
         """These settings, or ConfigError naming the bad value."""
@@ -432,6 +443,7 @@ def live_bench(
     latency = live_latency(
         cfg.latency_s,
         turret=turret,
+        scenario=cfg.scenario,
         scan_s=cfg.scan_s,
         workdir=workdir,
         progress=stage(f"live latency, {cfg.latency_s:g} s of flight"),
@@ -443,6 +455,7 @@ def live_bench(
             warmup_s=cfg.warmup_s,
             sample_s=cfg.sample_s,
             turret=turret,
+            scenario=cfg.scenario,
             scan_s=cfg.scan_s,
             workdir=workdir,
             progress=stage(f"live soak, {cfg.soak_s:g} s of flight"),
