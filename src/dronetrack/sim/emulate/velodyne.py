@@ -10,8 +10,8 @@ Firings.  Laser c of firing sequence s fires at device time s · 55.296 µs + c 
 (``sim.spinning``).  On ``livox_stream``'s grid of Δt = 2.304 µs that is slot
 k = 24 s + c (55.296 = 24 × 2.304: slots 16-23 of a sequence are its recharge, never
 fired), and a packet of 24 sequences is 576 slots.  Packet p's first firing is at
-p · 1327.104 µs, and it is sent when the wall clock since the start reaches it:
-753.5 packets/s.
+p · 1327.104 µs, and it is sent when its last firing is done, 1306.368 µs later (23
+sequences and 15 firings), as a sensor sends what it has measured: 753.5 packets/s.
 
 A packet from points.  The points are in the frame the simulator gives them (x
 forward); for a head mounted on its side, ``head_rotation`` R (p = R p_head) turns
@@ -33,13 +33,13 @@ scenario's clock starts with the host's run, the emulated one holds its stream a
 start until a host listens: every ``probe_s`` (50 ms) it sends the stream's packet 0,
 with no return in it, from a UDP socket connected to ``dest``.  A datagram to a port
 nobody listens on comes back refused (ICMP port unreachable; on this machine at once);
-when packet 0 is not refused within 2 ms, the stream starts: device time 0 is the
-moment packet 0 went, and packet 1 follows on time (packet 0's own points, made
-after it went, are dropped).  To a destination that refuses nothing (another machine,
-a broadcast address) it starts at the first probe.  A packet refused while
-streaming means the host stopped listening: the stream stops and the device waits
-for a host again, and the next one gets the source from its start (the emulated rig
-runs the scenario again).  After the stream's end the device is silent.
+when packet 0 is not refused within 2 ms, the stream starts: device time 0 is packet
+0's first firing, 1306.368 µs before it went, and packet 1 follows on time (packet
+0's own points, made after it went, are dropped).  To a destination that refuses
+nothing (another machine, a broadcast address) it starts at the first probe.  A
+packet refused while streaming means the host stopped listening: the stream stops
+and the device waits for a host again, and the next one gets the source from its
+start (the emulated rig runs the scenario again).  After the stream's end the device is silent.
 
 Test hooks: ``drop_every`` and ``paused`` (``livox_stream``).
 """
@@ -90,6 +90,7 @@ class EmulatedVelodyne(StreamingDevice):
         if not probe_s > PROBE_CHECK_S:
             raise ConfigError(f"the probe period must be over {PROBE_CHECK_S} s, got {probe_s}")
         super().__init__(source, fv.FIRING_INTERVAL_NS, SLOTS_PER_PACKET)
+        self.send_delay_ns = int(fv.firing_offsets_ns()[-1, -1])  # its last firing
         self.ip = ip
         self.dest = (str(dest[0]), int(dest[1]))
         self.rpm = float(rpm)
@@ -160,11 +161,11 @@ class EmulatedVelodyne(StreamingDevice):
             return PROBE_CHECK_S
         return min(SLEEP_S, self._next_probe - now)
 
-    def _begin(self, t0: float) -> None:
-        """Start the stream: device time 0 at ``t0``, when packet 0 went."""
+    def _begin(self, sent: float) -> None:
+        """Start the stream: packet 0 went at ``sent``, after its last firing."""
         self.waiting = False
         self._probe_sent = None
-        self._start_stream(t0)
+        self._start_stream(sent - self.send_delay_ns * 1e-9)
         self._next_packet = 1  # packet 0 went as the probe
         self.hosts += 1
 
