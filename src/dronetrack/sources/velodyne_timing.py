@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from dronetrack.formats import velodyne as fv
 
-__all__ = ["PacketClock", "RevolutionCuts", "spin_rpm"]
+__all__ = ["PacketClock", "RevolutionCuts", "spin_advance", "spin_rpm"]
 
 
 class PacketClock:
@@ -107,17 +107,22 @@ class RevolutionCuts:
         return sorted(set(out))
 
 
-def spin_rpm(t_ns: NDArray[np.int64], azimuth: NDArray[np.uint16]) -> float | None:
-    """The head's spin rate [rpm] over blocks at times ``t_ns`` with azimuths
-    ``azimuth`` [0.01°] (flat, in time order): the azimuth's advance over the time,
-    counted between consecutive blocks whose time grows; None over less than 1 ms."""
+def spin_advance(t_ns: NDArray[np.int64], azimuth: NDArray[np.uint16]) -> tuple[int, int]:
+    """How far the head turned [0.01°] and over how long [ns] across blocks at times
+    ``t_ns`` with azimuths ``azimuth`` [0.01°] (flat, in time order): the advance
+    between consecutive blocks whose time grows, modulo a turn."""
     t = np.asarray(t_ns, np.int64).ravel()
     a = np.asarray(azimuth, np.int64).ravel()
     dt = np.diff(t)
     step = dt > 0
-    total_ns = int(dt[step].sum())
-    if total_ns < 1_000_000:
+    return int((np.diff(a)[step] % 36_000).sum()), int(dt[step].sum())
+
+
+def spin_rpm(t_ns: NDArray[np.int64], azimuth: NDArray[np.uint16]) -> float | None:
+    """The head's spin rate [rpm] over those blocks (``spin_advance``); None over less
+    than 1 ms."""
+    advance, span_ns = spin_advance(t_ns, azimuth)
+    if span_ns < 1_000_000:
         return None
-    advance = int((np.diff(a)[step] % 36_000).sum())  # [0.01°]
     # rpm = (turns / s) · 60, turns = advance / 36000
-    return advance / 36_000 / (total_ns * 1e-9) * 60.0
+    return advance / 36_000 / (span_ns * 1e-9) * 60.0

@@ -52,7 +52,7 @@ from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox_net import POLL_S
 from dronetrack.sources.livox_queues import PacketQueue
-from dronetrack.sources.velodyne_timing import PacketClock, RevolutionCuts
+from dronetrack.sources.velodyne_timing import PacketClock, RevolutionCuts, spin_advance
 
 __all__ = ["VelodyneClient", "VelodyneEndpoint", "parse_velodyne_uri"]
 
@@ -359,15 +359,13 @@ class VelodyneClient:
         self.product = int(product[-1])
 
     def _count_spin(self, t: NDArray[np.int64], azimuth: NDArray[np.uint16]) -> None:
-        a = azimuth.astype(np.int64)
         if self._last_block is not None:
             t = np.r_[self._last_block[0], t]
-            a = np.r_[self._last_block[1], a]
-        self._last_block = (int(t[-1]), int(a[-1]))
-        dt = np.diff(t)
-        step = dt > 0
-        self._spin[0] += int((np.diff(a)[step] % 36_000).sum())
-        self._spin[1] += int(dt[step].sum())
+            azimuth = np.r_[self._last_block[1], azimuth]
+        self._last_block = (int(t[-1]), int(azimuth[-1]))
+        advance, span = spin_advance(t, azimuth)
+        self._spin[0] += advance
+        self._spin[1] += span
 
     def _points(
         self, packets: list[bytes], stamp_us: NDArray[np.int64], t_pkt: NDArray[np.int64]

@@ -64,6 +64,8 @@ def host_uri(model: LidarModel, device: StreamingDevice) -> str:
     ``livox2://IP`` name the device, ``velodyne://IP:PORT`` where it sends to."""
     if isinstance(device, EmulatedVelodyne):
         ip, port = device.dest
+        if ip == "255.255.255.255":  # a broadcast: listen on every interface
+            return f"velodyne://{port}"
         return f"velodyne://{ip}:{port}"
     ip = device.address[0]  # type: ignore[attr-defined]
     return f"{model.scheme}://{ip}"
