@@ -1,6 +1,7 @@
 """``dronetrack emulate`` in a subprocess for the tests that drive it: started on a
-loopback address of its own (127.0.0.x), so its fixed device port 65000 meets no other
-test's, and killed after if still running; every wait is bounded."""
+loopback address of its own (127.0.0.x), so its fixed device port 65000 (a VLP-16: the
+host's port 2368 there) meets no other test's, and killed after if still running; every
+wait is bounded."""
 
 from __future__ import annotations
 
@@ -32,15 +33,20 @@ class Emulator:
 
 
 @contextmanager
-def emulator(tmp_path: Path, scenario: str, *options: str) -> Iterator[Emulator]:
+def emulator(
+    tmp_path: Path, scenario: str, *options: str, velodyne: bool = False
+) -> Iterator[Emulator]:
     """``dronetrack emulate SCENARIO OPTIONS`` with a serial link and a truth file in
     ``tmp_path`` (with ``--ros2`` among the options: the truth file only), once it has
-    printed its two addresses."""
+    printed its two addresses.  A VLP-16 (``velodyne``) sends to port 2368 of the
+    emulator's own address, where the host listens."""
     ip = f"127.0.0.{20 + os.getpid() % 200}"
     link, truth = tmp_path / "ttyDXL", tmp_path / "truth.csv"
     args = [scenario, *options, "--truth", str(truth)]
     if "--ros2" not in options:
         args += ["--lidar-ip", ip, "--serial-link", str(link)]
+    if velodyne:
+        args += ["--lidar-dest", f"{ip}:2368"]
     proc = subprocess.Popen(
         [sys.executable, "-m", "dronetrack", "emulate", *args],
         stdout=subprocess.PIPE,

@@ -113,7 +113,13 @@ def test_emulate_stopped_by_a_signal_exits_130_and_keeps_the_truth(
     ("args", "message"),
     [
         (["--lidar-ip", "300.1.2.3"], "error: --lidar-ip '300.1.2.3' is not an IPv4 address"),
-        (["walk-square"], "error: emulate runs Livox sensors (avia, mid40, mid360)"),
+        (["--lidar-dest", "127.0.0.1:2368"], "error: --lidar-dest is for a VLP-16"),
+        (["walk-square", "--lidar-dest", "127.0.0.1:0"], "error: --lidar-dest '127.0.0.1:0'"),
+        (["walk-square", "--lidar-dest", "localhost"], "error: --lidar-dest 'localhost'"),
+        (
+            ["walk-square", "--lidar-ip", "192.0.2.1"],
+            "error: emulated VLP-16: cannot send from 192.0.2.1 to 255.255.255.255:2368",
+        ),
         (["nowhere"], "error: unknown scenario 'nowhere'"),
         (["--duration", "0"], "error: Invalid value for '--duration'"),
         (["--ptu-baud", "1234"], "error: --ptu-baud 1234 is not a standard rate (1200, "),

@@ -75,6 +75,26 @@ def test_quick_live_bench_writes_every_figure(
     assert out.count("met") + out.count("MISSED") >= len(LIVE_TARGETS)
 
 
+def test_quick_live_bench_of_a_vlp16_with_a_fixed_sensor(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["bench", "--live", "--quick", "--scenario", "walk-line", "--no-turret"]
+    assert run([*args, "--soak-s", "0", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "the LiDAR of walk-line" in out
+    data = json.loads((tmp_path / "bench_live.json").read_text())
+    assert data["settings"]["scenario"] == "walk-line"
+    assert data["settings"]["turret"] is False
+    lat = data["live_latency"]
+    assert lat["scenario"] == "walk-line"
+    assert lat["turret"] == "none"
+    # 2 s of 0.1 s revolutions after the 0.5 s scan
+    assert 15 <= lat["frames"] + lat["frames_dropped"] <= 21
+    assert 0 < lat["latency_ms_p50"] <= lat["latency_ms_p99"]
+    assert (lat["packets_lost"], lat["packets_malformed"]) == (0, 0)
+    assert data["live_soak"] is None
+
+
 def test_growth_counts_from_the_end_of_the_warm_up() -> None:
     samples = [(0.0, 50.0), (5.0, 120.0), (10.0, 100.0), (15.0, 103.0), (20.0, 101.0)]
     # from the first sample at or after 10 s (100 MB) to the largest after it (103 MB)
@@ -101,6 +121,9 @@ def test_resident_memory_counts_touched_pages() -> None:
         (["--live", "--soak-s", "30", "--warmup-s", "40"], "shorter than the soak"),
         (["--live", "--latency-s", "0"], "flight of > 0 s"),
         (["--live", "--soak-s", "-1"], "0: none"),
+        (["--scenario", "walk-line"], "go with --live"),
+        (["--no-turret"], "go with --live"),
+        (["--live", "--scenario", "nowhere"], "unknown scenario 'nowhere'"),
     ],
 )
 def test_bad_live_input_exits_2_with_one_line(

@@ -92,6 +92,12 @@ def _cell(value: Any, unit: str = "") -> str:
     return f"{value}{unit}"
 
 
+def _lidar_of(scenario: str) -> str:
+    if scenario == "default":
+        return "the Avia at 240,000 points/s"
+    return f"the LiDAR of {scenario}"
+
+
 def live_table(results: dict[str, Any], path: Path) -> Table:
     """The table ``dronetrack bench --live`` prints: the machine in the title, then each
     figure of the latency run and the soak with its target, where it has one."""
@@ -101,7 +107,7 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
     table = Table(
         title=(
             f"dronetrack bench --live: {m['cpu']}, {m['cores']} cores; Python {m['python']}; "
-            "emulate and live on loopback, the Avia at 240,000 points/s"
+            f"emulate and live on loopback, {_lidar_of(s.get('scenario', 'default'))}"
             + (" over ROS 2 (DDS)" if s.get("chain") == "ros2" else "")
         ),
         caption=f"as dronetrack live runs (threads not pinned){quick}; {path}",
@@ -165,6 +171,7 @@ def _live(
     warmup_s: float | None,
     turret: str | None,
     ptu_baud: int | None,
+    scenario: str | None = None,
     chain: str = "livox",
 ) -> None:
     """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
@@ -175,7 +182,8 @@ def _live(
 
     settings = LIVE_QUICK if quick else LIVE_FULL
     given: dict[str, Any] = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
-    given.update(turret=turret, ptu_baud=ptu_baud)
+    fixed = turret == "none"
+    given.update(turret=None if fixed else turret, ptu_baud=ptu_baud, scenario=scenario)
     settings = replace(settings, **{k: v for k, v in given.items() if v is not None})
     settings.checked()
     with progress_bar() as bar:
@@ -184,7 +192,7 @@ def _live(
         def report(what: str, done: float, total: float) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
-        results = live_bench(settings, quick=quick, progress=report, chain=chain)
+        results = live_bench(settings, quick=quick, turret=not fixed, progress=report, chain=chain)
     prepare_run_dir(out_dir)
     path = out_dir / "bench_live.json"
     path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
@@ -247,13 +255,21 @@ def bench(
         str | None,
         typer.Option(
             "--turret",
-            help="With --live: the emulated turret driven, dynamixel (the scenario's WidowX) "
-            "or ptu (a FLIR PTU-E46 on its ASCII line) [dynamixel].",
+            help="With --live: the emulated turret driven, dynamixel (the scenario's WidowX), "
+            "ptu (a FLIR PTU-E46 on its ASCII line) or none (a fixed sensor) [dynamixel].",
         ),
     ] = None,
     ptu_baud: Annotated[
         int | None,
         typer.Option("--ptu-baud", help="With --live --turret ptu: the line's baud rate [9600]."),
+    ] = None,
+    scenario: Annotated[
+        str | None,
+        typer.Option(
+            "--scenario",
+            help="With --live: the scenario emulated, and so its LiDAR (e.g. walk-line for "
+            "a VLP-16) [default].",
+        ),
     ] = None,
     ros2: Annotated[
         bool,
@@ -281,23 +297,20 @@ def bench(
             raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
         if ptu_baud is not None and turret != "ptu":
             raise ConfigError("--ptu-baud goes with --turret ptu")
-        if ros2 and turret is not None:
-            raise ConfigError("--ros2 drives the emulated ROS 2 turret; --turret goes without it")
-        _live(
-            out_dir,
-            quick,
-            latency_s,
-            soak_s,
-            warmup_s,
-            turret,
-            ptu_baud,
-            "ros2" if ros2 else "livox",
-        )
+        if ros2 and turret not in (None, "none"):
+            raise ConfigError("--ros2 drives the emulated ROS 2 turret (or --turret none)")
+        if scenario is not None:
+            from dronetrack.config.scenarios import get_scenario
+
+            get_scenario(scenario)  # an unknown one is an error before anything runs
+        chain = "ros2" if ros2 else "livox"
+        _live(out_dir, quick, latency_s, soak_s, warmup_s, turret, ptu_baud, scenario, chain)
         return
-    live_only = (latency_s, soak_s, warmup_s, turret, ptu_baud)
+    live_only = (latency_s, soak_s, warmup_s, turret, ptu_baud, scenario)
     if ros2 or any(value is not None for value in live_only):
         raise ConfigError(
-            "--latency-s, --soak-s, --warmup-s, --turret, --ptu-baud and --ros2 go with --live"
+            "--latency-s, --soak-s, --warmup-s, --turret, --ptu-baud, --scenario and --ros2 "
+            "go with --live"
         )
     from dronetrack.experiments.bench import bench as run_bench
     from dronetrack.experiments.bench import single_thread

@@ -1,6 +1,7 @@
-"""``dronetrack emulate``: a scenario's simulator in real time behind an emulated Livox
-LiDAR (UDP) and turret (pseudo-terminal: Dynamixel servos, or a FLIR PTU for the
-PTU-E46 preset), to test the live chain without hardware."""
+"""``dronetrack emulate``: a scenario's simulator in real time behind an emulated LiDAR
+(a Livox or a Velodyne VLP-16, UDP) and turret (pseudo-terminal: Dynamixel servos, or a
+FLIR PTU for the PTU-E46 preset), or both on ROS 2 (--ros2), to test the live chain
+without hardware."""
 
 from __future__ import annotations
 
@@ -73,6 +74,22 @@ def _print_ros2(device: object, options: object) -> None:
     )
 
 
+def _destination(text: str) -> tuple[str, int]:
+    """``IP[:PORT]`` (port 2368 if not given); ConfigError naming the problem."""
+    from dronetrack.errors import ConfigError
+
+    ip, colon, port = text.rpartition(":")
+    if not colon:
+        ip, port = text, "2368"
+    try:
+        ipaddress.IPv4Address(ip)
+    except ValueError:
+        raise ConfigError(f"--lidar-dest {text!r}: {ip!r} is not an IPv4 address") from None
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ConfigError(f"--lidar-dest {text!r}: {port!r} is not a UDP port in 1..65535")
+    return ip, int(port)
+
+
 @app.command()
 def emulate(
     scenario: Annotated[
@@ -88,6 +105,14 @@ def emulate(
             help="The emulated LiDAR's IPv4 address, one of this host's (127.0.0.1: loopback).",
         ),
     ] = "127.0.0.1",
+    lidar_dest: Annotated[
+        str | None,
+        typer.Option(
+            "--lidar-dest",
+            help="VLP-16 only: where it sends its packets, IP[:PORT] (its Host and Data "
+            "Port settings; default 127.0.0.1:2368 from a loopback --lidar-ip).",
+        ),
+    ] = None,
     serial_link: Annotated[
         Path | None,
         typer.Option(
@@ -143,20 +168,21 @@ def emulate(
     'live' without hardware.
 
     The LiDAR is a Livox on UDP (SDK 1 for the Avia and Mid-40, SDK 2 for the
-    Mid-360); the turret, on a pseudo-terminal, is two XM430 servos, or a FLIR PTU
-    (ASCII commands) when the scenario's turret is the PTU-E46.  The scenario
-    starts when a host starts sampling: the background scan, then the flight, as
-    simulate runs them.  With --ros2, both are ROS 2 topics instead, and the
-    scenario starts when the point topic gets a subscriber.  Prints the devices'
-    addresses, then runs until the scenario has been streamed, and 2 s more while the
-    host closes (exit 0), or until Ctrl-C or SIGTERM (exit 130; the truth file is kept).
+    Mid-360) or a VLP-16 sending to --lidar-dest; the turret, on a pseudo-terminal, is
+    two XM430 servos, or a FLIR PTU (ASCII commands) when the scenario's turret is the
+    PTU-E46.  The scenario starts when a host starts sampling (a VLP-16: when a host
+    listens): the background scan, then the flight, as simulate runs them.  With
+    --ros2, both are ROS 2 topics instead, and the scenario starts when the point topic
+    gets a subscriber.  Prints the devices' addresses, then runs until the scenario has
+    been streamed, and 2 s more while the host closes (exit 0), or until Ctrl-C or
+    SIGTERM (exit 130; the truth file is kept).
     """
     from dronetrack.errors import ConfigError
     from dronetrack.formats.ptu import BAUD_RATES
     from dronetrack.interrupt import stop_requested, stoppable
     from dronetrack.jobs.emulate import emulated_rig, emulated_seconds
     from dronetrack.jobs.factory import scan_duration
-    from dronetrack.sim.emulate.rig import DEVICES
+    from dronetrack.sim.emulate.lidars import DEVICES, host_uri
 
     try:
         ipaddress.IPv4Address(lidar_ip)
@@ -167,9 +193,14 @@ def emulate(
         raise ConfigError(f"--ptu-baud {ptu_baud} is not a standard rate ({rates})")
     if not ros2 and (pointcloud2 or not tf or ros_domain_id is not None):
         raise ConfigError("--pointcloud2, --no-tf and --ros-domain-id go with --ros2")
-    if ros2 and serial_link is not None:
-        raise ConfigError("--serial-link is for the emulated turret's line; --ros2 has none")
+    if ros2 and (serial_link is not None or lidar_dest is not None):
+        raise ConfigError("--serial-link and --lidar-dest are for the UDP rig; --ros2 has neither")
+    dest = _destination(lidar_dest) if lidar_dest is not None else None
     cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
+    if dest is not None:
+        known = DEVICES.get(cfg.sensor.model)
+        if known is None or known.scheme != "velodyne":
+            raise ConfigError("--lidar-dest is for a VLP-16; this scenario's LiDAR takes a host")
     options = None
     if ros2:
         from dronetrack.sim.emulate.ros2 import Ros2Options
@@ -180,6 +211,7 @@ def emulate(
         lidar_ip=lidar_ip,
         serial_link=serial_link,
         truth=truth,
+        lidar_dest=dest,
         ptu_baud=ptu_baud,
         ros2=options,
         ros_domain_id=ros_domain_id,
@@ -192,22 +224,28 @@ def emulate(
     with rig, _sigterm_sets(stop), stoppable():
         if options is not None:
             _print_ros2(rig.device, options)
-            waiting = "a subscriber of " + options.topic
+            waits, began = "a subscriber of " + options.topic, "a subscriber came"
         else:
             model = DEVICES[cfg.sensor.model]
             ip, port = rig.address
             assert rig.link is not None
-            typer.echo(f"lidar: {model.scheme}://{ip}  ({model.name}, UDP {ip}:{port})")
+            uri = host_uri(model, rig.device)
+            if model.scheme == "velodyne":
+                wire = f"UDP from {ip}:{port} to {uri.removeprefix('velodyne://')}"
+                waits, began = "a host to listen", "a host listens"
+            else:
+                wire = f"UDP {ip}:{port}"
+                waits, began = "a host to start sampling", "sampling started"
+            typer.echo(f"lidar: {uri}  ({model.name}, {wire})")
             if rig.ptu is not None:
                 what = f"FLIR PTU-E46, {rig.ptu_baud} baud 8N1"
             else:
                 what = "2 XM430-W350, pan ID 1, tilt ID 2"
             typer.echo(f"turret: {rig.turret_uri}  ({what}, on {rig.link.path})")
-            waiting = "a host to start sampling"
         sys.stdout.flush()
         scan_s = scan_duration(cfg.pipeline)
         _say(
-            f"{cfg.name}: waiting for {waiting}; then {scan_s:g} s of "
+            f"{cfg.name}: waiting for {waits}; then {scan_s:g} s of "
             f"background scan and {cfg.duration_s:g} s of flight "
             f"({emulated_seconds(cfg):g} s streamed)"
         )
@@ -216,7 +254,7 @@ def emulate(
         while not (stop.is_set() or stop_requested()) and time.monotonic() < linger_until:
             if rig.starts > announced:
                 announced = rig.starts
-                _say("sampling started: the scenario clock runs")
+                _say(f"{began}: the scenario clock runs")
             if linger_until < math.inf:
                 time.sleep(POLL_S)
             elif rig.finished.wait(POLL_S):

@@ -42,9 +42,10 @@ def live(
         typer.Option(
             "--lidar",
             help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), "
-            "ros2:///TOPIC (a ROS 2 PointCloud2 or livox_ros_driver2 CustomMsg topic, over "
-            "DDS; keys type=, truth=/TOPIC, frame=), or file://RECORDING (any recording "
-            "track reads, played at wall-clock speed).",
+            "velodyne://[IP:]PORT (VLP-16, e.g. velodyne://2368), ros2:///TOPIC (a ROS 2 "
+            "PointCloud2 or livox_ros_driver2 CustomMsg topic, over DDS; keys type=, "
+            "truth=/TOPIC, frame=), or file://RECORDING (any recording track reads, played "
+            "at wall-clock speed).",
         ),
     ],
     turret: Annotated[
@@ -146,7 +147,8 @@ def live(
 
     def started(resolved: ScenarioConfig) -> None:
         scan = resolved.pipeline.background
-        first = f"{scan.scan_s:g} s of background scan, then " if scan.file is None else ""
+        scans = scan.enabled and scan.file is None and scan.scan_s > 0
+        first = f"{scan.scan_s:g} s of background scan, then " if scans else ""
         _say(f"live: {lidar} with turret {turret}: {first}tracking; Ctrl-C stops")
 
     with handling_sigterm(), run_outputs(folder, None, None), progress_bar() as bar:

@@ -229,8 +229,9 @@ def info(
         typer.Argument(
             metavar="RECORDING|DEVICE",
             help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
-            "livox2://IP, dynamixel://DEVICE?baud=…&pan=…&tilt=…, ptu://DEVICE?baud=…, "
-            "ptu://HOST:PORT, or a ROS 2 domain (ros2://) or topic (ros2:///TOPIC).",
+            "livox2://IP, velodyne://[IP:]PORT, dynamixel://DEVICE?baud=…&pan=…&tilt=…, "
+            "ptu://DEVICE?baud=…, ptu://HOST:PORT, or a ROS 2 domain (ros2://) or topic "
+            "(ros2:///TOPIC).",
         ),
     ],
     ros_domain_id: RosDomainOption = None,
@@ -241,7 +242,7 @@ def info(
     firmware, resolution, limits, speeds and positions)."""
     from rich.markup import escape
 
-    if target.startswith(("livox://", "livox2://")):
+    if target.startswith(("livox://", "livox2://", "velodyne://")):
         from dronetrack.jobs.live import probe_lidar
 
         for name, value in probe_lidar(target):

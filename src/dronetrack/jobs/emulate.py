@@ -1,7 +1,7 @@
 """``dronetrack emulate``'s rig: a scenario's simulator in real time behind an emulated
-Livox LiDAR and turret (``sim.emulate.rig``), on ``simulate``'s timeline.  The turret
-is the preset's: two XM430 servos for the WidowX, a FLIR PTU for the PTU-E46
-(``TURRET_EMULATORS``).
+LiDAR (a Livox, or a VLP-16) and turret (``sim.emulate.rig``), on ``simulate``'s
+timeline.  The turret is the preset's: two XM430 servos for the WidowX, a FLIR PTU for
+the PTU-E46 (``TURRET_EMULATORS``).
 
 The world is built as ``simulate`` builds it, from the same seed: the same flight,
 starting after the background scan, and the turret at the same start pose.  Only its
@@ -25,7 +25,7 @@ from dronetrack.jobs.run import run_seeds, turret_pipeline
 from dronetrack.jobs.simulate import flight_config, resolve_run, start_angles
 from dronetrack.sim.build import build_world
 from dronetrack.sim.emulate.livox_stream import PointSource
-from dronetrack.sim.emulate.rig import DeviceFactory, EmulatedRig, livox_device
+from dronetrack.sim.emulate.rig import DeviceFactory, EmulatedRig, lidar_device
 from dronetrack.sim.world import FrameTruth, SimWorld
 from dronetrack.types import Frame
 
@@ -54,6 +54,7 @@ def emulated_rig(
     serial_link: Path | None = None,
     truth: Path | None = None,
     any_ports: bool = False,
+    lidar_dest: tuple[str, int] | None = None,
     warm_up: bool = True,
     on_slice: Callable[[Frame, FrameTruth], None] | None = None,
     ptu_baud: int = DEFAULT_BAUD,
@@ -63,19 +64,19 @@ def emulated_rig(
     """The rig of scenario ``cfg`` (resolved first), not yet started; a PTU-E46 turret
     is an emulated PTU on a line paced at ``ptu_baud``.
 
-    ConfigError if the scenario's sensor is not a Livox the emulator knows;
-    DeviceError if the device's ports cannot be bound or the truth file written.
-    ``warm_up`` compiles the simulator's kernels first, so the first slices are on time;
-    ``any_ports`` and ``on_slice`` as ``livox_device`` and ``EmulatedRig`` say.
-    With ``ros2``, the rig is on ROS 2 domain ``ros_domain_id`` instead
-    (``sim.emulate.ros2``: livox_ros_driver2's topic, /tf and the turret's topics; no
-    UDP device, no pseudo-terminal; any sensor model).
+    ConfigError if the scenario's sensor is not one the emulator knows; DeviceError if
+    the device's ports cannot be bound or the truth file written.  ``warm_up``
+    compiles the simulator's kernels first, so the first slices are on time;
+    ``any_ports``, ``lidar_dest`` (where a VLP-16 sends) and ``on_slice`` as
+    ``lidar_device`` and ``EmulatedRig`` say.  With ``ros2``, the rig is on ROS 2
+    domain ``ros_domain_id`` instead (``sim.emulate.ros2``: livox_ros_driver2's topic,
+    /tf and the turret's topics; no UDP device, no pseudo-terminal; any sensor model).
     """
     cfg = resolve_run(cfg)
     spec = turret_spec(cfg.turret)
     make_device: DeviceFactory
     if ros2 is None:
-        make_device = livox_device(cfg.sensor.model, lidar_ip, any_ports=any_ports)
+        make_device = lidar_device(cfg.sensor, lidar_ip, any_ports=any_ports, dest=lidar_dest)
     else:
         from dronetrack.sim.emulate.ros2 import Ros2Device
 

@@ -11,9 +11,12 @@ turret scans the background for ``background.scan_s`` seconds of it (unless a
 saved model is loaded), then the pipeline tracks until ``duration_s`` more have
 passed, the stream ends (a ``file://`` recording) or the run is stopped.
 
-The LiDAR: ``livox://IP`` (SDK 1), ``livox2://IP`` (SDK 2), or ``file://RECORDING``,
-any recording ``track`` reads, played at wall-clock speed (``sources.paced``).  The
-turret: ``dynamixel://…``, ``ptu://…`` or ``none`` (``actuators.turrets``).
+The LiDAR: ``livox://IP`` (SDK 1), ``livox2://IP`` (SDK 2), ``velodyne://[IP:]PORT``
+(a VLP-16, ``jobs.velodyne``: frames of one revolution or of the integration time, as
+the scenario's sensor says), ``ros2:///TOPIC`` (``jobs.live_ros2``), or
+``file://RECORDING``, any recording ``track`` reads, played at wall-clock speed
+(``sources.paced``).  The turret: ``dynamixel://…``, ``ptu://…``, ``ros2:///…`` or
+``none`` (``actuators.turrets``).
 
 Ending.  A stop request (Ctrl-C, SIGTERM) ends the loop after the frame in hand: the
 run is reported as interrupted.  A device error (a silent LiDAR, a servo that does
@@ -36,7 +39,7 @@ import numpy as np
 
 from dronetrack.actuators.turrets import FixedSensor, LimitGuard, check_turret_uri, open_turret
 from dronetrack.config.rig import resolve_turret, target_spec, turret_spec
-from dronetrack.config.run import ScenarioConfig
+from dronetrack.config.run import ScenarioConfig, SensorConfig
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.eval.log import TrackLog
 from dronetrack.formats.ros2_names import ROS2_SCHEME
@@ -46,7 +49,7 @@ from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_p
 from dronetrack.pipeline import run
 from dronetrack.seams import Sink, Source
 from dronetrack.sinks.track_log import TrackLogSink
-from dronetrack.sources.live import LiveSource, PointStream, TruthFile
+from dronetrack.sources.live import Assembler, LiveSource, PointStream, TruthFile
 from dronetrack.sources.paced import FILE_SCHEME, PacedSource
 from dronetrack.types import Sample
 
@@ -68,7 +71,7 @@ __all__ = [
 
 Progress = Callable[[int, int], None]
 LogSink = Callable[[TrackLog], None]
-LIDAR_SCHEMES = ("livox://", "livox2://", FILE_SCHEME, ROS2_SCHEME)
+LIDAR_SCHEMES = ("livox://", "livox2://", "velodyne://", FILE_SCHEME, ROS2_SCHEME)
 OPEN_TIMEOUT_S = 5.0  # how long a LiDAR has to answer the connection and start sampling
 
 
@@ -93,9 +96,12 @@ def _with_host(uri: str, host_ip: str | None) -> str:
     return f"{uri}{'&' if '?' in uri else '?'}host={host_ip}"
 
 
-def open_point_stream(uri: str, host_ip: str | None = None) -> OpenStream:
-    """The (not yet opened) client of a ``livox://`` or ``livox2://`` LiDAR; ConfigError
-    for a bad URI or ``--host-ip``."""
+def open_point_stream(
+    uri: str, host_ip: str | None = None, sensor: SensorConfig | None = None
+) -> OpenStream:
+    """The (not yet opened) client of a ``livox://``, ``livox2://`` or ``velodyne://``
+    LiDAR (a VLP-16's points in the frame of ``sensor``'s mount); ConfigError for a bad
+    URI or ``--host-ip``."""
     if uri.startswith("livox://"):
         from dronetrack.sources.livox_udp import LivoxClient
 
@@ -104,9 +110,14 @@ def open_point_stream(uri: str, host_ip: str | None = None) -> OpenStream:
         from dronetrack.sources.livox2_udp import Livox2Client
 
         return Livox2Client(_with_host(uri, host_ip))
+    if uri.startswith("velodyne://"):
+        from dronetrack.jobs.velodyne import velodyne_client
+
+        return velodyne_client(_with_host(uri, host_ip), sensor)
     raise ConfigError(
         f"--lidar {uri!r}: give livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP "
-        "(Mid-360), ros2:///TOPIC (a ROS 2 point topic) or file://RECORDING"
+        "(Mid-360), velodyne://[IP:]PORT (VLP-16), ros2:///TOPIC (a ROS 2 point topic) or "
+        "file://RECORDING"
     )
 
 
@@ -266,6 +277,7 @@ def run_live(
     truth = TruthFile(setup.truth) if setup.truth is not None else None
     radius = 0.5 * target_spec(cfg.drone.model).s_diag + TARGET_MARGIN_M
     stream: OpenStream | None = None
+    assembler: Assembler | None = None
     ros2: Ros2Link | None = None
     if lidar.startswith(FILE_SCHEME):
         from dronetrack.sources.recordings import open_recording
@@ -278,8 +290,13 @@ def run_live(
         ros2 = Ros2Link(lidar, setup.ros_domain_id)
         period = _frame_period(cfg.sensor.integration_time_s, "the scenario's sensor")
     else:
-        stream = open_point_stream(lidar, setup.host_ip)
-        period = _frame_period(cfg.sensor.integration_time_s, "the scenario's sensor")
+        stream = open_point_stream(lidar, setup.host_ip, cfg.sensor)
+        period, assembler = cfg.sensor.integration_time_s, None
+        if lidar.startswith("velodyne://"):
+            from dronetrack.jobs.velodyne import velodyne_frames
+
+            period, assembler = velodyne_frames(cfg.sensor)
+        period = _frame_period(period, "the scenario's sensor")
     sensor = cfg.sensor.model_copy(update={"integration_time_s": period})
     cfg = resolve_pipeline(cfg.model_copy(update={"sensor": sensor}))
     spec = turret_spec(cfg.turret)
@@ -323,6 +340,7 @@ def run_live(
                         spec.mount,
                         reader,
                         period_s=period,
+                        assembler=assembler,
                         max_frames=setup.max_frames,
                         duration_s=total_s,
                         truth=truth,
@@ -425,7 +443,12 @@ def probe_lidar(uri: str, sample_s: float = 0.5) -> list[tuple[str, str]]:
     its parameter inquiry reports (serial number, product, firmware, loader and
     hardware versions, MAC, work state); the host address and command port the
     connection announced, then what ``sample_s`` seconds of sampling bring (packets,
-    points, lost and malformed packets).  DeviceError if it does not answer."""
+    points, lost and malformed packets).  DeviceError if it does not answer.  A VLP-16
+    (``velodyne://``) is only listened to: ``jobs.velodyne.probe_velodyne``."""
+    if uri.startswith("velodyne://"):
+        from dronetrack.jobs.velodyne import probe_velodyne
+
+        return probe_velodyne(uri, sample_s)
     from dronetrack.sources.livox2_udp import Livox2Client
     from dronetrack.sources.livox_udp import LivoxClient
 

@@ -56,6 +56,10 @@ class PointBatch:
     points came from, with a return or not (None: not known, the points' own times
     stand for them).  A sensor's packets carry its firings without a return too, so
     they tell that time has passed where no point came back (open sky).
+
+    ``cuts``: times [ns] within those firings at which a new frame starts, in order
+    (a spinning head's revolutions, ``revolutions.RevolutionAssembler``); empty for a
+    stream cut by time.
     """
 
     xyz: FloatArray
@@ -63,6 +67,7 @@ class PointBatch:
     reflectivity: NDArray[np.uint8]
     line: NDArray[np.uint8]
     firings: tuple[int, int] | None = None
+    cuts: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.t_ns)
@@ -76,9 +81,14 @@ class PointBatch:
         return len(self.t_ns)
 
     def take(self, sel: slice | NDArray[np.intp] | NDArray[np.bool_]) -> PointBatch:
-        """The points ``sel``, from the same packets (the same ``firings``)."""
+        """The points ``sel``, from the same packets (the same ``firings`` and ``cuts``)."""
         return PointBatch(
-            self.xyz[sel], self.t_ns[sel], self.reflectivity[sel], self.line[sel], self.firings
+            self.xyz[sel],
+            self.t_ns[sel],
+            self.reflectivity[sel],
+            self.line[sel],
+            self.firings,
+            self.cuts,
         )
 
     @property

@@ -1,16 +1,19 @@
 """A live LiDAR as a Source: packets to frames in real time, with the turret's pose.
 
 A reader thread takes the decoded point batches of a point stream (``livox://``,
-``livox2://``), cuts them into frames by the points' own times
-(``assembly.FrameAssembler``) and queues each frame as it completes, with the moment
-its last packet arrived.  The run loop takes frames from the queue as fast as it can
-process them.  The queue holds ``max_frames`` frames: when processing falls behind,
-the oldest whole frame is dropped and counted (``frames_dropped``), so the pipeline
-always works on the newest data and memory stays bounded.
+``livox2://``, ``velodyne://``), cuts them into frames by the points' own times
+(``assembly.FrameAssembler``; or, given another ``Assembler``, as it says: a spinning
+head's revolutions, ``revolutions.RevolutionAssembler``) and queues each frame as it
+completes, with the moment its last packet arrived.  The run loop takes frames from
+the queue as fast as it can process them.  The queue holds ``max_frames`` frames:
+when processing falls behind, the oldest whole frame is dropped and counted
+(``frames_dropped``), so the pipeline always works on the newest data and memory
+stays bounded.
 
-Time.  Every time in the run is the sensor's, in seconds since the first point (the
-run's clock, as ``seams`` says).  The turret's readings are stamped on the host's
-monotonic clock and moved onto the sensor's by the offset
+Time.  Every time in the run is the sensor's, in seconds since frame 0's start (the
+first point, or the first revolution's start; the run's clock, as ``seams`` says).
+The turret's readings are stamped on the host's monotonic clock and moved onto the
+sensor's by the offset
 
     δ = max over batches (t_last firing − t_host at its arrival)
 
@@ -72,6 +75,7 @@ from dronetrack.types import Sample, TurretState
 
 __all__ = [
     "LEAD_S",
+    "Assembler",
     "LiveSource",
     "PointStream",
     "PolledTurret",
@@ -85,6 +89,9 @@ __all__ = [
 POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 POSE_WAIT_S = 1.0  # longest a frame waits for a fresh turret reading
 LEAD_S = 0.05  # how far the newest reading's rates carry the pose beyond it [s]
+# A frame ending this close before the duration ends the run: a revolution ends where
+# the azimuth passes the cut angle, to a few µs of the nominal period.
+END_SLACK_S = 1e-4
 
 
 class PointStream(Protocol):
@@ -99,6 +106,17 @@ class PointStream(Protocol):
     def read(self, timeout_s: float = 0.1) -> PointBatch: ...
 
     def close(self) -> None: ...
+
+
+class Assembler(Protocol):
+    """What cuts a stream into frames (``assembly.FrameAssembler`` by time,
+    ``revolutions.RevolutionAssembler`` by revolution): the frames each batch
+    completes, and the time of frame 0's start (the run's clock's zero; None before
+    it is known)."""
+
+    t0_ns: int | None
+
+    def push(self, batch: PointBatch) -> list[StreamFrame]: ...
 
 
 class TruthFile:
@@ -269,7 +287,9 @@ class LiveSource:
     ``mount``: the sensor's mount on the turret; ``turret``: its readings give the
     sensor pose, a ``PolledTurret``'s every reading, else one ``state`` a frame
     (None: a fixed sensor at pan = tilt = 0); ``period_s``: the
-    integration time; ``max_frames``: the queue bound; ``duration_s``: stop after
+    integration time (the pipeline's frame period); ``assembler``: how frames are cut
+    (None: by ``period_s``, ``FrameAssembler``); ``max_frames``: the queue bound;
+    ``duration_s``: stop after the frame that ends at (within ``END_SLACK_S``) or after
     this much sensor time (None: until the stream ends or the run is stopped);
     ``truth``: the target's positions in the sensor's time base (``--truth``; a
     ``TruthFile`` is read as it grows), and
@@ -284,6 +304,7 @@ class LiveSource:
         turret: TurretReader | None = None,
         *,
         period_s: float = 0.1,
+        assembler: Assembler | None = None,
         max_frames: int = 2,
         duration_s: float | None = None,
         truth: GroundTruth | TruthFile | None = None,
@@ -300,7 +321,7 @@ class LiveSource:
         self.truth_radius = truth_radius
         self._run_truth = None if truth is None else RunTruth(truth, truth_radius)
         self.clock = clock
-        self.assembler = FrameAssembler(period_s)
+        self.assembler: Assembler = FrameAssembler(period_s) if assembler is None else assembler
         self._turret_poses = TurretPoses(turret, mount, period_s)
         self.poses = self._turret_poses.history
         self._period = period_s
@@ -428,7 +449,7 @@ class LiveSource:
                 frame = self.poses.frame(done.frame, t0_ns)
                 self.frames_delivered += 1
                 yield Sample(frame, self._truth_at(frame.end, t0_ns), state, done.received)
-                if self.duration_s is not None and frame.end >= self.duration_s:
+                if self.duration_s is not None and frame.end >= self.duration_s - END_SLACK_S:
                     return
         finally:
             self.stop()

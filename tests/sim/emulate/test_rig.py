@@ -5,11 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dronetrack.config.run import SensorConfig
 from dronetrack.errors import ConfigError
+from dronetrack.sim.emulate.lidars import DEVICES, default_velodyne_dest, host_uri, lidar_device
 from dronetrack.sim.emulate.livox import EmulatedLivox
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
 from dronetrack.sim.emulate.livox_stream import GridSource
 from dronetrack.sim.emulate.rig import TurretTimeline, livox_device
+from dronetrack.sim.emulate.velodyne import EmulatedVelodyne
 
 
 def test_the_timeline_interpolates_the_path_and_holds_outside_it() -> None:
@@ -54,6 +57,30 @@ def test_each_livox_sensor_gets_its_device(sensor: str, kind: type, dev_type: in
         dev.close()
 
 
-def test_a_sensor_no_livox_emulates_is_refused() -> None:
-    with pytest.raises(ConfigError, match=r"Livox sensors \(avia, mid40, mid360\).*'vlp16'"):
-        livox_device("vlp16")
+def test_a_sensor_no_device_emulates_is_refused() -> None:
+    with pytest.raises(
+        ConfigError, match=r"sensors avia, mid40, mid360, vlp16, vlp16-side;.*'file:scan.npy'"
+    ):
+        livox_device("file:scan.npy")
+
+
+@pytest.mark.parametrize(("sensor", "side"), [("vlp16", False), ("vlp16-side", True)])
+def test_each_vlp16_sensor_gets_the_velodyne_device_at_its_spin(sensor: str, side: bool) -> None:
+    cfg = SensorConfig(model=sensor, rpm=900.0)
+    dev = lidar_device(cfg, dest=("127.0.0.1", 23_680))(GridSource(10_000, 0.1))
+    try:
+        assert isinstance(dev, EmulatedVelodyne)
+        assert dev.rpm == 900.0
+        assert (dev.rotation is not None) == side
+        assert host_uri(DEVICES[sensor], dev) == "velodyne://127.0.0.1:23680"
+    finally:
+        dev.close()
+    # by default a loopback VLP-16 sends to 127.0.0.1:2368, as a host on this machine listens
+    dev = lidar_device(sensor)(GridSource(10_000, 0.1))
+    try:
+        assert isinstance(dev, EmulatedVelodyne)
+        assert dev.dest == ("127.0.0.1", 2368)
+        assert dev.rpm == 600.0
+    finally:
+        dev.close()
+    assert default_velodyne_dest("192.168.1.201") == ("255.255.255.255", 2368)

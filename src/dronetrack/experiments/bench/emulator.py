@@ -14,6 +14,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from dronetrack.config.scenarios import get_scenario
+from dronetrack.config.spinning import SPINNING
 from dronetrack.errors import ConfigError, DeviceError
 
 __all__ = [
@@ -37,7 +39,7 @@ class EmulatorProcess:
     domain (None for the Livox chain)."""
 
     proc: subprocess.Popen[bytes]
-    lidar: str  # livox://IP with free host ports, or ros2:///livox/lidar
+    lidar: str  # livox://IP with free host ports, velodyne://IP:2368 or ros2:///livox/lidar
     turret: str  # dynamixel://LINK, ptu://LINK or ros2:///turret, as the emulator printed it
     truth: Path
     ros_domain_id: int | None = None
@@ -89,10 +91,13 @@ def emulator_process(
     link, truth, log_path = workdir / "ttyDXL", workdir / "truth.csv", workdir / "emulate.log"
     args = [scenario, "--seed", str(seed), "--duration", f"{flight_s:g}", "--truth", str(truth)]
     domain = _ros_domain() if chain == "ros2" else None
+    velodyne = domain is None and get_scenario(scenario).sensor.model in SPINNING
     if domain is not None:
         args += ["--ros2", "--ros-domain-id", str(domain)]
     else:
         args += ["--lidar-ip", ip, "--serial-link", str(link), "--ptu-baud", str(ptu_baud)]
+    if velodyne:  # a VLP-16 sends to port 2368 of the emulator's own address
+        args += ["--lidar-dest", f"{ip}:2368"]
     with log_path.open("wb") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "dronetrack", "emulate", *args],
@@ -106,7 +111,7 @@ def emulator_process(
                     f"dronetrack emulate did not start (exit {proc.poll()}); see {log_path}"
                 )
             lidar, turret = (line.split()[1] for line in printed.decode().splitlines()[:2])
-            if domain is None:
+            if domain is None and not velodyne:
                 # host ports 0: free ones, so that no other live run on this machine is met
                 lidar = f"livox://{ip}?cmd_port=0&data_port=0&broadcast_port=0"
             yield EmulatorProcess(proc, lidar, turret, truth, domain)

@@ -1,10 +1,11 @@
 """The live chain on one machine, timed: latency and a memory soak.
 
 Both run ``dronetrack emulate`` in its own process (the simulator in real time behind
-an emulated Livox Avia on UDP at its full 240,000 points/s, and two emulated XM430
-servos on a pseudo-terminal) on a loopback address of its own, and ``run_live`` in
-this process against it through the real protocols, with the Dynamixel turret on the
-emulated servos (or ``none``), writing ``frames.csv`` as ``dronetrack live`` does.
+an emulated Livox Avia on UDP at its full 240,000 points/s, or the LiDAR of another
+scenario, e.g. a VLP-16's 754 packets/s, and two emulated XM430 servos on a
+pseudo-terminal) on a loopback address of its own, and ``run_live`` in this process
+against it through the real protocols, with the Dynamixel turret on the emulated
+servos (or ``none``), writing ``frames.csv`` as ``dronetrack live`` does.
 With ``turret="ptu"`` the scenario's turret is the PTU-E46 instead, and the emulator
 serves a FLIR PTU on the pseudo-terminal, paced at ``ptu_baud`` (``ptu://``).
 The emulator is a separate process as a device is separate hardware: it shares the
@@ -346,8 +347,8 @@ def live_soak(
 class LiveSettings:
     """How long each live measurement runs [s]: the latency run's flight, the soak's
     flight (0: no soak), its warm-up and sampling period, and the live side's
-    background scan (None: the scenario's); and the emulated turret driven (``TURRETS``)
-    with, for the PTU, its line's baud rate."""
+    background scan (None: the scenario's); the scenario emulated (its LiDAR); and the
+    emulated turret driven (``TURRETS``) with, for the PTU, its line's baud rate."""
 
     latency_s: float = 20.0
     soak_s: float = 600.0
@@ -356,6 +357,7 @@ class LiveSettings:
     scan_s: float | None = None
     turret: str = "dynamixel"
     ptu_baud: int = 9600
+    scenario: str = "default"
 
     def checked(self) -> LiveSettings:
         """These settings, or ConfigError naming the bad value."""
@@ -412,6 +414,7 @@ def live_bench(
         turret=turret,
         turret_kind=cfg.turret,
         ptu_baud=cfg.ptu_baud,
+        scenario=cfg.scenario,
         scan_s=cfg.scan_s,
         workdir=workdir,
         progress=stage(f"live latency, {cfg.latency_s:g} s of flight"),
@@ -426,6 +429,7 @@ def live_bench(
             turret=turret,
             turret_kind=cfg.turret,
             ptu_baud=cfg.ptu_baud,
+            scenario=cfg.scenario,
             scan_s=cfg.scan_s,
             workdir=workdir,
             progress=stage(f"live soak, {cfg.soak_s:g} s of flight"),

@@ -7,7 +7,8 @@ sampling started) takes firing k = round(t / Δt); a second point on a taken fir
 or one older than the packets already built, is dropped and counted
 (``points_dropped``).  Firings without a point are sent with zero range (no return),
 as a real device sends them.  Packets hold n firings, and packet p is sent when the
-wall clock since the start of sampling reaches its first firing's time p·n·Δt, the
+wall clock since the start of sampling reaches its first firing's time p·n·Δt (plus
+``send_delay_ns``: a device that sends a packet once its last firing is done), the
 thread sleeping at most 5 ms at a time.  The stream ends with the packet of the
 source's last point.
 
@@ -165,6 +166,7 @@ class StreamingDevice:
         self.source = source
         self.point_interval_ns = point_interval_ns
         self.firings_per_packet = firings_per_packet
+        self.send_delay_ns = 0  # a packet goes this long after its first firing
         # test hooks
         self.drop_every = 0
         self.paused = False
@@ -203,6 +205,11 @@ class StreamingDevice:
 
     def _data_socket(self) -> socket.socket:
         raise NotImplementedError
+
+    def _send_failed(self, exc: OSError) -> bool:
+        """A point packet could not be sent; True stops this round of sending (the
+        packet is skipped either way)."""
+        return False
 
     def _encode(self, xyz: FloatArray, refl: NDArray[np.uint8], first_packet: int) -> list[bytes]:
         """Packets of firings ``xyz`` (a whole number of packets), the first being
@@ -319,7 +326,9 @@ class StreamingDevice:
                 continue
             try:
                 self._data_socket().sendto(packet, target)
-            except OSError:
+            except OSError as exc:
+                if self._send_failed(exc):
+                    return None
                 continue
             self.packets_sent += 1
         return now
@@ -381,6 +390,7 @@ class StreamingDevice:
         self.points_built += len(uniq)  # built; dropped packets are counted apart
         for i, packet in enumerate(packets):
             p = self._next_packet + i
-            self._pending.append((self._t_start + p * n * dt * 1e-9, p, packet))
+            due = self._t_start + (p * n * dt + self.send_delay_ns) * 1e-9
+            self._pending.append((due, p, packet))
         self._next_packet += count
         return True

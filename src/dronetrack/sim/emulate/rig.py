@@ -1,9 +1,11 @@
-"""A whole rig emulated in real time: the simulator behind a Livox LiDAR on UDP and a
-pan-tilt turret on a pseudo-terminal (two XM430 servos, or a FLIR PTU speaking its
-ASCII commands), for ``dronetrack live`` (or any host) to drive with no hardware.
+"""A whole rig emulated in real time: the simulator behind a LiDAR on UDP (a Livox, or
+a Velodyne VLP-16: ``lidars``) and a pan-tilt turret on a pseudo-terminal (two XM430
+servos, or a FLIR PTU speaking its ASCII commands), for ``dronetrack live`` (or any
+host) to drive with no hardware.
 
 Clock.  Scenario time s starts when the host starts sampling: s = τ − τ₀, with τ the
-host's ``time.monotonic()`` and τ₀ the moment the device took the start command.  The
+host's ``time.monotonic()`` and τ₀ the moment the device took the start command (a
+VLP-16, which takes none: the moment its first packet reached a host).  The
 device's packets carry s too (nanoseconds since sampling started, no time
 synchronisation), so the point times, the truth file and the servos share one time
 base.  Another start after a stop runs the scenario again from the start, on a fresh
@@ -43,7 +45,7 @@ import math
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import IO, Any, Protocol, Self
 
@@ -51,17 +53,16 @@ import numpy as np
 
 from dronetrack.config.rig import TurretSpec
 from dronetrack.errors import ConfigError, DeviceError
-from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.formats.ptu import DEFAULT_BAUD
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.sim.emulate.livox import AVIA, MID40, EmulatedLivox
-from dronetrack.sim.emulate.livox2 import EmulatedLivox2
-from dronetrack.sim.emulate.livox_stream import (
-    PointChunk,
-    PointSource,
-    StreamingDevice,
-    frame_chunks,
+from dronetrack.sim.emulate.lidars import (
+    DEVICES,
+    LidarModel,
+    LivoxModel,
+    lidar_device,
+    livox_device,
 )
+from dronetrack.sim.emulate.livox_stream import PointChunk, PointSource, frame_chunks
 from dronetrack.sim.emulate.ptu import EmulatedPtu
 from dronetrack.sim.emulate.ptu_link import PtyPtuLink
 from dronetrack.sim.emulate.pty_link import PtyLink
@@ -73,10 +74,12 @@ __all__ = [
     "DEVICES",
     "DeviceFactory",
     "EmulatedRig",
+    "LidarModel",
     "LivoxModel",
     "RigDevice",
     "SimJoint",
     "TurretTimeline",
+    "lidar_device",
     "livox_device",
 ]
 
@@ -106,58 +109,6 @@ DeviceFactory = Callable[[PointSource], RigDevice]
 WorldFactory = Callable[[float], SimWorld]  # slice length [s] → a fresh world
 RATE_HALF_WINDOW_S = 0.01  # present velocity: slope of the path over ±10 ms
 KEEP_PATH_S = 2.0  # how much of the turret's path the timeline keeps [s]
-
-
-@dataclass(frozen=True, slots=True)
-class LivoxModel:
-    """An emulated Livox model: its name, the host's URI scheme and its SDK."""
-
-    name: str
-    scheme: str
-    sdk: int
-
-
-# sensor model of a scenario → the device that streams it
-DEVICES = {
-    "avia": LivoxModel("Livox Avia", "livox", 1),
-    "mid40": LivoxModel("Livox Mid-40", "livox", 1),
-    "mid360": LivoxModel("Livox Mid-360", "livox2", 2),
-}
-
-
-def livox_device(
-    sensor: str, ip: str = "127.0.0.1", *, any_ports: bool = False, broadcast: bool = True
-) -> DeviceFactory:
-    """The emulated device of a scenario's ``sensor`` on ``ip``: an SDK 1 device for the
-    Avia and Mid-40 (command port 65000), the SDK 2 Mid-360 (ports 56000-56300);
-    ``any_ports`` binds free ports instead (tests).  An SDK 1 device with ``broadcast``
-    announces itself to port 55000 of 127.0.0.1 if ``ip`` is a loopback address, else of
-    255.255.255.255.  ConfigError for a sensor no Livox device emulates."""
-    if sensor not in DEVICES:
-        known = ", ".join(DEVICES)
-        raise ConfigError(
-            f"emulate runs Livox sensors ({known}); this scenario's sensor is {sensor!r}"
-        )
-    if DEVICES[sensor].sdk == 2:
-
-        def sdk2(source: PointSource) -> StreamingDevice:
-            if any_ports:
-                return EmulatedLivox2(
-                    source, ip=ip, discovery_port=0, cmd_port=0, push_port=0, point_port=0
-                )
-            return EmulatedLivox2(source, ip=ip)
-
-        return sdk2
-    dev_type = AVIA if sensor == "avia" else MID40
-    to = None
-    if broadcast:
-        to = ("127.0.0.1" if ip.startswith("127.") else "255.255.255.255", s1.BROADCAST_PORT)
-
-    def sdk1(source: PointSource) -> StreamingDevice:
-        port = 0 if any_ports else s1.LIDAR_CMD_PORT
-        return EmulatedLivox(source, dev_type=dev_type, ip=ip, device_port=port, broadcast_to=to)
-
-    return sdk1
 
 
 class TurretTimeline:
@@ -231,13 +182,13 @@ class SimJoint:
 
 
 class EmulatedRig:
-    """The simulator in real time behind an emulated Livox device and two emulated
-    XM430 servos, or with ``ptu`` (a turret preset) an emulated FLIR PTU paced at
+    """The simulator in real time behind an emulated LiDAR and two emulated XM430
+    servos, or with ``ptu`` (a turret preset) an emulated FLIR PTU paced at
     ``ptu_baud``, on a pseudo-terminal (see the module docstring).
 
     ``make_world(slice_s)`` builds the scenario's world with integration time
     ``slice_s`` (called once now and again at each restart of sampling);
-    ``make_device(source)`` the LiDAR (``livox_device``); ``duration_s``: scenario time
+    ``make_device(source)`` the LiDAR (``lidar_device``); ``duration_s``: scenario time
     streamed from the start of sampling; ``serial_link``: a symlink to the servos'
     pseudo-terminal; ``truth``: the truth CSV.  ``start`` opens the servo link and
     starts the device; ``close`` stops both and closes the truth file.
