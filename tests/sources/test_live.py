@@ -345,9 +345,9 @@ def test_the_truth_in_the_sensors_time_base_is_shifted_to_the_runs_clock() -> No
 
 def test_a_stop_request_ends_the_wait_for_a_frame(monkeypatch: pytest.MonkeyPatch) -> None:
     """Ctrl-C or SIGTERM while no frame is complete: the iteration ends at once."""
-    import dronetrack.sources.live as live
+    import dronetrack.sources.frame_queue as frame_queue
 
-    monkeypatch.setattr(live, "stop_requested", lambda: True)
+    monkeypatch.setattr(frame_queue, "stop_requested", lambda: True)
     stream = _Scripted([[0, 1]])
     t0 = time.monotonic()
     assert list(LiveSource(stream, MountGeometry(), period_s=0.1)) == []

@@ -57,7 +57,6 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,8 +66,8 @@ import numpy as np
 
 from dronetrack.errors import ConfigError, DeviceError, DronetrackError, InputError
 from dronetrack.geometry.mount import MountGeometry
-from dronetrack.interrupt import stop_requested
 from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, PoseHistory, StreamFrame
+from dronetrack.sources.frame_queue import POLL_S, FrameQueue
 from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth
 from dronetrack.types import Sample, TurretState
@@ -86,7 +85,6 @@ __all__ = [
     "read_truth_csv",
 ]
 
-POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 POSE_WAIT_S = 1.0  # longest a frame waits for a fresh turret reading
 LEAD_S = 0.05  # how far the newest reading's rates carry the pose beyond it [s]
 # A frame ending this close before the duration ends the run: a revolution ends where
@@ -325,14 +323,10 @@ class LiveSource:
         self._turret_poses = TurretPoses(turret, mount, period_s)
         self.poses = self._turret_poses.history
         self._period = period_s
-        self.frames_dropped = 0
         self.frames_delivered = 0
         self._offset: float | None = None  # δ [s] (module docstring)
-        self._queue: deque[_Done] = deque()
-        self._cond = threading.Condition()
-        self._error: DronetrackError | None = None
-        self._ended = False
         self._stop = threading.Event()
+        self._queue: FrameQueue[_Done] = FrameQueue(max_frames, self._stop)
         self._thread: threading.Thread | None = None
 
     @property
@@ -378,33 +372,22 @@ class LiveSource:
         except OSError as exc:  # a socket error the stream did not name: name it here
             self._fail(DeviceError(f"{self.stream.name}: {exc}"))
         finally:
-            with self._cond:
-                self._ended = True
-                self._cond.notify_all()
+            self._queue.end()
 
     def _fail(self, exc: DronetrackError) -> None:
-        with self._cond:
-            self._error = exc
-            self._cond.notify_all()
+        self._queue.fail(exc)
 
     def _hand_on(self, done: _Done) -> None:
-        with self._cond:
-            if len(self._queue) >= self.max_frames:
-                self._queue.popleft()  # the oldest whole frame goes
-                self.frames_dropped += 1
-            self._queue.append(done)
-            self._cond.notify_all()
+        self._queue.put(done)  # the oldest whole frame goes if the queue is full
 
     def _next(self) -> _Done | None:
         """The oldest queued frame; None once the stream has ended or stop() was called."""
-        with self._cond:
-            while not self._queue:
-                if self._error is not None:
-                    raise self._error
-                if self._ended or self._stop.is_set() or stop_requested():
-                    return None
-                self._cond.wait(POLL_S)
-            return self._queue.popleft()
+        return self._queue.get()
+
+    @property
+    def frames_dropped(self) -> int:
+        """Whole frames dropped because the run fell behind (``FrameQueue``)."""
+        return self._queue.dropped
 
     # -- the Source ---------------------------------------------------------------------
 

@@ -40,7 +40,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -55,6 +55,7 @@ from dronetrack.formats.ros2_msgs import NS, POINTCLOUD2, TF_MESSAGE, decode_tf,
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.interrupt import stop_requested
 from dronetrack.sources.dds import DdsDomain, ReaderSet
+from dronetrack.sources.frame_queue import POLL_S, FrameQueue
 from dronetrack.sources.live import RunTruth, TruthFile, TurretPoses, TurretReader
 from dronetrack.sources.playback import RecordedTruth
 from dronetrack.sources.recording import GroundTruth, fixed_pose_frame
@@ -68,7 +69,6 @@ log = logging.getLogger(__name__)
 CUSTOM_MSG = "livox_ros_driver2/msg/CustomMsg"
 POINT_TYPES = (POINTCLOUD2, CUSTOM_MSG)
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
-POLL_S = 0.05  # longest the reader blocks before it looks at the stop request
 TF_WAIT_S = 0.03  # longest a frame waits for /tf (or the truth) to reach its end
 TF_KEEP_S = 10.0  # how much /tf history is kept
 POSE_SAMPLES = 5  # sensor poses over a frame from the turret's readings
@@ -144,7 +144,6 @@ class Ros2Source:
         self.first_s = first_s
         self.stall_s = stall_s
         self.clock = clock
-        self.frames_dropped = 0
         self.frames_delivered = 0
         self.packets_lost = 0  # DDS reports no per-sample loss to a best-effort reader
         self.skipped: Counter[str] = Counter()
@@ -157,11 +156,9 @@ class Ros2Source:
         self._truth: GroundTruth | None = None
         self._truth_file = None if truth is None else RunTruth(truth, truth_radius)
         self._truth_used = 0
-        self._queue: deque[_Cloud] = deque()
-        self._cond = threading.Condition()
-        self._error: DronetrackError | None = None
-        self._ended = False
         self._stop = threading.Event()
+        self._queue: FrameQueue[_Cloud] = FrameQueue(max_frames, self._stop)
+        self._cond = self._queue.cond  # also guards the transforms and truth handed over
         self.points = domain.reader(topic, msg_type, "sensor")
         self._tf_readers = [
             domain.reader("/tf", TF_MESSAGE, "tf"),
@@ -210,13 +207,9 @@ class Ros2Source:
                 if last is not None and now - last > self.stall_s:
                     raise DeviceError(f"{self.name}: no message for {self.stall_s:g} s")
         except DronetrackError as exc:
-            with self._cond:
-                self._error = exc
-                self._cond.notify_all()
+            self._queue.fail(exc)
         finally:
-            with self._cond:
-                self._ended = True
-                self._cond.notify_all()
+            self._queue.end()
 
     def _take_side_topics(self) -> None:
         tf: list[Any] = []
@@ -273,24 +266,17 @@ class Ros2Source:
         )
         delta = last - host
         self._offset = delta if self._offset is None else max(self._offset, delta)
-        with self._cond:
-            if len(self._queue) >= self.max_frames:
-                self._queue.popleft()
-                self.frames_dropped += 1
-            self._queue.append(_Cloud(stamp_ns, frame_id, points, received, host))
-            self._cond.notify_all()
+        self._queue.put(_Cloud(stamp_ns, frame_id, points, received, host))
 
     # -- the Source ---------------------------------------------------------------------
 
     def _next(self) -> _Cloud | None:
-        with self._cond:
-            while not self._queue:
-                if self._error is not None:
-                    raise self._error
-                if self._ended or self._stop.is_set() or stop_requested():
-                    return None
-                self._cond.wait(POLL_S)
-            return self._queue.popleft()
+        return self._queue.get()
+
+    @property
+    def frames_dropped(self) -> int:
+        """Whole frames dropped because the run fell behind (``FrameQueue``)."""
+        return self._queue.dropped
 
     def _absorb(self) -> None:
         """Move the transforms and truth that came in into the buffer (run clock)."""
