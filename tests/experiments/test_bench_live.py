@@ -78,13 +78,13 @@ def test_quick_live_bench_writes_every_figure(
 def test_quick_live_bench_of_a_vlp16_with_a_fixed_sensor(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    args = ["bench", "--live", "--quick", "--scenario", "walk-line", "--no-turret"]
+    args = ["bench", "--live", "--quick", "--scenario", "walk-line", "--turret", "none"]
     assert run([*args, "--soak-s", "0", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "the LiDAR of walk-line" in out
     data = json.loads((tmp_path / "bench_live.json").read_text())
     assert data["settings"]["scenario"] == "walk-line"
-    assert data["settings"]["turret"] is False
+    assert data["settings"]["turret"] == "none"
     lat = data["live_latency"]
     assert lat["scenario"] == "walk-line"
     assert lat["turret"] == "none"
@@ -122,7 +122,7 @@ def test_resident_memory_counts_touched_pages() -> None:
         (["--live", "--latency-s", "0"], "flight of > 0 s"),
         (["--live", "--soak-s", "-1"], "0: none"),
         (["--scenario", "walk-line"], "go with --live"),
-        (["--no-turret"], "go with --live"),
+        (["--turret", "none"], "go with --live"),
         (["--live", "--scenario", "nowhere"], "unknown scenario 'nowhere'"),
     ],
 )
