@@ -95,6 +95,27 @@ def test_quick_live_bench_of_a_vlp16_with_a_fixed_sensor(
     assert data["live_soak"] is None
 
 
+def test_quick_live_bench_over_ros2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--ros2``: emulate --ros2 and live with ros2:// LiDAR and turret, on a domain of
+    the benchmark's own, over Cyclone on loopback."""
+    from ros2_helpers import loopback_dds
+
+    loopback_dds(tmp_path, monkeypatch)  # the loopback configuration, for the emulator too
+    args = ["bench", "--live", "--quick", "--ros2", "--soak-s", "0"]
+    assert run([*args, "--out", str(tmp_path / "out")]) == 0
+    assert "over ROS 2 (DDS)" in capsys.readouterr().out
+    data = json.loads((tmp_path / "out" / "bench_live.json").read_text())
+    assert (data["settings"]["chain"], data["settings"]["turret"]) == ("ros2", "ros2")
+    lat = data["live_latency"]
+    assert lat["turret"] == "ros2:///turret"
+    # 2 s of flight at 10 Hz after the scan: every frame logged or dropped
+    assert 15 <= lat["frames"] + lat["frames_dropped"] <= 21
+    assert 0 < lat["latency_ms_p50"] <= lat["latency_ms_p99"]
+    assert data["live_soak"] is None
+
+
 def test_growth_counts_from_the_end_of_the_warm_up() -> None:
     samples = [(0.0, 50.0), (5.0, 120.0), (10.0, 100.0), (15.0, 103.0), (20.0, 101.0)]
     # from the first sample at or after 10 s (100 MB) to the largest after it (103 MB)

@@ -123,10 +123,8 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
         table.add_row(label, _cell(row[key], unit), *_target_cells(targets, f"{section}.{key}"))
 
     lat = results["live_latency"]
-    turrets = {"none": "no turret", "dynamixel": "Dynamixel turret"}
+    turrets = {"none": "no turret", "dynamixel": "Dynamixel turret", "ros2": "ROS 2 turret"}
     turret = turrets.get(s["turret"], f"FLIR PTU-E46 at {s['ptu_baud']} baud")
-    if s.get("chain") == "ros2" and s["turret"] != "none":
-        turret = "ROS 2 turret"
     table.add_row(f"latency run: {lat['flight_s']:g} s of flight, {turret}", "", "", "")
     for label, key, unit in (
         ("latency p50", "latency_ms_p50", " ms"),

@@ -440,7 +440,8 @@ def live_bench(
         "settings": {
             **asdict(cfg),
             "quick": quick,
-            "turret": cfg.turret if turret else "none",
+            # the turret driven: the emulated one of the chain, or none
+            "turret": ("ros2" if chain == "ros2" else cfg.turret) if turret else "none",
             "chain": chain,
         },
         "live_latency": latency,
