@@ -243,7 +243,7 @@ def info(
     from rich.markup import escape
 
     if target.startswith(("livox://", "livox2://", "velodyne://")):
-        from dronetrack.jobs.live import probe_lidar
+        from dronetrack.jobs.live_probe import probe_lidar
 
         for name, value in probe_lidar(target):
             typer.echo(f"{name}: {value}")

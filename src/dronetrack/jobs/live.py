@@ -55,7 +55,6 @@ from dronetrack.types import Sample
 
 if TYPE_CHECKING:
     from dronetrack.jobs.live_ros2 import Ros2Link
-    from dronetrack.sources.livox2_udp import Livox2Client
     from dronetrack.sources.ros2_dds import Ros2Source
 
 __all__ = [
@@ -65,7 +64,6 @@ __all__ = [
     "base_config",
     "live_config",
     "open_point_stream",
-    "probe_lidar",
     "run_live",
 ]
 
@@ -412,73 +410,3 @@ class _TruthOverride:
             t = sample.frame.end
             truth = None if g is None else RecordedTruth(g, g.at(t)[0], self.radius)
             yield replace(sample, truth=truth)
-
-
-def _sdk2_info(client: Livox2Client, unknown: str) -> list[tuple[str, str]]:
-    """``info`` lines of an SDK 2 device's parameter inquiry (keys 0x8000-0x8006)."""
-    info = client.query_info()
-    serial = client.serial or (info.serial if info is not None else None)
-    lines = [("serial number", serial or unknown)]
-    if info is None:
-        return [*lines, ("firmware", "no answer to the parameter inquiry (0x0101)")]
-    state = None
-    if info.work_state is not None:
-        state = f"0x{info.work_state:02X} {info.work_state_name}"
-    missing = "not reported"
-    return [
-        *lines,
-        ("product", info.product or missing),
-        ("firmware", info.firmware or missing),
-        ("loader version", info.loader or missing),
-        ("hardware version", info.hardware or missing),
-        ("MAC", info.mac or missing),
-        ("work state", state or missing),
-    ]
-
-
-def probe_lidar(uri: str, sample_s: float = 0.5) -> list[tuple[str, str]]:
-    """What a Livox LiDAR says of itself (``dronetrack info livox://IP``, ``livox2://IP``),
-    as (name, value) lines: model and device type from discovery; for SDK 1 the
-    broadcast code and the firmware (the device-information query); for SDK 2 what
-    its parameter inquiry reports (serial number, product, firmware, loader and
-    hardware versions, MAC, work state); the host address and command port the
-    connection announced, then what ``sample_s`` seconds of sampling bring (packets,
-    points, lost and malformed packets).  DeviceError if it does not answer.  A VLP-16
-    (``velodyne://``) is only listened to: ``jobs.velodyne.probe_velodyne``."""
-    if uri.startswith("velodyne://"):
-        from dronetrack.jobs.velodyne import probe_velodyne
-
-        return probe_velodyne(uri, sample_s)
-    from dronetrack.sources.livox2_udp import Livox2Client
-    from dronetrack.sources.livox_udp import LivoxClient
-
-    client = open_point_stream(uri)
-    assert isinstance(client, LivoxClient | Livox2Client)
-    unknown = "unknown (no discovery answer)"
-    lines: list[tuple[str, str]] = []
-    try:
-        client.connect(OPEN_TIMEOUT_S)
-        lines.append(("device", client.name))
-        lines.append(("device type", unknown if client.dev_type is None else str(client.dev_type)))
-        if isinstance(client, LivoxClient):
-            lines.append(("broadcast code", client.broadcast_code or unknown))
-            firmware = client.query_firmware()
-            lines.append(("firmware", firmware or "no answer to the device-information query"))
-        else:
-            lines.extend(_sdk2_info(client, unknown))
-        lines.append(("host", f"{client.host_ip}, command port {client.cmd_port}"))
-        client.open(OPEN_TIMEOUT_S)
-        points = 0
-        until = time.monotonic() + sample_s
-        while time.monotonic() < until:
-            points += len(client.read(0.05))
-        lines.append(
-            (
-                f"sampling {sample_s:g} s",
-                f"{client.packets_received} packets, {points} points, "
-                f"{client.packets_lost} lost, {client.packets_malformed} malformed",
-            )
-        )
-    finally:
-        client.close()
-    return lines
