@@ -152,10 +152,11 @@ class Ros2Source:
         self._origin_ns: int | None = None
         self._offset: float | None = None  # δ [s]
         self._tf_pending: list[Any] = []
-        self._truth_rows: list[tuple[int, float, float, float]] = []
+        self._truth_rows: list[tuple[int, float, float, float]] = []  # handed over, not taken
+        self._truth_t = np.empty(0)  # the truth taken so far: run-clock times [s], sorted
+        self._truth_p = np.empty((0, 3))  # and positions [m]
         self._truth: GroundTruth | None = None
         self._truth_file = None if truth is None else RunTruth(truth, truth_radius)
-        self._truth_used = 0
         self._stop = threading.Event()
         self._queue: FrameQueue[_Cloud] = FrameQueue(max_frames, self._stop)
         self._cond = self._queue.cond  # also guards the transforms and truth handed over
@@ -284,16 +285,21 @@ class Ros2Source:
         assert origin is not None
         with self._cond:
             tf, self._tf_pending = self._tf_pending, []
-            rows = self._truth_rows[self._truth_used :]
-            self._truth_used = len(self._truth_rows)
+            rows, self._truth_rows = self._truth_rows, []
         for static, s in tf:
             t = (s.stamp_ns - origin) / NS
             self.tf.add_transform(s.parent, s.child, t, s.translation, s.rotation_xyzw, static)
         if rows:
-            a = np.asarray(self._truth_rows, dtype=np.float64)
-            t = (a[:, 0] - origin) / NS
-            order = np.argsort(t, kind="stable")
-            self._truth = GroundTruth(t[order], a[order, 1:], max_gap_s=max(1.0, 10 * self._period))
+            # only the new rows are converted; the whole is sorted again only when one of
+            # them comes before a row already taken
+            stamps = np.array([r[0] for r in rows], dtype=np.int64)
+            t = np.concatenate([self._truth_t, (stamps - origin) / NS])
+            p = np.concatenate([self._truth_p, np.array([r[1:] for r in rows], np.float64)])
+            if np.any(np.diff(t) < 0):
+                order = np.argsort(t, kind="stable")
+                t, p = t[order], p[order]
+            self._truth_t, self._truth_p = t, p
+            self._truth = GroundTruth(t, p, max_gap_s=max(1.0, 10 * self._period))
 
     def _tf_behind(self, frame_id: str, end: float) -> bool:
         """Whether the moving links above ``frame_id`` or the truth end before ``end``."""
