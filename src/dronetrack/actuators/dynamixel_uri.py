@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from dronetrack.actuators.uri_query import query_values
 from dronetrack.errors import ConfigError
 
 __all__ = [
@@ -60,18 +61,8 @@ def parse_dynamixel_uri(uri: str) -> DynamixelUri:
     device, _, query = uri[len(SCHEME) :].partition("?")
     if not device:
         raise ConfigError(f"Dynamixel turret URI {uri!r} names no serial device")
-    values: dict[str, float] = {}
-    for part in query.split("&") if query else []:
-        key, eq, text = part.partition("=")
-        if not eq or not key:
-            raise ConfigError(f"Dynamixel turret URI {uri!r}: {part!r} is not key=value")
-        if key not in (*_INT_KEYS, "poll_hz"):
-            raise ConfigError(
-                f"Dynamixel turret URI {uri!r}: unknown key {key!r} (baud, pan, tilt, poll_hz)"
-            )
-        if key in values:
-            raise ConfigError(f"Dynamixel turret URI {uri!r}: {key} given twice")
-        values[key] = _value(uri, key, text)
+    given = query_values(uri, query, "Dynamixel turret URI", (*_INT_KEYS, "poll_hz"))
+    values = {key: _value(uri, key, text) for key, text in given.items()}
     out = DynamixelUri(
         device,
         int(values.get("baud", 1_000_000)),

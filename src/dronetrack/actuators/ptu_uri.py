@@ -20,6 +20,7 @@ import math
 import re
 from dataclasses import dataclass
 
+from dronetrack.actuators.uri_query import query_values
 from dronetrack.errors import ConfigError
 from dronetrack.formats.ptu import BAUD_RATES, DEFAULT_BAUD
 
@@ -64,16 +65,7 @@ def parse_ptu_uri(uri: str) -> PtuUri:
     where, _, query = uri[len(SCHEME) :].partition("?")
     if not where:
         raise ConfigError(f"FLIR PTU URI {uri!r} names no serial device or HOST:PORT")
-    values: dict[str, str] = {}
-    for part in query.split("&") if query else []:
-        key, eq, text = part.partition("=")
-        if not eq or not key:
-            raise ConfigError(f"FLIR PTU URI {uri!r}: {part!r} is not key=value")
-        if key not in ("baud", "poll_hz"):
-            raise ConfigError(f"FLIR PTU URI {uri!r}: unknown key {key!r} (baud, poll_hz)")
-        if key in values:
-            raise ConfigError(f"FLIR PTU URI {uri!r}: {key} given twice")
-        values[key] = text
+    values = query_values(uri, query, "FLIR PTU URI", ("baud", "poll_hz"))
     found = _HOST_PORT.match(where)
     host = port = None
     device: str | None = where
