@@ -5,7 +5,6 @@ without hardware."""
 
 from __future__ import annotations
 
-import gc
 import ipaddress
 import math
 import signal
@@ -182,6 +181,7 @@ def emulate(
     from dronetrack.interrupt import stop_requested, stoppable
     from dronetrack.jobs.emulate import emulated_rig, emulated_seconds
     from dronetrack.jobs.factory import scan_duration
+    from dronetrack.realtime import frozen_heap
     from dronetrack.sim.emulate.lidars import DEVICES, host_uri
 
     try:
@@ -218,10 +218,8 @@ def emulate(
     )
     # What is built stays: no full collection of it pauses a slice (measured 45 ms, once
     # about every 2 s of stream, without this; under 10 ms with it).
-    gc.collect()
-    gc.freeze()
     stop = threading.Event()
-    with rig, _sigterm_sets(stop), stoppable():
+    with rig, frozen_heap(), _sigterm_sets(stop), stoppable():
         if options is not None:
             _print_ros2(rig.device, options)
             waits, began = "a subscriber of " + options.topic, "a subscriber came"

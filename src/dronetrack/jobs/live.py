@@ -47,6 +47,7 @@ from dronetrack.jobs.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
 from dronetrack.jobs.replay import TARGET_MARGIN_M, recording_config
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
 from dronetrack.pipeline import run
+from dronetrack.realtime import frozen_heap
 from dronetrack.seams import Sink, Source
 from dronetrack.sinks.track_log import TrackLogSink
 from dronetrack.sources.live import Assembler, LiveSource, PointStream, TruthFile
@@ -348,7 +349,8 @@ def run_live(
                     on_start(cfg)
                 begin = time.perf_counter()
                 try:
-                    stats = run(source, pipeline, turret, [log, *sinks], progress=progress)
+                    with frozen_heap():  # no full collection of the start-up heap mid-run
+                        stats = run(source, pipeline, turret, [log, *sinks], progress=progress)
                     interrupted = stats.interrupted
                 except DeviceError as exc:
                     failed.append(exc)
