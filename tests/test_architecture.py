@@ -23,7 +23,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 # loop's seams; the simulator is one more source and actuator; jobs assemble runs
 # from a configuration; experiments run many; the command line calls them.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "interrupt", "allocator"),
+    ("errors", "interrupt", "allocator", "realtime"),
     ("geometry",),
     ("types",),
     ("seams",),

@@ -219,7 +219,7 @@ def emulate(
     # What is built stays: no full collection of it pauses a slice (measured 45 ms, once
     # about every 2 s of stream, without this; under 10 ms with it).
     stop = threading.Event()
-    with rig, frozen_heap(), _sigterm_sets(stop), stoppable():
+    with frozen_heap(), rig, _sigterm_sets(stop), stoppable():
         if options is not None:
             _print_ros2(rig.device, options)
             waits, began = "a subscriber of " + options.topic, "a subscriber came"

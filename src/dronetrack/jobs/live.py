@@ -306,62 +306,64 @@ def run_live(
     total_s = None if setup.duration_s is None else scan_s + setup.duration_s
     log = TrackLogSink(on_row=log_sink)
     failed: list[DeviceError] = []
-    try:
-        with _turret(setup.turret, cfg, failed, setup.ros_domain_id) as turret:
-            source: LiveSource | PacedSource | Ros2Source
-            reader = None if isinstance(turret.turret, FixedSensor) else turret
-            if ros2 is not None:
-                source = ros2.source(
-                    spec.mount,
-                    reader,
-                    period_s=period,
-                    max_frames=setup.max_frames,
-                    duration_s=total_s,
-                    truth_radius=radius,
-                    truth=truth,
-                    wait_s=setup.ros_wait_s,
-                )
-            elif stream is None:
-                from dronetrack.sources.playback import RecordingSource
-
-                played: Source = RecordingSource(recording, radius)
-                if truth is not None:
-                    played = _TruthOverride(played, truth, radius)
-                source = PacedSource(
-                    played, max_frames=setup.max_frames, duration_s=total_s, name=lidar
-                )
-            else:
-                stream.open(OPEN_TIMEOUT_S)
-            try:
-                if stream is not None:
-                    source = LiveSource(
-                        stream,
+    # No full collection of the start-up heap mid-run; the one that hides it runs
+    # before any device streams, so no frame waits for it.
+    with frozen_heap():
+        try:
+            with _turret(setup.turret, cfg, failed, setup.ros_domain_id) as turret:
+                source: LiveSource | PacedSource | Ros2Source
+                reader = None if isinstance(turret.turret, FixedSensor) else turret
+                if ros2 is not None:
+                    source = ros2.source(
                         spec.mount,
                         reader,
                         period_s=period,
-                        assembler=assembler,
                         max_frames=setup.max_frames,
                         duration_s=total_s,
-                        truth=truth,
                         truth_radius=radius,
+                        truth=truth,
+                        wait_s=setup.ros_wait_s,
                     )
-                if on_start is not None:
-                    on_start(cfg)
-                begin = time.perf_counter()
+                elif stream is None:
+                    from dronetrack.sources.playback import RecordingSource
+
+                    played: Source = RecordingSource(recording, radius)
+                    if truth is not None:
+                        played = _TruthOverride(played, truth, radius)
+                    source = PacedSource(
+                        played, max_frames=setup.max_frames, duration_s=total_s, name=lidar
+                    )
+                else:
+                    stream.open(OPEN_TIMEOUT_S)
                 try:
-                    with frozen_heap():  # no full collection of the start-up heap mid-run
+                    if stream is not None:
+                        source = LiveSource(
+                            stream,
+                            spec.mount,
+                            reader,
+                            period_s=period,
+                            assembler=assembler,
+                            max_frames=setup.max_frames,
+                            duration_s=total_s,
+                            truth=truth,
+                            truth_radius=radius,
+                        )
+                    if on_start is not None:
+                        on_start(cfg)
+                    begin = time.perf_counter()
+                    try:
                         stats = run(source, pipeline, turret, [log, *sinks], progress=progress)
-                    interrupted = stats.interrupted
-                except DeviceError as exc:
-                    failed.append(exc)
-                    interrupted = False
-                wall = time.perf_counter() - begin
-            finally:
-                if stream is not None:
-                    stream.close()
-    finally:
-        if ros2 is not None:
-            ros2.close()
+                        interrupted = stats.interrupted
+                    except DeviceError as exc:
+                        failed.append(exc)
+                        interrupted = False
+                    wall = time.perf_counter() - begin
+                finally:
+                    if stream is not None:
+                        stream.close()
+        finally:
+            if ros2 is not None:
+                ros2.close()
     lost, malformed, dropped = _packet_counters(stream)
     if ros2 is not None:
         malformed = source.packets_malformed
