@@ -5,6 +5,7 @@ wait is bounded."""
 
 from __future__ import annotations
 
+import json
 import os
 import select
 import subprocess
@@ -14,6 +15,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 START_S = 120.0  # the command's start, with the simulator's kernels compiled once
 
@@ -73,3 +75,44 @@ def emulator(
         for pipe in (proc.stdout, proc.stderr):
             if pipe is not None:
                 pipe.close()
+
+
+FLIGHT_S = "20"  # seconds of flight the end-to-end tests track after the scan
+
+
+def metrics_of(folder: Path) -> dict[str, Any]:
+    """A run folder's ``metrics.json``."""
+    out: dict[str, Any] = json.loads((folder / "metrics.json").read_text())
+    return out
+
+
+def live_then_simulate(
+    tmp_path: Path, emu: Emulator, scenario: str, lidar: str, turret: str, *options: str
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``dronetrack live SCENARIO --lidar LIDAR --turret TURRET OPTIONS`` against the
+    running emulator for ``FLIGHT_S`` of flight, scored with its truth; then
+    ``simulate`` of the same scenario, seed 0 and flight time.  The two runs' metrics,
+    live first."""
+    from dronetrack.cli.main import run
+
+    live = tmp_path / "live"
+    args = ["live", scenario, "--lidar", lidar, "--turret", turret, *options]
+    rc = run([*args, "--duration", FLIGHT_S, "--truth", str(emu.truth), "--out", str(live)])
+    assert rc == 0
+    sim = tmp_path / "sim"
+    args = ["simulate", scenario, "--seed", "0", "--duration", FLIGHT_S, "--out", str(sim)]
+    assert run(args) == 0
+    return metrics_of(live), metrics_of(sim)
+
+
+def assert_tracks_as_simulated(got: dict[str, Any], want: dict[str, Any]) -> None:
+    """The end-to-end bars: nothing lost, malformed or dropped, the same frames, and
+    coverage within 10 points of the simulation's (the live run differs from it only in
+    real-time effects: the turret's command timing and the measured angles)."""
+    assert got["packets_lost"] == 0
+    assert got["packets_malformed"] == 0
+    assert got["frames_dropped"] == 0
+    assert got["frames"] == want["frames"]
+    assert want["coverage_pct"] > 30.0  # there is something to compare
+    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
+    assert got["latency_ms_p50"] > 0

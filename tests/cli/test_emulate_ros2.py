@@ -10,21 +10,12 @@ dropped, no malformed message."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
 
-from dronetrack.cli.main import run
-from emulated_rig import emulator
+from emulated_rig import FLIGHT_S, assert_tracks_as_simulated, emulator, live_then_simulate
 from ros2_helpers import loopback_dds
-
-FLIGHT_S = "20"
-
-
-def _metrics(folder: Path) -> dict[str, float]:
-    out: dict[str, float] = json.loads((folder / "metrics.json").read_text())
-    return out
 
 
 @pytest.mark.slow
@@ -37,34 +28,14 @@ def test_live_over_ros2_against_the_emulated_rig_tracks_as_the_simulation_does(
     with emulator(tmp_path, "default", "--seed", "0", "--duration", FLIGHT_S, *ros) as emu:
         assert emu.lines[0].startswith("lidar: ros2:///livox/lidar  (livox_ros_driver2/msg/")
         assert emu.lines[1].startswith("turret: ros2:///turret  (sensor_msgs/JointState")
-        live = tmp_path / "live"
-        rc = run(
-            [
-                "live",
-                "default",
-                "--lidar",
-                "ros2:///livox/lidar",
-                "--turret",
-                "ros2:///turret",
-                "--ros-domain-id",
-                domain,
-                "--duration",
-                FLIGHT_S,
-                "--truth",
-                str(emu.truth),
-                "--out",
-                str(live),
-            ]
+        got, want = live_then_simulate(
+            tmp_path,
+            emu,
+            "default",
+            "ros2:///livox/lidar",
+            "ros2:///turret",
+            "--ros-domain-id",
+            domain,
         )
-        assert rc == 0
-    sim = tmp_path / "sim"
-    args = ["simulate", "default", "--seed", "0", "--duration", FLIGHT_S]
-    assert run([*args, "--out", str(sim)]) == 0
-    got, want = _metrics(live), _metrics(sim)
     assert got["lidar"] == "ros2:///livox/lidar"
-    assert got["packets_malformed"] == 0
-    assert got["frames_dropped"] == 0
-    assert got["frames"] == want["frames"]
-    assert want["coverage_pct"] > 50.0  # there is something to compare
-    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
-    assert got["latency_ms_p50"] > 0
+    assert_tracks_as_simulated(got, want)

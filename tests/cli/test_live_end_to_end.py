@@ -35,94 +35,35 @@ of eight, at a load average of 2.5, ended on its points arriving 1 s late."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
 
-from dronetrack.cli.main import run
-from emulated_rig import emulator
+from emulated_rig import FLIGHT_S, assert_tracks_as_simulated, emulator, live_then_simulate
 
-FLIGHT_S = "20"
 WIDOWX_NO_FALSE_ALARMS = '[turret]\nmodel = "widowx"\n[sensor]\nfalse_alarm_rate = 0.0\n'
-
-
-def _metrics(folder: Path) -> dict[str, float]:
-    out: dict[str, float] = json.loads((folder / "metrics.json").read_text())
-    return out
 
 
 def test_live_against_the_emulated_rig_tracks_as_the_simulation_does(tmp_path: Path) -> None:
     with emulator(tmp_path, "default", "--seed", "0", "--duration", FLIGHT_S) as emu:
-        live = tmp_path / "live"
-        rc = run(
-            [
-                "live",
-                "default",
-                "--lidar",
-                f"livox://{emu.ip}",
-                "--turret",
-                f"dynamixel://{emu.link}",
-                "--duration",
-                FLIGHT_S,
-                "--truth",
-                str(emu.truth),
-                "--out",
-                str(live),
-            ]
-        )
-        assert rc == 0
-        # a device: it waits for the next start once the host stops sampling
-        assert emu.proc.poll() is None
-    sim = tmp_path / "sim"
-    assert (
-        run(["simulate", "default", "--seed", "0", "--duration", FLIGHT_S, "--out", str(sim)]) == 0
-    )
-    got, want = _metrics(live), _metrics(sim)
-    assert got["packets_lost"] == 0
-    assert got["packets_malformed"] == 0
-    assert got["frames_dropped"] == 0
-    assert got["frames"] == want["frames"]
-    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
-    assert got["latency_ms_p50"] > 0
+        lidar, turret = f"livox://{emu.ip}", f"dynamixel://{emu.link}"
+        got, want = live_then_simulate(tmp_path, emu, "default", lidar, turret)
+        assert emu.proc.poll() is None  # a device: it waits for the next host to sample
+    assert got["lidar"] == lidar
+    assert_tracks_as_simulated(got, want)
 
 
 def test_live_against_an_emulated_mid360_over_sdk2_tracks_as_the_simulation_does(
     tmp_path: Path,
 ) -> None:
-    scenario, seed = "mid360-aggressive", "0"
-    with emulator(tmp_path, scenario, "--seed", seed, "--duration", FLIGHT_S) as emu:
+    scenario = "mid360-aggressive"
+    with emulator(tmp_path, scenario, "--seed", "0", "--duration", FLIGHT_S) as emu:
         assert emu.lines[0].startswith(f"lidar: livox2://{emu.ip}  (Livox Mid-360")
-        live = tmp_path / "live"
-        rc = run(
-            [
-                "live",
-                scenario,
-                "--lidar",
-                f"livox2://{emu.ip}",
-                "--turret",
-                f"dynamixel://{emu.link}",
-                "--duration",
-                FLIGHT_S,
-                "--truth",
-                str(emu.truth),
-                "--out",
-                str(live),
-            ]
-        )
-        assert rc == 0
+        lidar, turret = f"livox2://{emu.ip}", f"dynamixel://{emu.link}"
+        got, want = live_then_simulate(tmp_path, emu, scenario, lidar, turret)
         assert emu.proc.poll() is None
-    sim = tmp_path / "sim"
-    args = ["simulate", scenario, "--seed", seed, "--duration", FLIGHT_S]
-    assert run([*args, "--out", str(sim)]) == 0
-    got, want = _metrics(live), _metrics(sim)
-    assert got["lidar"] == f"livox2://{emu.ip}"
-    assert got["packets_lost"] == 0
-    assert got["packets_malformed"] == 0
-    assert got["frames_dropped"] == 0
-    assert got["frames"] == want["frames"]
-    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
-    assert got["latency_ms_p50"] > 0
+    assert got["lidar"] == lidar
+    assert_tracks_as_simulated(got, want)
 
 
 def _against_simulate(tmp_path: Path, scenario: Path, uri_of: str) -> None:
@@ -133,36 +74,10 @@ def _against_simulate(tmp_path: Path, scenario: Path, uri_of: str) -> None:
     ) as emu:
         uri = f"velodyne://{emu.ip}:2368"
         assert emu.lines[0].startswith(f"lidar: {uri}  ({uri_of}")
-        live = tmp_path / "live"
-        rc = run(
-            [
-                "live",
-                str(scenario),
-                "--lidar",
-                uri,
-                "--turret",
-                f"dynamixel://{emu.link}",
-                "--duration",
-                FLIGHT_S,
-                "--truth",
-                str(emu.truth),
-                "--out",
-                str(live),
-            ]
-        )
-        assert rc == 0
+        got, want = live_then_simulate(tmp_path, emu, str(scenario), uri, f"dynamixel://{emu.link}")
         assert emu.proc.poll() is None  # a VLP-16 waits for the next host
-    sim = tmp_path / "sim"
-    args = ["simulate", str(scenario), "--seed", "0", "--duration", FLIGHT_S]
-    assert run([*args, "--out", str(sim)]) == 0
-    got, want = _metrics(live), _metrics(sim)
     assert got["lidar"] == uri
-    assert got["packets_lost"] == 0
-    assert got["packets_malformed"] == 0
-    assert got["frames_dropped"] == 0
-    assert got["frames"] == want["frames"]
-    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
-    assert got["latency_ms_p50"] > 0
+    assert_tracks_as_simulated(got, want)
 
 
 @pytest.mark.slow

@@ -17,7 +17,6 @@ against it through the real protocols (``ptu://``).
 from __future__ import annotations
 
 import csv
-import json
 import math
 from pathlib import Path
 
@@ -25,7 +24,13 @@ import numpy as np
 
 from dronetrack.cli.main import run
 from dronetrack.control.plans import sweep
-from emulated_rig import emulator
+from emulated_rig import (
+    FLIGHT_S,
+    assert_tracks_as_simulated,
+    emulator,
+    live_then_simulate,
+    metrics_of,
+)
 
 PTU_SCENARIO = """\
 base = "default"
@@ -45,11 +50,6 @@ sweep_rate_deg_s = 30.0
 scan_s = 2.0
 """
 )
-
-
-def _metrics(folder: Path) -> dict[str, float]:
-    out: dict[str, float] = json.loads((folder / "metrics.json").read_text())
-    return out
 
 
 def _live(scenario: Path, emu_ip: str, turret: str, out: Path, *extra: str) -> int:
@@ -101,7 +101,7 @@ def test_a_sweep_moves_the_emulated_ptu_as_the_strategy_says(tmp_path: Path) -> 
     assert pan.max() > hi - 2.0
     assert pan.min() < lo + 2.0
     assert np.abs(tilt).max() < 0.02  # the sweep's tilt, 0°, to the unit's resolution
-    metrics = _metrics(live)
+    metrics = metrics_of(live)
     assert metrics["packets_lost"] == 0
     assert metrics["commands_clamped"] == 0
     assert math.isfinite(metrics["latency_ms_p50"])
@@ -110,20 +110,9 @@ def test_a_sweep_moves_the_emulated_ptu_as_the_strategy_says(tmp_path: Path) -> 
 def test_tracking_with_the_emulated_ptu_as_the_simulation_does(tmp_path: Path) -> None:
     scenario = tmp_path / "ptu.toml"
     scenario.write_text(PTU_SCENARIO)
-    flight = "20"
-    with emulator(tmp_path, str(scenario), "--seed", "0", "--duration", flight) as emu:
-        live = tmp_path / "live"
-        extra = ("--duration", flight, "--truth", str(emu.truth))
-        assert _live(scenario, emu.ip, emu.turret, live, *extra) == 0
+    with emulator(tmp_path, str(scenario), "--seed", "0", "--duration", FLIGHT_S) as emu:
+        lidar = f"livox://{emu.ip}"
+        got, want = live_then_simulate(tmp_path, emu, str(scenario), lidar, emu.turret)
         assert emu.proc.poll() is None
-    sim = tmp_path / "sim"
-    args = ["simulate", str(scenario), "--seed", "0", "--duration", flight, "--out", str(sim)]
-    assert run(args) == 0
-    got, want = _metrics(live), _metrics(sim)
     assert got["turret"] == f"ptu://{tmp_path / 'ttyDXL'}"
-    assert got["packets_lost"] == 0
-    assert got["packets_malformed"] == 0
-    assert got["frames_dropped"] == 0
-    assert got["frames"] == want["frames"]
-    assert abs(got["coverage_pct"] - want["coverage_pct"]) <= 10.0
-    assert got["latency_ms_p50"] > 0
+    assert_tracks_as_simulated(got, want)
