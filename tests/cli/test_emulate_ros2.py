@@ -2,11 +2,13 @@
 simulator in real time behind an emulated livox_ros_driver2, /tf and a ROS 2 turret
 controller) in its own process, and ``dronetrack live --lidar ros2:///livox/lidar
 --turret ros2:///turret`` against it, on a loopback DDS domain of the test's own, for
-20 s of the ``default`` flight after its 10 s scan.
+20 s of the ``default`` flight after its 10 s scan, the sensor's random false alarms off
+(as in ``test_live_end_to_end.py``: they fall differently in the two runs compared).
 
 The bars are those of ``test_live_end_to_end.py``: against ``dronetrack simulate`` of
 the same seed and flight time, coverage within 10 points, the same frames, no frame
-dropped, no malformed message."""
+dropped, no malformed message.  Measured: live 95.0 % with /tf and without, simulate
+95.0 %."""
 
 from __future__ import annotations
 
@@ -14,7 +16,13 @@ from pathlib import Path
 
 import pytest
 
-from emulated_rig import FLIGHT_S, assert_tracks_as_simulated, emulator, live_then_simulate
+from emulated_rig import (
+    FLIGHT_S,
+    assert_tracks_as_simulated,
+    emulator,
+    live_then_simulate,
+    without_false_alarms,
+)
 from ros2_helpers import loopback_dds
 
 
@@ -25,13 +33,14 @@ def test_live_over_ros2_against_the_emulated_rig_tracks_as_the_simulation_does(
 ) -> None:
     domain = str(loopback_dds(tmp_path, monkeypatch))
     ros = ["--ros2", "--ros-domain-id", domain, tf]
-    with emulator(tmp_path, "default", "--seed", "0", "--duration", FLIGHT_S, *ros) as emu:
+    scenario = without_false_alarms(tmp_path, "default")
+    with emulator(tmp_path, scenario, "--seed", "0", "--duration", FLIGHT_S, *ros) as emu:
         assert emu.lines[0].startswith("lidar: ros2:///livox/lidar  (livox_ros_driver2/msg/")
         assert emu.lines[1].startswith("turret: ros2:///turret  (sensor_msgs/JointState")
         got, want = live_then_simulate(
             tmp_path,
             emu,
-            "default",
+            scenario,
             "ros2:///livox/lidar",
             "ros2:///turret",
             "--ros-domain-id",
