@@ -170,3 +170,42 @@ def test_the_device_streams_periods_from_the_first_subscriber(
     }
     stamps = sorted({s.stamp_ns for s in moving})
     assert stamps[:3] == [0, 20_000_000, 40_000_000]  # the 50 Hz grid, scenario time
+
+
+def test_without_tf_the_device_publishes_points_and_no_transform(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``emulate --ros2 --no-tf``: the points flow, and neither /tf nor /tf_static carries
+    a message, so a host takes its poses from the turret's joint states (that path:
+    ``tests/sources/test_ros2_dds.py``)."""
+    domain_id = loopback_dds(tmp_path, monkeypatch)
+    from dronetrack.formats.ros2_msgs import TF_MESSAGE
+    from dronetrack.sim.emulate.ros2 import Ros2Device
+    from dronetrack.sources.dds import DdsDomain
+
+    device = Ros2Device(
+        lambda: iter(_chunks()),
+        period_s=0.04,
+        mount=MOUNT,
+        options=Ros2Options(state_hz=50.0, tf=False),
+        domain_id=domain_id,
+    )
+    device.attach(_FakeRig())
+    host = DdsDomain(domain_id)
+    try:
+        device.start()
+        static = host.reader("/tf_static", TF_MESSAGE, "static")
+        tf = host.reader("/tf", TF_MESSAGE, "tf")
+        points = host.reader("/livox/lidar", CUSTOM_MSG, "sensor")
+        got: list[bytes] = []
+        end = time.monotonic() + 5.0
+        while len(got) < 2 and time.monotonic() < end:
+            points.wait(0.05)
+            got.extend(points.drain())
+        time.sleep(0.2)
+        moving, fixed = list(tf.drain()), list(static.drain())
+    finally:
+        host.close()
+        device.close()
+    assert len(got) == 2
+    assert (moving, fixed) == ([], [])
