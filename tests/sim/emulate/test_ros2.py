@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -25,6 +26,9 @@ from dronetrack.sim.emulate.ros2 import (
     static_links,
 )
 from ros2_helpers import loopback_dds
+
+if TYPE_CHECKING:
+    from dronetrack.sources.dds import RawReader
 
 MOUNT = MountGeometry((1.0, 2.0, 1.5), (0.0, 0.0, 0.05), (0.03, 0.0, 0.09))
 
@@ -98,6 +102,16 @@ def _chunks() -> list[PointChunk]:
     return out
 
 
+def _first_messages(reader: RawReader, n: int, timeout_s: float = 5.0) -> list[bytes]:
+    """At least ``n`` messages off ``reader``, or what came within ``timeout_s``."""
+    got: list[bytes] = []
+    end = time.monotonic() + timeout_s
+    while len(got) < n and time.monotonic() < end:
+        reader.wait(0.05)
+        got.extend(reader.drain())
+    return got
+
+
 def test_the_device_streams_periods_from_the_first_subscriber(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -135,11 +149,7 @@ def test_the_device_streams_periods_from_the_first_subscriber(
         assert device.starts == 0  # no subscriber of the points yet
         points = host.reader("/livox/lidar", CUSTOM_MSG, "sensor")
         command = host.writer("/turret/command", JOINT_STATE, "default")
-        got: list[bytes] = []
-        end = time.monotonic() + 5.0
-        while len(got) < 2 and time.monotonic() < end:
-            points.wait(0.05)
-            got.extend(points.drain())
+        got = _first_messages(points, 2)
         deadline = time.monotonic() + 2.0
         while not rig.goals and time.monotonic() < deadline:
             command.write(encode_joint_state(0, ["pan", "tilt"], [0.5, -0.25]))
@@ -197,11 +207,7 @@ def test_without_tf_the_device_publishes_points_and_no_transform(
         static = host.reader("/tf_static", TF_MESSAGE, "static")
         tf = host.reader("/tf", TF_MESSAGE, "tf")
         points = host.reader("/livox/lidar", CUSTOM_MSG, "sensor")
-        got: list[bytes] = []
-        end = time.monotonic() + 5.0
-        while len(got) < 2 and time.monotonic() < end:
-            points.wait(0.05)
-            got.extend(points.drain())
+        got = _first_messages(points, 2)
         time.sleep(0.2)
         moving, fixed = list(tf.drain()), list(static.drain())
     finally:
