@@ -3,10 +3,10 @@
 
 from __future__ import annotations
 
-import time
 from typing import TYPE_CHECKING
 
 from dronetrack.jobs.live import OPEN_TIMEOUT_S, open_point_stream
+from dronetrack.sources.stream_sample import sample_stream
 
 if TYPE_CHECKING:
     from dronetrack.sources.livox2_udp import Livox2Client
@@ -68,17 +68,7 @@ def probe_lidar(uri: str, sample_s: float = 0.5) -> list[tuple[str, str]]:
             lines.extend(_sdk2_info(client, unknown))
         lines.append(("host", f"{client.host_ip}, command port {client.cmd_port}"))
         client.open(OPEN_TIMEOUT_S)
-        points = 0
-        until = time.monotonic() + sample_s
-        while time.monotonic() < until:
-            points += len(client.read(0.05))
-        lines.append(
-            (
-                f"sampling {sample_s:g} s",
-                f"{client.packets_received} packets, {points} points, "
-                f"{client.packets_lost} lost, {client.packets_malformed} malformed",
-            )
-        )
+        lines.append(sample_stream(client, sample_s))
     finally:
         client.close()
     return lines

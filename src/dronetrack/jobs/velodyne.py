@@ -4,13 +4,12 @@ sensor (the head's mount, ``config.spinning``), the frames it is cut into, and
 
 from __future__ import annotations
 
-import time
-
 from dronetrack.config.run import SensorConfig
 from dronetrack.config.spinning import head_rotation, revolution_frames, spin_rpm
 from dronetrack.formats import velodyne as fv
 from dronetrack.sources.live import Assembler
 from dronetrack.sources.revolutions import RevolutionAssembler
+from dronetrack.sources.stream_sample import sample_stream
 from dronetrack.sources.velodyne_udp import VelodyneClient
 
 __all__ = ["VELODYNE_SCHEME", "probe_velodyne", "velodyne_client", "velodyne_frames"]
@@ -45,10 +44,7 @@ def probe_velodyne(uri: str, sample_s: float = 0.5) -> list[tuple[str, str]]:
     lines = [("listening", f"UDP {client.endpoint.bind_ip}:{client.endpoint.port}")]
     try:
         client.open(OPEN_TIMEOUT_S)
-        points = 0
-        until = time.monotonic() + sample_s
-        while time.monotonic() < until:
-            points += len(client.read(0.05))
+        sampled = sample_stream(client, sample_s)
         product = client.product
         mode = client.return_mode
         rpm = client.rpm
@@ -67,11 +63,7 @@ def probe_velodyne(uri: str, sample_s: float = 0.5) -> list[tuple[str, str]]:
                 else f"0x{mode:02X} ({fv.RETURN_MODES.get(mode, 'unknown')})",
             ),
             ("spin", "unknown" if rpm is None else f"{rpm:.0f} rpm"),
-            (
-                f"sampling {sample_s:g} s",
-                f"{client.packets_received} packets, {points} points, "
-                f"{client.packets_lost} lost, {client.packets_malformed} malformed",
-            ),
+            sampled,
         ]
     finally:
         client.close()
