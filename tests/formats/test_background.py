@@ -18,13 +18,29 @@ from dronetrack.formats.background import (
 
 def test_cells_and_settings_round_trip(tmp_path: Path) -> None:
     cells = np.random.default_rng(0).integers(-(2**40), 2**40, 500)
-    settings = BackgroundSettings(resolution=0.25, inflate=2, lookup_depth=1, min_hits=3)
+    settings = BackgroundSettings(
+        resolution=0.25, inflate=2, lookup_depth=1, min_hits=3, min_neighbours=2
+    )
     path = tmp_path / "site" / "background.npz"
     save_background(path, cells, settings)
     assert read_background_settings(path) == settings
     again, keys = load_background(path)
     assert again == settings
     np.testing.assert_array_equal(keys, cells)
+
+
+def test_a_file_from_before_min_neighbours_reads_as_none_needed(tmp_path: Path) -> None:
+    path = tmp_path / "old.npz"
+    np.savez(
+        path,
+        format=np.array("dronetrack-background-1"),
+        cells=np.arange(4, dtype=np.int64),
+        resolution=np.float64(1.0),
+        inflate=np.int64(1),
+        lookup_depth=np.int64(2),
+        min_hits=np.int64(1),
+    )
+    assert read_background_settings(path) == BackgroundSettings(1.0, 1, 2, 1, 0)
 
 
 def test_bad_background_files(tmp_path: Path) -> None:

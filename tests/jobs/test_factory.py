@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dronetrack.config.pipeline import (
+    BackgroundConfig,
     ControllerConfig,
     ControllerMode,
     DetectorConfig,
@@ -59,6 +60,18 @@ def _tracker(cfg: TrackerConfig) -> ParticleTracker:
     pipe = _pipeline(PipelineConfig(tracker=cfg))
     assert isinstance(pipe.tracker, ParticleTracker)
     return pipe.tracker
+
+
+def test_the_background_settings_reach_the_scanned_model() -> None:
+    bg = BackgroundConfig(resolution_m=0.5, inflate_voxels=2, lookup_depth=1, min_hits=3)
+    for need in (0, 2):
+        model = _pipeline(
+            PipelineConfig(background=bg.model_copy(update={"min_neighbours": need}))
+        ).background
+        assert model is not None
+        assert not model.ready
+        kept = (model.resolution, model.inflate, model.lookup_depth, model.min_hits)
+        assert (*kept, model.min_neighbours) == (0.5, 2, 1, 3, need)
 
 
 def test_the_registries_hold_each_configurable_name_once() -> None:

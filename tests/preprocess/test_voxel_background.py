@@ -11,7 +11,14 @@ from hypothesis.extra.numpy import arrays
 from dronetrack.errors import InputError
 from dronetrack.preprocess import voxel
 from dronetrack.preprocess.background import VoxelBackground
-from dronetrack.preprocess.voxel import KeySet, coarsen_keys, dilate_keys, unique_keys, voxel_keys
+from dronetrack.preprocess.voxel import (
+    KeySet,
+    coarsen_keys,
+    dilate_keys,
+    neighbour_counts,
+    unique_keys,
+    voxel_keys,
+)
 
 coords = arrays(np.float64, (40, 3), elements=st.floats(-500, 500))
 
@@ -76,6 +83,46 @@ def test_min_hits_drops_sparse_voxels() -> None:
     np.testing.assert_array_equal(
         bg.is_background(np.array([[0.2, 0.2, 0.2], [5.2, 0.2, 0.2]])), [True, False]
     )
+
+
+def test_neighbour_counts_by_brute_force() -> None:
+    rng = np.random.default_rng(3)
+    idx = rng.integers(-3, 4, size=(120, 3))
+    keys = unique_keys(voxel_keys(idx + 0.5, 1.0))
+    support = unique_keys(voxel_keys(rng.integers(-3, 4, size=(80, 3)) + 0.5, 1.0))
+    cells = lambda k: np.column_stack(voxel._unpack(k))  # noqa: E731
+    a, b = cells(keys), cells(support)
+    chebyshev = np.abs(a[:, None, :] - b[None, :, :]).max(axis=2)
+    np.testing.assert_array_equal(
+        neighbour_counts(keys, support), np.count_nonzero(chebyshev == 1, axis=1)
+    )
+    assert not neighbour_counts(keys, support[:0]).any()
+
+
+def test_min_neighbours_drops_lone_returns_and_keeps_surfaces() -> None:
+    """A wall's voxels hold each other up; one false return in the sky stands alone,
+    and one return next to the wall is kept (a neighbour was hit)."""
+    wall = np.array([[20.5, y + 0.5, z + 0.5] for y in range(-3, 3) for z in range(1, 5)])
+    lone = np.array([[10.5, 0.5, 12.5]])
+    beside = np.array([[21.5, 0.5, 5.5]])  # diagonal to the wall's top row
+    probe = np.vstack([wall[:1], lone, beside])
+    for need, expected in ((0, [True, True, True]), (1, [True, False, True])):
+        bg = VoxelBackground(resolution=1.0, inflate=0, min_neighbours=need)
+        bg.insert(np.vstack([wall, lone, beside]))
+        bg.build()
+        np.testing.assert_array_equal(bg.is_background(probe), expected)
+    with pytest.raises(InputError, match="min_neighbours must be 0-26"):
+        VoxelBackground(1.0, min_neighbours=27)
+
+
+def test_neighbours_count_any_hit_voxel_even_below_min_hits() -> None:
+    """Support comes from every voxel hit, so a surface seen sparsely (a voxel with
+    one return beside one with two) keeps the voxel that has enough returns."""
+    bg = VoxelBackground(resolution=1.0, inflate=0, min_hits=2, min_neighbours=1)
+    bg.insert(np.array([[0.5, 0.5, 0.5]] * 2 + [[1.5, 0.5, 0.5]] + [[9.5, 0.5, 0.5]] * 2))
+    bg.build()
+    probe = np.array([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [9.5, 0.5, 0.5]])
+    np.testing.assert_array_equal(bg.is_background(probe), [True, False, False])
 
 
 def test_lookup_depth_coarsens_like_an_octree() -> None:

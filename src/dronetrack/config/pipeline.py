@@ -127,6 +127,9 @@ class BackgroundConfig(StrictModel):
     inflate_voxels: int = Field(1, ge=0, le=5)  # dilation over the 26-neighbourhood, k times
     lookup_depth: int = Field(2, ge=0, le=6)  # look up cells 2^depth voxels wide (OctoMap depth)
     min_hits: int = Field(1, ge=1)  # returns a voxel needs to count as occupied
+    # Neighbours (of 26) a voxel needs hit too: a lone return, most often one of the
+    # sensor's random false alarms in the open sky, is then not background.
+    min_neighbours: int = Field(0, ge=0, le=26)
     scan_s: float = Field(10.0, ge=0)  # scanning time before tracking starts
     file: str | None = None  # load a saved map instead of scanning (and skip the scan)
     # The scanning pattern: pan and tilt triangle waves over these ranges.  Unset: the

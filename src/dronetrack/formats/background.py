@@ -26,12 +26,13 @@ IntArray = NDArray[np.int64]
 @dataclass(frozen=True, slots=True)
 class BackgroundSettings:
     """How a saved model was built: voxel size [m], inflation and lookup depth
-    [levels], and the returns a voxel needed."""
+    [levels], the returns a voxel needed and the neighbours hit it needed."""
 
     resolution: float
     inflate: int
     lookup_depth: int
     min_hits: int
+    min_neighbours: int = 0  # files written before the setting existed: none needed
 
 
 def save_background(path: Path, cells: IntArray, settings: BackgroundSettings) -> None:
@@ -45,6 +46,7 @@ def save_background(path: Path, cells: IntArray, settings: BackgroundSettings) -
         inflate=np.int64(settings.inflate),
         lookup_depth=np.int64(settings.lookup_depth),
         min_hits=np.int64(settings.min_hits),
+        min_neighbours=np.int64(settings.min_neighbours),
     )
 
 
@@ -80,6 +82,7 @@ def _read(path: Path, cells: bool) -> tuple[BackgroundSettings, IntArray | None]
                     int(data["inflate"]),
                     int(data["lookup_depth"]),
                     int(data["min_hits"]),
+                    int(data["min_neighbours"]) if "min_neighbours" in data.files else 0,
                 )
                 return settings, (data["cells"] if cells else None)
     except ValueError as err:

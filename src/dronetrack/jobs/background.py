@@ -13,7 +13,7 @@ __all__ = ["load_model", "save_model"]
 def save_model(model: VoxelBackground, path: Path) -> None:
     """Write a built model as ``background.npz``."""
     settings = BackgroundSettings(
-        model.resolution, model.inflate, model.lookup_depth, model.min_hits
+        model.resolution, model.inflate, model.lookup_depth, model.min_hits, model.min_neighbours
     )
     save_background(path, model.cells.keys, settings)
 
@@ -21,4 +21,6 @@ def save_model(model: VoxelBackground, path: Path) -> None:
 def load_model(path: Path) -> VoxelBackground:
     """The model ``save_model`` wrote, ready for lookups."""
     s, cells = load_background(path)
-    return VoxelBackground.from_cells(cells, s.resolution, s.inflate, s.lookup_depth, s.min_hits)
+    return VoxelBackground.from_cells(
+        cells, s.resolution, s.inflate, s.lookup_depth, s.min_hits, s.min_neighbours
+    )

@@ -225,7 +225,11 @@ def build_pipeline(
             background = load_model(Path(bg_cfg.file).expanduser())
         elif bg_cfg.scan_s > 0:
             background = VoxelBackground(
-                bg_cfg.resolution_m, bg_cfg.inflate_voxels, bg_cfg.lookup_depth, bg_cfg.min_hits
+                bg_cfg.resolution_m,
+                bg_cfg.inflate_voxels,
+                bg_cfg.lookup_depth,
+                bg_cfg.min_hits,
+                bg_cfg.min_neighbours,
             )
     # With acquisition on, the scan ends at home, where the search starts; without it
     # (the seeds' runs) the raster runs as it falls, so seed tables II-IV stay comparable.

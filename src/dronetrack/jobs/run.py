@@ -56,6 +56,7 @@ def resolve_pipeline(cfg: ScenarioConfig) -> ScenarioConfig:
                 "inflate_voxels": stored.inflate,
                 "lookup_depth": stored.lookup_depth,
                 "min_hits": stored.min_hits,
+                "min_neighbours": stored.min_neighbours,
             }
         )
     # The crop box and the background scan, as set or from the field of regard.

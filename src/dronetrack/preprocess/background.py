@@ -5,7 +5,12 @@ one voxel, and drops every new point that falls in an occupied cell, looked up
 two octree levels above the leaves (reference: 1 m voxels looked up in 4 m
 cells outdoors, 0.1 m in 0.4 m indoors).  Here the map is the set of voxel keys
 hit at least ``min_hits`` times, dilated by ``inflate`` voxels over the
-26-neighbourhood, then coarsened by ``lookup_depth`` levels.  Free space is not
+26-neighbourhood, then coarsened by ``lookup_depth`` levels.  With
+``min_neighbours`` > 0 a voxel also needs that many of its 26 neighbours hit
+during the scan: a real surface returns from neighbouring voxels, while one of the
+sensor's random false alarms (about 10⁻⁴ per pulse, a few hundred in a scan) stands
+alone in the sky, where it would hide a drone in its whole lookup cell (4 m
+outdoors) for as long as it takes to fly through.  Free space is not
 modelled: OctoMap's ray clearing matters for moving scenes, and the seed assumes
 a static one.
 """
@@ -22,25 +27,48 @@ from dronetrack.preprocess.voxel import (
     KeySet,
     coarsen_keys,
     dilate_keys,
-    unique_keys,
+    neighbour_counts,
     voxel_keys,
 )
 
-__all__ = ["VoxelBackground"]
+__all__ = ["VoxelBackground", "occupied_voxels"]
+
+
+def occupied_voxels(
+    keys: NDArray[np.int64], min_hits: int, min_neighbours: int
+) -> NDArray[np.int64]:
+    """The distinct voxels hit at least ``min_hits`` times, of which at least
+    ``min_neighbours`` of the 26 neighbours were hit too (``keys``: one per return)."""
+    s = np.sort(keys)
+    starts = np.flatnonzero(np.r_[True, s[1:] != s[:-1]]) if len(s) else np.empty(0, np.int64)
+    hit: NDArray[np.int64] = s[starts]  # every voxel hit at least once, sorted
+    counts = np.diff(np.r_[starts, len(s)])
+    voxels: NDArray[np.int64] = hit[counts >= min_hits]
+    if min_neighbours > 0:
+        voxels = voxels[neighbour_counts(voxels, hit) >= min_neighbours]
+    return voxels
 
 
 class VoxelBackground:
     """Accumulates scan points, then answers "is this point background?"."""
 
     def __init__(
-        self, resolution: float, inflate: int = 1, lookup_depth: int = 0, min_hits: int = 1
+        self,
+        resolution: float,
+        inflate: int = 1,
+        lookup_depth: int = 0,
+        min_hits: int = 1,
+        min_neighbours: int = 0,
     ) -> None:
         if resolution <= 0 or inflate < 0 or lookup_depth < 0 or min_hits < 1:
             raise InputError("background: resolution > 0, inflate ≥ 0, depth ≥ 0, min_hits ≥ 1")
+        if not 0 <= min_neighbours <= 26:
+            raise InputError("background: min_neighbours must be 0-26 (of a voxel's 26)")
         self.resolution = float(resolution)
         self.inflate = int(inflate)
         self.lookup_depth = int(lookup_depth)
         self.min_hits = int(min_hits)
+        self.min_neighbours = int(min_neighbours)
         self._chunks: list[NDArray[np.int64]] = []
         self._cells: KeySet | None = None
 
@@ -71,13 +99,14 @@ class VoxelBackground:
         """Turn the accumulated points into the lookup map."""
         keys = np.concatenate(self._chunks) if self._chunks else np.empty(0, dtype=np.int64)
         self._chunks = []
-        if self.min_hits > 1 and len(keys):
-            keys = np.sort(keys)
-            starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-            counts = np.diff(np.r_[starts, len(keys)])
-            keys = keys[starts[counts >= self.min_hits]]
-        occupied = dilate_keys(unique_keys(keys), self.inflate)
-        self._cells = KeySet.of(coarsen_keys(occupied, self.lookup_depth))
+        self._cells = KeySet.of(
+            coarsen_keys(
+                dilate_keys(
+                    occupied_voxels(keys, self.min_hits, self.min_neighbours), self.inflate
+                ),
+                self.lookup_depth,
+            )
+        )
 
     @classmethod
     def from_cells(
@@ -87,9 +116,10 @@ class VoxelBackground:
         inflate: int,
         lookup_depth: int,
         min_hits: int = 1,
+        min_neighbours: int = 0,
     ) -> VoxelBackground:
         """A built model from its lookup-cell keys (as saved)."""
-        model = cls(resolution, inflate, lookup_depth, min_hits)
+        model = cls(resolution, inflate, lookup_depth, min_hits, min_neighbours)
         model._cells = KeySet.of(np.asarray(cells, dtype=np.int64))
         return model
 

@@ -17,7 +17,14 @@ from numpy.typing import NDArray
 from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
 
-__all__ = ["KeySet", "coarsen_keys", "dilate_keys", "unique_keys", "voxel_keys"]
+__all__ = [
+    "KeySet",
+    "coarsen_keys",
+    "dilate_keys",
+    "neighbour_counts",
+    "unique_keys",
+    "voxel_keys",
+]
 
 BITS = 21
 OFFSET = 1 << (BITS - 1)
@@ -73,6 +80,23 @@ def dilate_keys(keys: IntArray, k: int) -> IntArray:
         (ix[:, None] + dx).ravel(), (iy[:, None] + dy).ravel(), (iz[:, None] + dz).ravel()
     )
     return unique_keys(grown)
+
+
+def neighbour_counts(keys: IntArray, support: IntArray) -> IntArray:
+    """How many of each key's 26 neighbours are in ``support`` (sorted distinct keys)."""
+    r = np.arange(-1, 2)
+    dx, dy, dz = (a.ravel() for a in np.meshgrid(r, r, r, indexing="ij"))
+    ix, iy, iz = _unpack(keys)
+    counts = np.zeros(len(keys), dtype=np.int64)
+    if len(support) == 0:
+        return counts
+    for ox, oy, oz in zip(dx, dy, dz, strict=True):
+        if ox == oy == oz == 0:
+            continue
+        neighbour = _pack_array(ix + ox, iy + oy, iz + oz)
+        at = np.minimum(np.searchsorted(support, neighbour), len(support) - 1)
+        counts += support[at] == neighbour
+    return counts
 
 
 def coarsen_keys(keys: IntArray, depth: int) -> IntArray:
