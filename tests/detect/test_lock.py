@@ -56,6 +56,27 @@ def test_a_short_lock_sets_no_gate_an_established_one_does() -> None:
     assert len(book.reachable(book.fix.t + 5.4, far)) == 1
 
 
+def test_after_a_loss_the_hovered_then_the_nearest_to_the_fix_come_first() -> None:
+    book = LockBook(S)
+    p = (135.0, 15.0, 20.0)
+    t = _lock_for(book, 0.0, 1.5, p)
+    book.update(_est(t, p, tracked=False), None)
+    bird, drone, hoverer = (61.0, 0.0, 40.0), (128.0, 35.0, 20.0), (90.0, -20.0, 25.0)
+    # The bird is first in the detect stage's order (more hits), 78 m from the fix;
+    # the drone 21 m from it.  Both are within the 91 m reach 6 s on.
+    out = book.reachable(t + 6.0, _cands((bird, False), (drone, False)))
+    assert out is not None
+    np.testing.assert_allclose(out.positions, [drone, bird])
+    out = book.reachable(t + 6.0, _cands((bird, False), (drone, False), (hoverer, True)))
+    assert out is not None
+    np.testing.assert_allclose(out.positions, [hoverer, drone, bird])
+    # Before any established lock there is no fix: the given order stands.
+    fresh = LockBook(S)
+    out = fresh.reachable(0.0, _cands((bird, False), (drone, False)))
+    assert out is not None
+    np.testing.assert_allclose(out.positions, [bird, drone])
+
+
 def test_a_relock_within_reach_continues_the_established_lock() -> None:
     book = LockBook(S)
     t = _lock_for(book, 0.0, 1.5, (100.0, 0.0, 20.0))
@@ -65,6 +86,36 @@ def test_a_relock_within_reach_continues_the_established_lock() -> None:
     assert book.continued
     assert book.fix is not None
     assert book.fix.t == t + 0.3
+
+
+def test_far_out_flickers_chain_the_fix_across_gaps_up_to_continue_s() -> None:
+    """A drone at the edge of reach is locked for 0.2-0.5 s at a time with gaps of
+    1.2-1.4 s: each lock continues the last, so the fix keeps up with the drone and
+    a bird 60 m away stays out of reach, 1 s after the last lock."""
+    book = LockBook(S)
+    p = np.array([135.0, -40.0, 20.0])
+    t = _lock_for(book, 0.0, 1.5, tuple(p))
+    for gap, hold in ((1.2, 0.2), (1.4, 0.5), (1.3, 0.3)):
+        book.update(_est(t, tuple(p), tracked=False), None)
+        t += gap
+        p = p + np.array([0.0, 10.0, 0.0])  # 10 m along in each gap
+        book.update(_est(t, tuple(p)), None)
+        assert book.continued
+        t = _lock_for(book, t + T, hold, tuple(p))
+    assert book.fix is not None
+    assert book.fix.t == t - T
+    book.update(_est(t, tuple(p), tracked=False), None)
+    bird = _cands(((p[0] - 60.0, p[1], 30.0), False))
+    assert len(book.reachable(t + 1.0, bird)) == 0
+    # With the established lock's 1 s as the window the first 1.2 s gap breaks the
+    # chain: the fix stays at the first lock, and the bird is within its reach.
+    stale = LockBook(S, continue_s=1.0)
+    t0 = _lock_for(stale, 0.0, 1.5, (135.0, -40.0, 20.0))
+    stale.update(_est(t0, (135.0, -40.0, 20.0), tracked=False), None)
+    stale.update(_est(t0 + 1.2, (135.0, -30.0, 20.0)), None)
+    assert not stale.continued
+    assert stale.fix is not None
+    assert len(stale.reachable(stale.fix.t + 6.0, bird)) == 1
 
 
 def test_a_relock_out_of_reach_is_a_new_lock() -> None:
@@ -143,7 +194,7 @@ def test_switch_offers_only_hoverers_away_from_a_lock_that_never_hovered(
 
 
 def test_a_relock_after_a_long_loss_is_a_new_lock_even_within_reach() -> None:
-    """Lost for 2 s (> established_s), the reach is 31 m: a lock 10 m away is within
+    """Lost for 2 s (> continue_s), the reach is 31 m: a lock 10 m away is within
     it, but could be anything that flew there; it does not inherit the hover."""
     book = LockBook(S)
     p = (100.0, 0.0, 20.0)

@@ -42,3 +42,26 @@ def test_a_lost_drone_is_found_again_within_a_second_of_its_return(name: str) ->
     assert m["reacquire_missed"] == 0
     assert m["reacquire_max_s"] <= 1.0
     assert m["false_lock_pct"] <= 1.0
+
+
+def test_a_lone_false_return_in_the_scan_no_longer_hides_the_climbing_drone() -> None:
+    """``default`` seed 3: one of the sensor's false alarms during the scan fell 8-12 m
+    above the take-off spot; kept as background (``min_neighbours = 0``) it hid the
+    climbing drone for 1.2 s (lock-on 97.1 %).  Measured with the default's
+    ``min_neighbours = 1``: longest re-acquisition 0.8 s, lock-on 98.7 %."""
+    m = _metrics("default", seed=3)
+    assert m["reacquire_missed"] == 0
+    assert m["reacquire_max_s"] <= 1.0
+    assert m["lock_on_visible_pct"] >= 97.0
+
+
+def test_after_a_long_loss_the_candidate_nearest_the_fix_is_taken_not_a_bird() -> None:
+    """``outdoor-clutter`` seed 2: the drone is lost at the far end for 6 s; a bird
+    80 m closer in was the best-detected candidate and was locked for 15.4 % of the
+    tracked frames (and the drone's return never re-acquired).  With the nearest
+    candidate to the fix first: no false lock, every return re-acquired within
+    0.7 s."""
+    m = _metrics("outdoor-clutter", seed=2)
+    assert m["false_lock_pct"] <= 1.0
+    assert m["reacquire_missed"] == 0
+    assert m["reacquire_max_s"] <= 1.0

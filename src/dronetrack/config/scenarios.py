@@ -159,7 +159,12 @@ def _scenario(
 
 
 def _outdoor(
-    name: str, flight: str, description: str, duration: float, visibility: float = float("inf")
+    name: str,
+    flight: str,
+    description: str,
+    duration: float,
+    visibility: float = float("inf"),
+    pipeline: PipelineConfig = OUTDOOR,
 ) -> ScenarioConfig:
     """Seed 000 outdoors: Phantom 4, Avia on a WidowX on a 1 m stand."""
     return _scenario(
@@ -173,6 +178,7 @@ def _outdoor(
         "widowx",
         1.0,
         visibility,
+        pipeline,
     )
 
 
@@ -217,11 +223,17 @@ def _walk(name: str, flight: str, description: str, duration: float) -> Scenario
     )
 
 
+# The default site keeps a voxel as background only if a neighbour was hit in the scan
+# too: a lone return is most often one of the sensor's random false alarms (a few hundred
+# in the scan), which would hide a drone, or a bird, in its 4 m lookup cell for good.
+# Over seeds 0-19: lock-on 97.6 → 98.5 % (worst seed 93.1 → 97.8 %), re-acquisitions
+# over 1 s in 4 runs → 1.  Seed 000's own scenarios keep the reference's every-hit map.
 DEFAULT = _outdoor(
     "default",
     "horizontal-fast",
     "seed 000 horizontal fast: Phantom 4 at 15 m/s to 140 m, Avia on a WidowX, clear",
     66.0,
+    pipeline=OUTDOOR.model_copy(update={"background": BackgroundConfig(min_neighbours=1)}),
 )
 # The acquisition scenarios watch a field of regard of ±90° pan, from 40° up to 5° down,
 # out to 200 m: the background scan covers it and the crop box bounds it.
