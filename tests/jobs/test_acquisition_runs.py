@@ -18,6 +18,7 @@ from typing import Any
 
 import pytest
 
+from dronetrack.config.run import apply_overrides
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.jobs.simulate import run_simulation
 
@@ -45,14 +46,16 @@ def test_a_lost_drone_is_found_again_within_a_second_of_its_return(name: str) ->
 
 
 def test_a_lone_false_return_in_the_scan_no_longer_hides_the_climbing_drone() -> None:
-    """``default`` seed 3: one of the sensor's false alarms during the scan fell 8-12 m
-    above the take-off spot; kept as background (``min_neighbours = 0``) it hid the
-    climbing drone for 1.2 s (lock-on 97.1 %).  Measured with the default's
-    ``min_neighbours = 1``: longest re-acquisition 0.8 s, lock-on 98.7 %."""
-    m = _metrics("default", seed=3)
-    assert m["reacquire_missed"] == 0
-    assert m["reacquire_max_s"] <= 1.0
+    """``default`` seed 3, the first 8 s of flight: one of the sensor's false alarms
+    during the scan fell 8-12 m above the take-off spot; kept as background
+    (``min_neighbours = 0``) it hid the climbing drone for 1.2 s (lock-on 81.7 % over
+    these 8 s, one loss).  Measured with the default's ``min_neighbours = 1``: no
+    loss, lock-on 98.6 %."""
+    cfg = apply_overrides(get_scenario("default"), seed=3, duration=8.0)
+    m = run_simulation(cfg).metrics()
     assert m["lock_on_visible_pct"] >= 97.0
+    assert m["reacquire_missed"] == 0
+    assert m["reacquire_max_s"] is None or m["reacquire_max_s"] <= 1.0
 
 
 def test_after_a_long_loss_the_candidate_nearest_the_fix_is_taken_not_a_bird() -> None:
