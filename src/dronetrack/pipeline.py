@@ -35,15 +35,16 @@ from numpy.typing import NDArray
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.detect.lock import LockBook
-from dronetrack.detect.tentative import TentativeTracks
+from dronetrack.detect.tentative import TentativeTracks, reach
 from dronetrack.errors import InputError
 from dronetrack.geometry.field import FieldOfRegard
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.preprocess.background import VoxelBackground
-from dronetrack.preprocess.crop import HullCrop
+from dronetrack.preprocess.crop import HullCrop, ball_mask, box_mask
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
+from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.seams import Actuator, Sink, Source
 from dronetrack.track.base import CandidateStart, Tracker
 from dronetrack.track.clock import FilterClock
@@ -110,6 +111,7 @@ class Pipeline:
         hull: HullCrop | None = None,
         acquisition: Acquisition | None = None,
         field: FieldOfRegard | None = None,
+        ranges: RangeImage | None = None,
     ) -> None:
         self.tracker = tracker
         self.controller = controller
@@ -124,6 +126,8 @@ class Pipeline:
         self.counts: Counter[str] = Counter()
         self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
         self.acquisition = acquisition
+        # The scan's range image, for the points near a locked target (``_near_track``).
+        self.ranges = ranges if background is not None and not background.ready else None
 
     @property
     def scanning(self) -> bool:
@@ -140,10 +144,14 @@ class Pipeline:
             assert self.background is not None
             if steps > 0:
                 self.background.insert(fg.points)
+                if self.ranges is not None:
+                    self.ranges.insert(fg.points)
             command: TurretCommand | None = self.controller.scanning(t_cmd)
             # The scan ends with the frame that ends at scan_until (within half a period).
             if steps > 0 and frame.end >= self.scan_until - 0.5 * self.tracker.period:
                 self.background.build()
+                if self.ranges is not None:
+                    self.ranges.build()
                 log.info("background model built: %d cells", len(self.background))
             result = self._result(frame, "scan", None, fg, fg.points, command, start, flags, steps)
         else:
@@ -236,7 +244,35 @@ class Pipeline:
             fg = _keep(fg, self.hull.mask(fg.points))
         if self.field is not None and len(fg.points):
             fg = _keep(fg, self.field.contains(fg.points))
-        return fg
+        return self._near_track(fg)
+
+    def _near_track(self, fg: Foreground) -> Foreground:
+        """Add back the points the background dropped that lie within one frame's reach
+        of the locked target (v_max T + g from its last estimate) and clearly in front
+        of the scan there (``preprocess/range_image.py``; margin: one voxel)."""
+        ranges, lock = self.ranges, self.acquisition.lock if self.acquisition else None
+        if ranges is None or not ranges.ready or lock is None or not lock.locked:
+            return fg
+        assert self.background is not None
+        assert lock.estimate is not None
+        s = lock.settings
+        world = fg.world
+        radius = reach(self.tracker.period, s.v_max, s.gate_m)
+        near = ball_mask(world, lock.estimate.position, radius)
+        near[fg.index] = False
+        back = np.flatnonzero(near)
+        back = back[box_mask(world[back], self.crop_min, self.crop_max)]
+        if self.hull is not None and len(back):
+            back = back[self.hull.mask(world[back])]
+        if self.field is not None and len(back):
+            back = back[self.field.contains(world[back])]
+        back = back[ranges.in_front(world[back], self.background.resolution)]
+        if len(back) == 0:
+            return fg
+        index = np.concatenate([fg.index, back])
+        return replace(
+            fg, points=world[index], index=index, n_background=fg.n_background - len(back)
+        )
 
     def _remove_outliers(self, points: FloatArray) -> FloatArray:
         o = self.outliers

@@ -43,6 +43,10 @@ def test_a_lost_drone_is_found_again_within_a_second_of_its_return(name: str) ->
     assert m["reacquire_missed"] == 0
     assert m["reacquire_max_s"] <= 1.0
     assert m["false_lock_pct"] <= 1.0
+    # Seed 0: outdoor-escape 97.8 %; outdoor-hide 98.4 %, 93.3 % before the points
+    # near the lock were tested against the scan's range image (the drone skimming
+    # the barn's corner lost 6 frames to the barn's 4 m background cells).
+    assert m["lock_on_visible_pct"] >= 97.0
 
 
 def test_a_lone_false_return_in_the_scan_no_longer_hides_the_climbing_drone() -> None:

@@ -74,6 +74,14 @@ def test_the_background_settings_reach_the_scanned_model() -> None:
         assert (*kept, model.min_neighbours) == (0.5, 2, 1, 3, need)
 
 
+def test_near_track_gives_the_scanning_pipeline_a_range_image() -> None:
+    assert _pipeline(PipelineConfig()).ranges is None
+    scanning = _pipeline(PipelineConfig(background=BackgroundConfig(near_track=True)))
+    assert scanning.ranges is not None
+    assert not scanning.ranges.ready
+    np.testing.assert_allclose(scanning.ranges.origin, TURRET.mount.base)
+
+
 def test_the_registries_hold_each_configurable_name_once() -> None:
     assert tuple(TRACKERS) == get_args(TrackerKind) == TRACKER_NAMES
     assert tuple(CONTROLLERS) == get_args(ControllerMode)

@@ -1,4 +1,4 @@
-"""The convex-hull crop (seed 003's filter node) against known answers."""
+"""The convex-hull crop (seed 003's filter node) against known answers, and the ball."""
 
 from __future__ import annotations
 
@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import ConfigError
-from dronetrack.preprocess.crop import HullCrop
+from dronetrack.preprocess.crop import HullCrop, ball_mask
 
 
 @settings(max_examples=50, deadline=None)
@@ -43,3 +44,20 @@ def test_hull_crop_of_a_tetrahedron_and_its_interior_points() -> None:
 def test_hull_crop_rejects_too_few_flat_or_bad_vertices(vertices: object) -> None:
     with pytest.raises(ConfigError, match="hull"):
         HullCrop(vertices)  # type: ignore[arg-type]
+
+
+@given(
+    arrays(np.float64, (30, 3), elements=st.floats(-50, 50)),
+    arrays(np.float64, 3, elements=st.floats(-50, 50)),
+    st.floats(0.0, 40.0),
+)
+def test_ball_mask_is_the_distance_test(points: np.ndarray, centre: np.ndarray, r: float) -> None:
+    d = np.linalg.norm(points - centre, axis=1)
+    inside = ball_mask(points, centre, r)
+    assert np.all(inside[d < r * (1 - 1e-9)])
+    assert not np.any(inside[d > r * (1 + 1e-9) + 1e-12])
+
+
+def test_ball_mask_leaves_non_finite_rows_out() -> None:
+    pts = np.array([[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0], [np.inf, 0.0, 0.0]])
+    np.testing.assert_array_equal(ball_mask(pts, np.zeros(3), 1.0), [True, False, False])

@@ -130,6 +130,10 @@ class BackgroundConfig(StrictModel):
     # Neighbours (of 26) a voxel needs hit too: a lone return, most often one of the
     # sensor's random false alarms in the open sky, is then not background.
     min_neighbours: int = Field(0, ge=0, le=26)
+    # Near a locked target, keep the points the voxel map drops that lie a voxel or more
+    # in front of every scan return around their direction (preprocess/range_image.py):
+    # a drone skimming a wall stays in view.  Needs the scan (not a loaded file).
+    near_track: bool = False
     scan_s: float = Field(10.0, ge=0)  # scanning time before tracking starts
     file: str | None = None  # load a saved map instead of scanning (and skip the scan)
     # The scanning pattern: pan and tilt triangle waves over these ranges.  Unset: the

@@ -233,7 +233,9 @@ DEFAULT = _outdoor(
     "horizontal-fast",
     "seed 000 horizontal fast: Phantom 4 at 15 m/s to 140 m, Avia on a WidowX, clear",
     66.0,
-    pipeline=OUTDOOR.model_copy(update={"background": BackgroundConfig(min_neighbours=1)}),
+    pipeline=OUTDOOR.model_copy(
+        update={"background": BackgroundConfig(min_neighbours=1, near_track=True)}
+    ),
 )
 # The acquisition scenarios watch a field of regard of ±90° pan, from 40° up to 5° down,
 # out to 200 m: the background scan covers it and the crop box bounds it.
@@ -241,12 +243,15 @@ DEFAULT = _outdoor(
 # false alarms mark about 1.5 % of the sky 10-30 m up as background (measured on the
 # outdoor-incoming scan), and a drone hovering in such a cell vanishes from the foreground.
 # Two hits need a longer scan of the wider field: 20 s, so the hedge is seen twice.
+# Near the locked drone the points clearly in front of the scan's returns are kept
+# (near_track): outdoor-hide's drone skimming the barn's corner stays in view (lock-on
+# 94.2 → 97.8 %, seeds 0-4; the other scenarios' figures moved by 0.3 points at most).
 OUTDOOR_FIELD = OUTDOOR.model_copy(
     update={
         "field_of_regard": FieldOfRegardConfig(
             pan_deg=(-90.0, 90.0), tilt_deg=(-40.0, 5.0), range_m=200.0
         ),
-        "background": BackgroundConfig(min_hits=2, scan_s=20.0),
+        "background": BackgroundConfig(min_hits=2, scan_s=20.0, near_track=True),
     }
 )
 

@@ -42,6 +42,7 @@ from dronetrack.jobs.background import load_model
 from dronetrack.pipeline import Acquisition, OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
+from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.track.base import SelfStart, Tracker
 from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
 from dronetrack.track.particle import (
@@ -262,6 +263,7 @@ def build_pipeline(
         hull=HullCrop(cfg.crop.hull_m) if cfg.crop.hull_m is not None else None,
         acquisition=build_acquisition(cfg.acquisition, cfg.tracker.v_max),
         field=field_of_regard(cfg, mount.base),
+        ranges=RangeImage(np.asarray(mount.base)) if scanning and bg_cfg.near_track else None,
     )
 
 

@@ -108,9 +108,12 @@ def _geometry() -> None:
 
 
 def _foreground() -> None:
-    """The background map (its hash table and dense grid) and the one-pass foreground."""
+    """The background map (its hash table and dense grid), the one-pass foreground,
+    and the ball and the scan's range image around a locked target."""
     from dronetrack.preprocess.background import VoxelBackground
+    from dronetrack.preprocess.crop import ball_mask
     from dronetrack.preprocess.foreground import extract_foreground
+    from dronetrack.preprocess.range_image import RangeImage
 
     frame = _frame()
     lo, hi = np.array([-50.0, -50.0, -50.0]), np.array([50.0, 50.0, 50.0])
@@ -118,8 +121,13 @@ def _foreground() -> None:
     background.insert(frame.world_points()[:4])
     background.build()
     extract_foreground(frame, lo, hi, background)
-    extract_foreground(frame, lo, hi, None)
+    fg = extract_foreground(frame, lo, hi, None)
     background.is_background(frame.points)
+    ball_mask(fg.world, np.zeros(3), 1.0)
+    ranges = RangeImage(np.zeros(3))
+    ranges.insert(fg.world)
+    ranges.build()
+    ranges.in_front(fg.world, 1.0)
 
 
 def _particle_filters() -> None:
