@@ -159,12 +159,7 @@ def _scenario(
 
 
 def _outdoor(
-    name: str,
-    flight: str,
-    description: str,
-    duration: float,
-    visibility: float = float("inf"),
-    pipeline: PipelineConfig = OUTDOOR,
+    name: str, flight: str, description: str, duration: float, visibility: float = float("inf")
 ) -> ScenarioConfig:
     """Seed 000 outdoors: Phantom 4, Avia on a WidowX on a 1 m stand."""
     return _scenario(
@@ -178,7 +173,6 @@ def _outdoor(
         "widowx",
         1.0,
         visibility,
-        pipeline,
     )
 
 
@@ -233,9 +227,12 @@ DEFAULT = _outdoor(
     "horizontal-fast",
     "seed 000 horizontal fast: Phantom 4 at 15 m/s to 140 m, Avia on a WidowX, clear",
     66.0,
-    pipeline=OUTDOOR.model_copy(
-        update={"background": BackgroundConfig(min_neighbours=1, near_track=True)}
-    ),
+).model_copy(
+    update={
+        "pipeline": OUTDOOR.model_copy(
+            update={"background": BackgroundConfig(min_neighbours=1, near_track=True)}
+        )
+    }
 )
 # The acquisition scenarios watch a field of regard of ±90° pan, from 40° up to 5° down,
 # out to 200 m: the background scan covers it and the crop box bounds it.
