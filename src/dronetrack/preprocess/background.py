@@ -99,14 +99,9 @@ class VoxelBackground:
         """Turn the accumulated points into the lookup map."""
         keys = np.concatenate(self._chunks) if self._chunks else np.empty(0, dtype=np.int64)
         self._chunks = []
-        self._cells = KeySet.of(
-            coarsen_keys(
-                dilate_keys(
-                    occupied_voxels(keys, self.min_hits, self.min_neighbours), self.inflate
-                ),
-                self.lookup_depth,
-            )
-        )
+        voxels = occupied_voxels(keys, self.min_hits, self.min_neighbours)
+        grown = dilate_keys(voxels, self.inflate)
+        self._cells = KeySet.of(coarsen_keys(grown, self.lookup_depth))
 
     @classmethod
     def from_cells(

@@ -32,6 +32,12 @@ IntArray = NDArray[np.int64]
 
 
 @nb.njit(cache=True)
+def grid_shape(step: float) -> tuple[int, int]:
+    """Bins in azimuth (a full turn) and in elevation (pole to pole) for ``step`` [rad]."""
+    return int(np.ceil(2.0 * np.pi / step)), int(np.ceil(np.pi / step)) + 1
+
+
+@nb.njit(cache=True)
 def direction_bins(
     points: FloatArray, origin: FloatArray, step: float
 ) -> tuple[IntArray, IntArray, FloatArray]:
@@ -40,8 +46,7 @@ def direction_bins(
     α = atan2(y, x) ∈ [−π, π],  ε = asin(z / r) ∈ [−π/2, π/2]
     i = ⌊(α + π) / step⌋ mod n_α,  j = min(⌊(ε + π/2) / step⌋, n_ε − 1)
     """
-    n_az = int(np.ceil(2.0 * np.pi / step))
-    n_el = int(np.ceil(np.pi / step)) + 1
+    n_az, n_el = grid_shape(step)
     n = points.shape[0]
     i = np.empty(n, dtype=np.int64)
     j = np.empty(n, dtype=np.int64)
@@ -65,11 +70,6 @@ def _lower(grid: NDArray[np.float32], i: IntArray, j: IntArray, r: FloatArray) -
     for k in range(len(r)):
         if r[k] < grid[i[k], j[k]]:
             grid[i[k], j[k]] = r[k]
-
-
-def grid_shape(step: float) -> tuple[int, int]:
-    """Bins in azimuth (a full turn) and in elevation (pole to pole) for ``step`` [rad]."""
-    return int(np.ceil(2.0 * np.pi / step)), int(np.ceil(np.pi / step)) + 1
 
 
 def neighbourhood_min(grid: NDArray[np.float32]) -> NDArray[np.float32]:

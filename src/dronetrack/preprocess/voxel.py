@@ -69,12 +69,18 @@ def unique_keys(keys: IntArray) -> IntArray:
     return s[keep]
 
 
+def _offsets(k: int) -> tuple[IntArray, IntArray, IntArray]:
+    """The (2k + 1)³ offsets within Chebyshev distance k, the zero offset included."""
+    r = np.arange(-k, k + 1)
+    dx, dy, dz = (a.ravel() for a in np.meshgrid(r, r, r, indexing="ij"))
+    return dx, dy, dz
+
+
 def dilate_keys(keys: IntArray, k: int) -> IntArray:
     """Every voxel within Chebyshev distance k of a key (the 26-neighbourhood, k times)."""
     if k <= 0 or len(keys) == 0:
         return unique_keys(keys)
-    r = np.arange(-k, k + 1)
-    dx, dy, dz = (a.ravel() for a in np.meshgrid(r, r, r, indexing="ij"))
+    dx, dy, dz = _offsets(k)
     ix, iy, iz = _unpack(keys)
     grown = _pack_array(
         (ix[:, None] + dx).ravel(), (iy[:, None] + dy).ravel(), (iz[:, None] + dz).ravel()
@@ -84,13 +90,11 @@ def dilate_keys(keys: IntArray, k: int) -> IntArray:
 
 def neighbour_counts(keys: IntArray, support: IntArray) -> IntArray:
     """How many of each key's 26 neighbours are in ``support`` (sorted distinct keys)."""
-    r = np.arange(-1, 2)
-    dx, dy, dz = (a.ravel() for a in np.meshgrid(r, r, r, indexing="ij"))
     ix, iy, iz = _unpack(keys)
     counts = np.zeros(len(keys), dtype=np.int64)
     if len(support) == 0:
         return counts
-    for ox, oy, oz in zip(dx, dy, dz, strict=True):
+    for ox, oy, oz in zip(*_offsets(1), strict=True):
         if ox == oy == oz == 0:
             continue
         neighbour = _pack_array(ix + ox, iy + oy, iz + oz)
