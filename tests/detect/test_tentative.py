@@ -19,11 +19,11 @@ from dronetrack.types import Candidates, Detections
 T = 0.1  # frame period [s]
 
 
-def _found(*centroids: tuple[float, float, float], size: float = 0.5) -> Detections:
+def _found(*centroids: tuple[float, float, float], size: float = 0.5, count: int = 3) -> Detections:
     k = len(centroids)
     c = np.array(centroids, dtype=np.float64).reshape(k, 3)
     return Detections(
-        c, np.full(k, 3), np.tile([size, 0.1, 0.1], (k, 1)), np.zeros((k, 3, 3)), np.zeros(k)
+        c, np.full(k, count), np.tile([size, 0.1, 0.1], (k, 1)), np.zeros((k, 3, 3)), np.zeros(k)
     )
 
 
@@ -134,6 +134,8 @@ def test_confirmed_candidates_move_within_the_speed_gate(seed: int, n: int) -> N
 def test_bad_settings() -> None:
     with pytest.raises(ConfigError, match="cue_hits"):
         ConfirmationSettings(hits=3, frames=4, cue_hits=4)
+    with pytest.raises(ConfigError, match="cue_points"):
+        ConfirmationSettings(cue_points=-1)
     with pytest.raises(ConfigError, match="hits ≤ frames"):
         ConfirmationSettings(hits=5, frames=4)
     with pytest.raises(ConfigError, match="v_max > 0"):
@@ -155,6 +157,25 @@ def test_a_track_seen_twice_is_a_cue_until_it_confirms_or_drops() -> None:
     np.testing.assert_allclose(tracks.cues(2 * T).positions[0], [102.0, 0.0, 10.0], atol=1e-9)
     # Seen again: 3 of 4, confirmed, so no longer a cue.
     assert len(tracks.update(3 * T, _found((103.0, 0.0, 10.0)))) == 1
+    assert len(tracks.cues(3 * T)) == 0
+
+
+@pytest.mark.parametrize(
+    ("cue_points", "count", "cue"), [(2, 2, True), (2, 1, False), (0, 5, False)]
+)
+def test_one_detection_of_cue_points_returns_is_a_cue(
+    cue_points: int, count: int, cue: bool
+) -> None:
+    s = ConfirmationSettings(hits=2, frames=4, cue_hits=2, cue_points=cue_points)
+    tracks = TentativeTracks(s)
+    tracks.update(0.0, _found((140.0, 60.0, 25.0), count=count))
+    assert len(tracks.cues(0.0)) == int(cue)
+    # Missed twice more it is still a cue; dropped with its track on the third miss.
+    for k in (1, 2):
+        tracks.update(k * T, Detections.empty())
+    assert len(tracks.cues(2 * T)) == int(cue)
+    tracks.update(3 * T, Detections.empty())
+    assert len(tracks) == 0
     assert len(tracks.cues(3 * T)) == 0
 
 

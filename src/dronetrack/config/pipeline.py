@@ -232,6 +232,9 @@ class AcquisitionConfig(StrictModel):
     # flies that slowly, so a lock moves from a target that never hovered to one that did
     hover_speed_m_s: float = Field(4.0, ge=0)
     hover_frames: int = Field(3, ge=1)
+    # one detection of this many returns is a cue (worth a look) at once, without a
+    # second hit: the sensor's false returns come one at a time (0: off)
+    cue_points: int = Field(2, ge=0)
 
     @model_validator(mode="after")
     def _m_of_n(self) -> AcquisitionConfig:

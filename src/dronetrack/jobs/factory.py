@@ -284,6 +284,7 @@ def build_acquisition(cfg: AcquisitionConfig, v_max: float) -> Acquisition | Non
         frames=cfg.confirm_frames,
         hover_speed=cfg.hover_speed_m_s,
         hover_frames=cfg.hover_frames,
+        cue_points=cfg.cue_points,
     )
     return Acquisition(detector, TentativeTracks(settings))
 
