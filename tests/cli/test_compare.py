@@ -12,9 +12,10 @@ import pytest
 from dronetrack.cli.main import run
 from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.errors import ConfigError
+from dronetrack.experiments.compare.ranking import ranking_differences
 from dronetrack.experiments.compare.runner import RunMetrics, case_config, run_suite
 from dronetrack.experiments.compare.suites import SUITES, Case, Suite, get_suite
-from dronetrack.experiments.compare.tables import TABLE_COLUMNS, aggregate, ranking_differences
+from dronetrack.experiments.compare.tables import TABLE_COLUMNS, aggregate
 from dronetrack.jobs.factory import TRACKER_NAMES
 from dronetrack.jobs.simulate import run_lockstep, run_simulation
 

@@ -26,16 +26,14 @@ of the farther one's footprint.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
-import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.geometry.transforms import FloatArray, apply_interpolated_poses
 from dronetrack.sim.clutter import (
     CLUTTER_BIRD,
-    CLUTTER_FALSE_ALARM,
     CLUTTER_NONE,
     CLUTTER_SWAY,
     Clutter,
@@ -47,6 +45,18 @@ from dronetrack.sim.patterns import Pulses
 from dronetrack.sim.physics import detection_probability, signal_ratio
 from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.raycast import cast_rays
+from dronetrack.sim.returns import (
+    FROM_BIRD,
+    FROM_SCENE,
+    FROM_TARGET,
+    Scan,
+    TargetEcho,
+    beam_axes,
+    first_returns,
+    mutual_occlusion,
+    noisy_points,
+    with_false_alarms,
+)
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.sensors import SensorModel
 from dronetrack.sim.trajectories import Trajectory
@@ -57,11 +67,6 @@ LIVOX_DIFFUSE_MAX = 150.0  # Livox reflectivity byte for 100 % diffuse
 INDEX_SLACK_M = 0.5  # how far ray origins may wander before the scene is indexed again
 SUBRAY_SPACING_M = 0.02  # footprint sampling: the thinnest target parts (arms, legs) are 1-4 cm
 
-# Where a return comes from (``_first_returns``).
-FROM_SCENE = 0
-FROM_TARGET = 1
-FROM_BIRD = 2
-FROM_FALSE_ALARM = 3  # the sensor's own, per pulse
 _NO_BIRDS = np.empty(0)
 
 
@@ -71,74 +76,6 @@ def footprint_samples(k: int) -> FloatArray:
     r = np.sqrt(i / k)
     phi = i * np.pi * (3.0 - np.sqrt(5.0))  # golden angle
     return np.column_stack([r * np.cos(phi), r * np.sin(phi)])
-
-
-@dataclass(frozen=True, slots=True)
-class Scan:
-    """The returns of one integration period, with their ground truth."""
-
-    points: FloatArray  # (M, 3) sensor frame [m]
-    t: FloatArray  # (M,) [s]
-    line: NDArray[np.uint8]  # (M,)
-    intensity: NDArray[np.float32]  # (M,) Livox reflectivity encoding
-    hit_target: NDArray[np.bool_]  # (M,) ground truth: the return came from the target
-    n_pulses: int
-    clutter: NDArray[np.int8] | None = None  # (M,) CLUTTER_* codes, with clutter only
-
-
-@dataclass(frozen=True, slots=True)
-class _TargetEcho:
-    """Target echoes of the candidate pulses."""
-
-    index: NDArray[np.int64]  # (C,) pulse indices
-    reflectivity: FloatArray  # (C,) Σ ρ cos θ / K
-    fill: FloatArray  # (C,) fraction of sub-rays on the target
-    range_m: FloatArray  # (C,) mean range of the sub-rays on the target (inf if none)
-    surface: FloatArray  # (C,) mean reflectivity ρ of the parts hit (for the intensity)
-
-
-@nb.njit(cache=True, fastmath=True)
-def _noisy_points(
-    dirs: FloatArray,
-    origins: FloatArray,
-    ranges: FloatArray,
-    noise: FloatArray,
-    sigma_angle: float,
-    sigma_range: float,
-) -> FloatArray:
-    """Returns o + (R + σ_R n₂) · unit(d + σ_θ (n₀ h + n₁ v)), with the beam axes h, v of d."""
-    n = dirs.shape[0]
-    out = np.empty((n, 3))
-    for i in range(n):
-        dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
-        # h = unit(ẑ × d), v = d × h (see _beam_axes)
-        norm = np.sqrt(dx * dx + dy * dy)
-        if norm > 1e-9:
-            hx, hy = -dy / norm, dx / norm
-        else:
-            hx, hy = 0.0, 1.0
-        vx, vy, vz = -dz * hy, dz * hx, dx * hy - dy * hx
-        a = sigma_angle * noise[i, 0]
-        b = sigma_angle * noise[i, 1]
-        ex, ey, ez = dx + a * hx + b * vx, dy + a * hy + b * vy, dz + b * vz
-        scale = (ranges[i] + sigma_range * noise[i, 2]) / np.sqrt(ex * ex + ey * ey + ez * ez)
-        out[i, 0] = origins[i, 0] + scale * ex
-        out[i, 1] = origins[i, 1] + scale * ey
-        out[i, 2] = origins[i, 2] + scale * ez
-    return out
-
-
-def _beam_axes(d: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Unit horizontal and vertical axes across beams d (N, 3) in the sensor frame.
-
-    h = unit(ẑ × d) lies in the sensor's horizontal plane; v = d × h.
-    """
-    h = np.column_stack([-d[:, 1], d[:, 0], np.zeros(len(d))])
-    norm = np.linalg.norm(h, axis=1)
-    h = np.where(
-        norm[:, None] > 1e-9, h / np.maximum(norm, 1e-12)[:, None], np.array([0.0, 1.0, 0.0])
-    )
-    return h, np.cross(d, h)
 
 
 class LidarSimulator:
@@ -200,7 +137,7 @@ class LidarSimulator:
         o_mean: FloatArray,
         slack: float,
         scene_range: FloatArray,
-    ) -> _TargetEcho:
+    ) -> TargetEcho:
         sensor = self.sensor
         t0, t1 = float(pulses.t[0]), float(pulses.t[-1])
         tm = 0.5 * (t0 + t1)
@@ -218,7 +155,7 @@ class LidarSimulator:
             idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
         if len(idx) == 0:
             empty = np.empty(0)
-            return _TargetEcho(idx, empty, empty, empty, empty)
+            return TargetEcho(idx, empty, empty, empty, empty)
         # Rays in the target's body frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
         Rb = self.target_attitude(tm)
         o_b = (orig[idx] - self.trajectory.position(pulses.t[idx])) @ Rb
@@ -233,7 +170,7 @@ class LidarSimulator:
         idx, o_b, d_b = idx[near], o_b[near], d_b[near]
         if len(idx) == 0:
             empty = np.empty(0)
-            return _TargetEcho(idx, empty, empty, empty, empty)
+            return TargetEcho(idx, empty, empty, empty, empty)
         return self._footprint_echo(
             self.drone.body,
             pulses,
@@ -259,11 +196,11 @@ class LidarSimulator:
         poses: FloatArray,
         range_m: float,
         scene_range: FloatArray,
-    ) -> _TargetEcho:
+    ) -> TargetEcho:
         """Echoes of the pulses ``idx`` from ``body``, whose frame the rays (o_b, d_b) are in
         (turned from the world by Rb), over the pulses' footprints at about ``range_m``."""
         sensor = self.sensor
-        h_s, v_s = _beam_axes(pulses.dirs[idx])
+        h_s, v_s = beam_axes(pulses.dirs[idx])
         t_idx = pulses.t[idx]
         axes_w, _ = apply_interpolated_poses(
             pose_t, poses, np.concatenate([t_idx, t_idx]), np.concatenate([h_s, v_s])
@@ -288,7 +225,7 @@ class LidarSimulator:
         count = on.sum(axis=1)
         per_hit = 1.0 / np.maximum(count, 1)
         mean_range = np.where(count > 0, np.where(on, t_k, 0.0).sum(axis=1) * per_hit, np.inf)
-        return _TargetEcho(
+        return TargetEcho(
             index=idx,
             reflectivity=(rho_k * cos_k.reshape(-1, k)).sum(axis=1) / k,
             fill=count / k,
@@ -307,7 +244,7 @@ class LidarSimulator:
         o_mean: FloatArray,
         slack: float,
         scene_range: FloatArray,
-    ) -> _TargetEcho:
+    ) -> TargetEcho:
         """The birds' echoes, as the target's (``_target_echo``): the nearest bird echo of
         each pulse that meets a bird."""
         sensor = self.sensor
@@ -375,7 +312,7 @@ class LidarSimulator:
             fill[at] = echo.fill[closer]
             surface[at] = echo.surface[closer]
         hit = np.flatnonzero(np.isfinite(best))
-        return _TargetEcho(hit, reflectivity[hit], fill[hit], best[hit], surface[hit])
+        return TargetEcho(hit, reflectivity[hit], fill[hit], best[hit], surface[hit])
 
     def _cast_scene(
         self, prims: Primitives, orig: FloatArray, D: FloatArray, o_mean: FloatArray, slack: float
@@ -441,7 +378,7 @@ class LidarSimulator:
             birds = self._bird_echoes(
                 clutter.flock, pulses, pose_t, poses, orig, D, o_mean, slack, t_s
             )
-            target_reflectivity, bird_reflectivity = _mutual_occlusion(n, echo, birds)
+            target_reflectivity, bird_reflectivity = mutual_occlusion(n, echo, birds)
             fill[birds.index] -= birds.fill
             fill = np.maximum(fill, 0.0)
             pd_bird, bird_range, bird_rho = np.zeros(n), np.full(n, np.inf), np.zeros(n)
@@ -473,7 +410,7 @@ class LidarSimulator:
         target_range[echo.index] = echo.range_m
         target_rho = np.zeros(n)
         target_rho[echo.index] = echo.surface
-        keep, r, rho, source = _first_returns(
+        keep, r, rho, source = first_returns(
             u,
             pd_target,
             pd_scene,
@@ -491,7 +428,7 @@ class LidarSimulator:
         )
 
         noise = rng.standard_normal((len(keep), 3))
-        points = _noisy_points(
+        points = noisy_points(
             pulses.dirs[keep],
             pulses.origins[keep],
             r,
@@ -516,107 +453,4 @@ class LidarSimulator:
         fa, fa_range = clutter.false_alarms(
             pulses, t_end - t_start, sensor.min_range_m, sensor.max_range_m
         )
-        return _with_false_alarms(replace(scan, clutter=kind), keep, pulses, fa, fa_range)
-
-
-def _mutual_occlusion(
-    n: int, target: _TargetEcho, birds: _TargetEcho
-) -> tuple[FloatArray, FloatArray]:
-    """The target's and the birds' echo reflectivities where they share pulses: the nearer
-    one hides its fill fraction F of the farther one's footprint, ρ' = ρ (1 − F)."""
-    t_range, t_fill = np.full(n, np.inf), np.zeros(n)
-    t_range[target.index], t_fill[target.index] = target.range_m, target.fill
-    b_range, b_fill = np.full(n, np.inf), np.zeros(n)
-    b_range[birds.index], b_fill[birds.index] = birds.range_m, birds.fill
-    ti, bi = target.index, birds.index
-    target_rho = target.reflectivity * np.where(b_range[ti] < t_range[ti], 1.0 - b_fill[ti], 1.0)
-    bird_rho = birds.reflectivity * np.where(t_range[bi] < b_range[bi], 1.0 - t_fill[bi], 1.0)
-    return target_rho, bird_rho
-
-
-def _with_false_alarms(
-    scan: Scan,
-    keep: NDArray[np.int64],
-    pulses: Pulses,
-    fa: NDArray[np.int64],
-    fa_range: FloatArray,
-) -> Scan:
-    """The scan with the clutter's false alarms on pulses ``fa`` at ``fa_range`` added, each
-    after its pulse's own return (reflectivity 0, no noise)."""
-    if len(fa) == 0:
-        return scan
-    assert scan.clutter is not None
-    # p = o + R d in the sensor frame.
-    fa_points = pulses.origins[fa] + fa_range[:, None] * pulses.dirs[fa]
-    order = np.argsort(np.concatenate([keep, fa]), kind="stable")
-    m = len(fa)
-    return replace(
-        scan,
-        points=np.concatenate([scan.points, fa_points])[order],
-        t=np.concatenate([scan.t, pulses.t[fa]])[order],
-        line=np.concatenate([scan.line, pulses.line[fa]])[order],
-        intensity=np.concatenate([scan.intensity, np.zeros(m, np.float32)])[order],
-        hit_target=np.concatenate([scan.hit_target, np.zeros(m, bool)])[order],
-        clutter=np.concatenate([scan.clutter, np.full(m, CLUTTER_FALSE_ALARM, np.int8)])[order],
-    )
-
-
-@nb.njit(cache=True)
-def _first_returns(
-    u: FloatArray,
-    pd_target: FloatArray,
-    pd_scene: FloatArray,
-    scene_range: FloatArray,
-    target_range: FloatArray,
-    target_rho: FloatArray,
-    scene_rho: FloatArray,
-    r_min: float,
-    r_max: float,
-    p_fa: float,
-    u_bird: FloatArray,
-    pd_bird: FloatArray,
-    bird_range: FloatArray,
-    bird_rho: FloatArray,
-) -> tuple[NDArray[np.int64], FloatArray, FloatArray, NDArray[np.int8]]:
-    """Which pulses return, from what range and reflectivity, and from what (FROM_*).
-
-    Per pulse with uniforms u = (u₀, u₁, u₂): the target echoes if u₀ < P_d,target,
-    else the scene if u₁ < P_d,scene; a return counts within [r_min, r_max].  A pulse
-    without one is a false alarm if u₂ < p_fa, at range r_min + (r_max − r_min) u₂ / p_fa
-    (given u₂ < p_fa, u₂ / p_fa is uniform on [0, 1)) and reflectivity 0.  With birds
-    (``u_bird`` not empty) a bird echoes if u_bird < P_d,bird, tried before the target if
-    it is nearer, after it otherwise, and always before the scene behind both.
-    """
-    n = u.shape[0]
-    has_birds = u_bird.shape[0] > 0
-    keep = np.empty(n, dtype=np.int64)
-    r = np.empty(n)
-    rho = np.empty(n)
-    source = np.empty(n, dtype=np.int8)
-    m = 0
-    for i in range(n):
-        bird_first = has_birds and bird_range[i] < target_range[i]
-        hit_bird = bird_first and u_bird[i] < pd_bird[i]
-        hit_target = not hit_bird and u[i, 0] < pd_target[i]
-        if has_birds and not bird_first and not hit_target:
-            hit_bird = u_bird[i] < pd_bird[i]
-        hit_scene = not hit_target and not hit_bird and u[i, 1] < pd_scene[i]
-        if hit_target:
-            rng_i, rho_i, src = target_range[i], target_rho[i], FROM_TARGET
-        elif hit_bird:
-            rng_i, rho_i, src = bird_range[i], bird_rho[i], FROM_BIRD
-        else:
-            rng_i, rho_i, src = scene_range[i], scene_rho[i], FROM_SCENE
-        if (hit_target or hit_bird or hit_scene) and r_min <= rng_i <= r_max:
-            keep[m] = i
-            r[m] = rng_i
-            rho[m] = rho_i
-            source[m] = src
-            m += 1
-        elif u[i, 2] < p_fa:
-            keep[m] = i
-            r[m] = r_min + (r_max - r_min) * (u[i, 2] / p_fa)
-            rho[m] = 0.0
-            source[m] = FROM_FALSE_ALARM
-            m += 1
-    return keep[:m], r[:m], rho[:m], source[:m]
+        return with_false_alarms(replace(scan, clutter=kind), keep, pulses, fa, fa_range)

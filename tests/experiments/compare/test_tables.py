@@ -11,8 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dronetrack.config.scenarios import get_scenario
-from dronetrack.experiments.compare.suites import SUITES, get_suite
-from dronetrack.experiments.compare.tables import (
+from dronetrack.experiments.compare.ranking import (
     Row,
     Verdict,
     combined_standard_error,
@@ -20,8 +19,9 @@ from dronetrack.experiments.compare.tables import (
     pair_lines,
     ranking_differences,
     ranking_lines,
-    table_markdown,
 )
+from dronetrack.experiments.compare.suites import SUITES, get_suite
+from dronetrack.experiments.compare.tables import table_markdown
 
 NAN = math.nan
 INDOOR = get_suite("seed000-indoor")
