@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from dronetrack.errors import DecodeError, InputError
 from dronetrack.formats import livox_sdk2 as s2
+from dronetrack.formats import livox_sdk2_control as c2
 from dronetrack.formats.livox_common import DecodedPackets, ImuSamples, LivoxPoints
 from livox_helpers import T0, damaged_packets
 from livox_helpers import ccitt_false as _ccitt_false
@@ -37,26 +38,26 @@ def _points_packet(data_type: int, n: int = 96, **kw: int) -> bytes:
 
 
 def test_crc16_is_ccitt_false() -> None:
-    assert s2.crc16(b"123456789") == _ccitt_false(b"123456789") == 0x29B1  # catalogue check
+    assert c2.crc16(b"123456789") == _ccitt_false(b"123456789") == 0x29B1  # catalogue check
 
 
 def test_frames_round_trip_against_hand_built_bytes() -> None:
     req = _frame_by_hand(0x0000, 0, 1, b"")
     assert req[20:24] == bytes(4)  # no data: CRC-32 field 0
-    assert s2.decode_frame(req) == s2.CommandFrame(cmd_id=0, cmd_type=0, seq=1)
-    assert s2.encode_frame(s2.CommandFrame(0, 0, 1)) == req
+    assert c2.decode_frame(req) == c2.CommandFrame(cmd_id=0, cmd_type=0, seq=1)
+    assert c2.encode_frame(c2.CommandFrame(0, 0, 1)) == req
     ack_data = struct.pack("<BB16s4BH", 0, 9, b"47MDL9A0020074", 192, 168, 1, 12, 56100)
     ack = _frame_by_hand(0x0000, 1, 1, ack_data, sender=1)
-    frame = s2.decode_frame(ack)
+    frame = c2.decode_frame(ack)
     assert (frame.cmd_type, frame.sender) == (1, 1)
-    assert s2.DiscoveryAck.decode(frame.payload) == s2.DiscoveryAck(
+    assert c2.DiscoveryAck.decode(frame.payload) == c2.DiscoveryAck(
         0, 9, "47MDL9A0020074", "192.168.1.12", 56100
     )
-    assert s2.encode_frame(s2.CommandFrame(0, 1, 1, ack_data, sender=1)) == ack
+    assert c2.encode_frame(c2.CommandFrame(0, 1, 1, ack_data, sender=1)) == ack
 
 
 def test_host_configuration_request_holds_the_documented_keys() -> None:
-    data = s2.host_config_request("192.168.1.5", 56201, 56301, 56401)
+    data = c2.host_config_request("192.168.1.5", 56201, 56301, 56401)
     ip = bytes([192, 168, 1, 5])
     by_hand = (
         struct.pack("<HH", 4, 0)
@@ -66,11 +67,11 @@ def test_host_configuration_request_holds_the_documented_keys() -> None:
         + struct.pack("<HHB", 0x001A, 1, 0x01)
     )  # fmt: skip
     assert data == by_hand
-    items = s2.decode_key_values(s2.decode_frame(_frame_by_hand(0x0100, 0, 5, by_hand)).payload)
+    items = c2.decode_key_values(c2.decode_frame(_frame_by_hand(0x0100, 0, 5, by_hand)).payload)
     assert [k for k, _ in items] == [5, 6, 7, 0x1A]
-    assert s2.HostIpConfig.decode(items[1][1]) == s2.HostIpConfig("192.168.1.5", 56301, 56300)
-    assert s2.ParamAck.decode(b"\x01\x06\x00") == s2.ParamAck(1, 6)
-    assert s2.ParamAck(0).encode() == b"\x00\x00\x00"
+    assert c2.HostIpConfig.decode(items[1][1]) == c2.HostIpConfig("192.168.1.5", 56301, 56300)
+    assert c2.ParamAck.decode(b"\x01\x06\x00") == c2.ParamAck(1, 6)
+    assert c2.ParamAck(0).encode() == b"\x00\x00\x00"
 
 
 @pytest.mark.parametrize(
@@ -84,7 +85,7 @@ def test_host_configuration_request_holds_the_documented_keys() -> None:
 )
 def test_malformed_key_value_lists_raise(data: bytes, message: str) -> None:
     with pytest.raises(DecodeError, match=message):
-        s2.decode_key_values(data)
+        c2.decode_key_values(data)
 
 
 @pytest.mark.parametrize(
@@ -99,7 +100,7 @@ def test_malformed_key_value_lists_raise(data: bytes, message: str) -> None:
 )
 def test_malformed_frames_raise_a_decode_error_naming_the_problem(mutate, message) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(DecodeError, match=message):
-        s2.decode_frame(mutate(_frame_by_hand(0x0100, 0, 5, b"\x00\x00\x00\x00")))
+        c2.decode_frame(mutate(_frame_by_hand(0x0100, 0, 5, b"\x00\x00\x00\x00")))
 
 
 @pytest.mark.parametrize("data_type", [1, 2, 3])
@@ -235,9 +236,9 @@ def test_encoder_refuses_what_the_wire_cannot_hold() -> None:
     with pytest.raises(InputError, match="not a point type"):
         s2.encode_point_packets(np.zeros((1, 3)), one, data_type=0, t0_ns=0, point_interval_ns=1)
     with pytest.raises(InputError, match="IP address"):
-        s2.HostIpConfig("host", 1, 2).encode()
+        c2.HostIpConfig("host", 1, 2).encode()
     with pytest.raises(InputError, match="exceeds 1400"):
-        s2.encode_frame(s2.CommandFrame(0x0100, 0, 1, bytes(1377)))
+        c2.encode_frame(c2.CommandFrame(0x0100, 0, 1, bytes(1377)))
     imu = s2.encode_imu_packets(np.array([T0, T0 + 5]), np.ones((2, 3)), np.zeros((2, 3)))
     assert s2.decode_packets(imu)[0].imu.t_ns.tolist() == [T0, T0 + 5]
 
@@ -262,11 +263,11 @@ def test_damaged_packets_give_decode_errors_or_a_malformed_count(buf: bytes, che
 @settings(max_examples=200, deadline=None)
 def test_damaged_frames_and_payloads_give_only_decode_errors(buf: bytes) -> None:
     decoders = (
-        s2.decode_frame,
-        s2.decode_key_values,
-        s2.DiscoveryAck.decode,
-        s2.HostIpConfig.decode,
-        s2.ParamAck.decode,
+        c2.decode_frame,
+        c2.decode_key_values,
+        c2.DiscoveryAck.decode,
+        c2.HostIpConfig.decode,
+        c2.ParamAck.decode,
     )
     for decode in decoders:
         with contextlib.suppress(DecodeError):
@@ -276,18 +277,18 @@ def test_damaged_frames_and_payloads_give_only_decode_errors(buf: bytes) -> None
 def test_parameter_queries_and_their_acks_against_hand_built_bytes() -> None:
     # query 0x0101: key_num u16, reserved u16, keys u16 (Livox-SDK2 command_impl.cpp)
     query = struct.pack("<HHHH", 2, 0, 0x8006, 0x0000)
-    assert s2.encode_key_list([0x8006, 0x0000]) == query
-    assert s2.decode_key_list(query) == [0x8006, 0x0000]
+    assert c2.encode_key_list([0x8006, 0x0000]) == query
+    assert c2.decode_key_list(query) == [0x8006, 0x0000]
     # its ACK: ret_code u8, key_num u16, then {key, length, value} with no reserved field
     ack = struct.pack("<BHHHBHHB", 0, 2, 0x8006, 1, 0x01, 0x0000, 1, 3)
-    assert s2.QueryAck.decode(ack) == s2.QueryAck(0, ((0x8006, b"\x01"), (0x0000, b"\x03")))
-    assert s2.QueryAck(0, ((0x8006, b"\x01"), (0x0000, b"\x03"))).encode() == ack
+    assert c2.QueryAck.decode(ack) == c2.QueryAck(0, ((0x8006, b"\x01"), (0x0000, b"\x03")))
+    assert c2.QueryAck(0, ((0x8006, b"\x01"), (0x0000, b"\x03"))).encode() == ack
     with pytest.raises(DecodeError, match="not 4"):
-        s2.decode_key_list(query[:-1])
+        c2.decode_key_list(query[:-1])
     with pytest.raises(DecodeError, match="does not hold 2 keys"):
-        s2.decode_key_list(query[:-2])
+        c2.decode_key_list(query[:-2])
     with pytest.raises(DecodeError, match="truncated"):
-        s2.QueryAck.decode(ack[:-1])
+        c2.QueryAck.decode(ack[:-1])
 
 
 def _kv(key: int, value: bytes) -> bytes:
@@ -296,7 +297,7 @@ def _kv(key: int, value: bytes) -> bytes:
 
 def test_device_information_from_a_hand_built_inquiry_ack() -> None:
     # Livox-SDK2 QueryLivoxLidarFirmwareVer: key_num 1, reserved, key 0x8002
-    assert s2.encode_key_list([0x8002]) == struct.pack("<HHH", 1, 0, 0x8002)
+    assert c2.encode_key_list([0x8002]) == struct.pack("<HHH", 1, 0, 0x8002)
     # the ACK (document, 0x0101 and the key_value_list table): ret_code, key_num, then
     # sn uint8_t[16], product_info char[64], version_app uint8_t[4] aa.bb.cc.dd with
     # version_info[0] = aa, version_loader, version_hardware, mac uint8_t[6]
@@ -312,8 +313,8 @@ def test_device_information_from_a_hand_built_inquiry_ack() -> None:
         _kv(0x8007, struct.pack("<i", 4250)),  # core_temp, 42.50 °C: not read
     ]
     ack = struct.pack("<BH", 0, len(items)) + b"".join(items)
-    info = s2.DeviceInfo.from_items(s2.QueryAck.decode(ack).items)
-    assert info == s2.DeviceInfo(
+    info = c2.DeviceInfo.from_items(c2.QueryAck.decode(ack).items)
+    assert info == c2.DeviceInfo(
         serial="47MDL9W0020022",
         product="Mid-360 2021/12/01",
         firmware="10.11.6.35",
@@ -325,11 +326,11 @@ def test_device_information_from_a_hand_built_inquiry_ack() -> None:
     assert info.work_state_name == "SAMPLING"
     # a device that leaves keys out: those are None
     only = struct.pack("<BH", 0, 1) + _kv(0x8002, bytes([1, 0, 0, 0]))
-    assert s2.DeviceInfo.from_items(s2.QueryAck.decode(only).items) == s2.DeviceInfo(
+    assert c2.DeviceInfo.from_items(c2.QueryAck.decode(only).items) == c2.DeviceInfo(
         firmware="1.0.0.0"
     )
-    assert s2.DeviceInfo().work_state_name is None
-    assert s2.DeviceInfo(work_state=0x03).work_state_name == "unknown"
+    assert c2.DeviceInfo().work_state_name is None
+    assert c2.DeviceInfo(work_state=0x03).work_state_name == "unknown"
 
 
 @pytest.mark.parametrize(
@@ -343,13 +344,13 @@ def test_device_information_from_a_hand_built_inquiry_ack() -> None:
 )
 def test_device_information_of_the_wrong_length_raises(key: int, value: bytes) -> None:
     with pytest.raises(DecodeError, match=f"0x{key:04X}"):
-        s2.DeviceInfo.from_items([(key, value)])
+        c2.DeviceInfo.from_items([(key, value)])
 
 
 def test_host_configuration_alone_leaves_out_the_work_mode() -> None:
-    data = s2.host_config_request("192.168.1.5", 1, 2, 3, work_mode=None)
+    data = c2.host_config_request("192.168.1.5", 1, 2, 3, work_mode=None)
     assert struct.unpack_from("<H", data)[0] == 3
-    assert [k for k, _ in s2.decode_key_values(data)] == [5, 6, 7]
+    assert [k for k, _ in c2.decode_key_values(data)] == [5, 6, 7]
 
 
 def test_packet_problem_names_what_is_wrong_or_nothing() -> None:

@@ -66,6 +66,7 @@ from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError, DecodeError, DeviceError
 from dronetrack.formats import livox_sdk2 as s2
+from dronetrack.formats import livox_sdk2_control as c2
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox_link import LinkOptions, LivoxLink
 from dronetrack.sources.livox_net import MAX_DATAGRAM
@@ -94,9 +95,9 @@ class Livox2Endpoint:
     host_ip: str | None = None
     cmd_port: int = HOST_CMD_PORT
     point_port: int = HOST_POINT_PORT
-    discovery_port: int = s2.DISCOVERY_PORT
-    device_port: int = s2.CMD_PORT
-    device_discovery_port: int = s2.DISCOVERY_PORT
+    discovery_port: int = c2.DISCOVERY_PORT
+    device_port: int = c2.CMD_PORT
+    device_discovery_port: int = c2.DISCOVERY_PORT
     broadcast: bool = True
     data_type: int | None = None
 
@@ -175,7 +176,7 @@ class Livox2Client(LivoxLink):
     def _discover(self, until: float) -> None:
         ep = self.endpoint
         sock = self._socks["discovery"]
-        request = s2.encode_frame(s2.CommandFrame(s2.DISCOVERY, s2.REQ, 1))
+        request = c2.encode_frame(c2.CommandFrame(c2.DISCOVERY, c2.REQ, 1))
         targets = [(ep.device_ip, ep.device_discovery_port)]
         if ep.broadcast:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
@@ -192,10 +193,10 @@ class Livox2Client(LivoxLink):
             except TimeoutError:
                 continue
             try:
-                frame = s2.decode_frame(buf)
-                if (frame.cmd_id, frame.cmd_type) != (s2.DISCOVERY, s2.ACK):
+                frame = c2.decode_frame(buf)
+                if (frame.cmd_id, frame.cmd_type) != (c2.DISCOVERY, c2.ACK):
                     continue  # e.g. our own broadcast request coming back
-                ack = s2.DiscoveryAck.decode(frame.payload)
+                ack = c2.DiscoveryAck.decode(frame.payload)
             except DecodeError:
                 continue
             if ack.ret_code == 0 and ep.device_ip in (ip, ack.lidar_ip):
@@ -204,19 +205,19 @@ class Livox2Client(LivoxLink):
                 return
 
     def _encode_command(self, cmd_id: int, payload: bytes, seq: int, cmd_type: int | None) -> bytes:
-        kind = s2.REQ if cmd_type is None else cmd_type
-        return s2.encode_frame(s2.CommandFrame(cmd_id, kind, seq, payload))
+        kind = c2.REQ if cmd_type is None else cmd_type
+        return c2.encode_frame(c2.CommandFrame(cmd_id, kind, seq, payload))
 
     def _parse_reply(self, buf: bytes) -> tuple[bool, int, bytes] | None:
-        frame = s2.decode_frame(buf)
-        if frame.cmd_type == s2.REQ and frame.cmd_id == s2.PUSH:  # the LiDAR's status
+        frame = c2.decode_frame(buf)
+        if frame.cmd_type == c2.REQ and frame.cmd_id == c2.PUSH:  # the LiDAR's status
             self.pushes_received += 1
-            self._note_state(s2.decode_key_values(frame.payload))
+            self._note_state(c2.decode_key_values(frame.payload))
             return True, frame.seq, b""
-        if frame.cmd_type != s2.ACK:
+        if frame.cmd_type != c2.ACK:
             return None
-        if frame.cmd_id == s2.QUERY_PARAMS:
-            ack = s2.QueryAck.decode(frame.payload)
+        if frame.cmd_id == c2.QUERY_PARAMS:
+            ack = c2.QueryAck.decode(frame.payload)
             if ack.ret_code == 0:
                 # any answered query shows the link alive; the ACK still goes to a
                 # caller waiting for it (query_info)
@@ -226,24 +227,24 @@ class Livox2Client(LivoxLink):
 
     def _note_state(self, items: list[tuple[int, bytes]]) -> None:
         for key, value in items:
-            if key == s2.KEY_WORK_STATE and len(value) == 1:
+            if key == c2.KEY_WORK_STATE and len(value) == 1:
                 self.work_state = value[0]
 
     def _connect_command(self) -> tuple[int, bytes, int | None]:
         assert self.host_ip is not None
         # status pushes to the command port, IMU packets to the point port
         cmd, point = self.cmd_port, self.point_port
-        hosts = s2.host_config_request(self.host_ip, cmd, point, point, work_mode=None)
-        items = s2.decode_key_values(hosts)
+        hosts = c2.host_config_request(self.host_ip, cmd, point, point, work_mode=None)
+        items = c2.decode_key_values(hosts)
         if self.endpoint.data_type is not None:
-            items.append((s2.KEY_DATA_TYPE, bytes([self.endpoint.data_type])))
-        return s2.SET_PARAMS, s2.encode_key_values(items), None
+            items.append((c2.KEY_DATA_TYPE, bytes([self.endpoint.data_type])))
+        return c2.SET_PARAMS, c2.encode_key_values(items), None
 
     def _sampling_command(self, start: bool) -> tuple[int, bytes]:
-        mode = s2.WORK_MODE_SAMPLING if start else s2.WORK_MODE_IDLE
-        return s2.SET_PARAMS, s2.encode_key_values([(s2.KEY_WORK_MODE, bytes([mode]))])
+        mode = c2.WORK_MODE_SAMPLING if start else c2.WORK_MODE_IDLE
+        return c2.SET_PARAMS, c2.encode_key_values([(c2.KEY_WORK_MODE, bytes([mode]))])
 
-    def query_info(self, timeout_s: float = 1.0) -> s2.DeviceInfo | None:
+    def query_info(self, timeout_s: float = 1.0) -> c2.DeviceInfo | None:
         """What the connected device says of itself: a parameter inquiry (0x0101) of
         serial number, product info, firmware (``version_app``, key 0x8002; Livox-SDK2
         ``QueryLivoxLidarFirmwareVer`` asks for it alone), loader and hardware versions,
@@ -251,22 +252,22 @@ class Livox2Client(LivoxLink):
         DeviceError if it refuses or answers what does not decode."""
         if not self._connected:
             raise DeviceError(f"{self.name}: not connected (call connect or open)")
-        query = s2.encode_key_list(list(s2.INFO_KEYS))
-        ack = self._ask(s2.QUERY_PARAMS, query, time.monotonic() + timeout_s)
+        query = c2.encode_key_list(list(c2.INFO_KEYS))
+        ack = self._ask(c2.QUERY_PARAMS, query, time.monotonic() + timeout_s)
         if ack is None:
             return None
         try:
-            answer = s2.QueryAck.decode(ack)
+            answer = c2.QueryAck.decode(ack)
             if answer.ret_code != 0:
                 raise DeviceError(
                     f"{self.name}: parameter inquiry refused, ret_code 0x{answer.ret_code:02X}"
                 )
-            return s2.DeviceInfo.from_items(answer.items)
+            return c2.DeviceInfo.from_items(answer.items)
         except DecodeError as exc:
             raise DeviceError(f"{self.name}: parameter inquiry: {exc}") from exc
 
     def _send_keepalive(self) -> None:
-        self._send(s2.QUERY_PARAMS, s2.encode_key_list([s2.KEY_WORK_STATE]))
+        self._send(c2.QUERY_PARAMS, c2.encode_key_list([c2.KEY_WORK_STATE]))
 
     def _count_loss(self, buf: bytes) -> None:
         """lost from the udp_cnt sequence (see the module docstring)."""

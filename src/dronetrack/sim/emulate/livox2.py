@@ -51,6 +51,7 @@ from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError
 from dronetrack.formats import livox_sdk2 as s2
+from dronetrack.formats import livox_sdk2_control as c2
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.emulate.livox_stream import PointSource, StreamingDevice, bound_udp
 
@@ -59,8 +60,8 @@ __all__ = ["MID360", "MID360_POINT_INTERVAL_NS", "EmulatedLivox2"]
 MID360 = 9  # livox_lidar_def.h kLivoxLidarTypeMid360
 MID360_POINT_INTERVAL_NS = 5_000  # 200,000 points/s
 FRAME_PERIOD_NS = 100_000_000  # 10 Hz point-cloud frames
-_HOST_KEYS = (s2.KEY_STATE_HOST, s2.KEY_POINT_HOST, s2.KEY_IMU_HOST)
-_READ_ONLY = s2.INFO_KEYS
+_HOST_KEYS = (c2.KEY_STATE_HOST, c2.KEY_POINT_HOST, c2.KEY_IMU_HOST)
+_READ_ONLY = c2.INFO_KEYS
 PRODUCT_INFO = "Mid-360 emulated"  # the document's example: "Mid-360 2021/12/01"
 MAC = bytes([0x02, 0, 0, 0, 0x03, 0x60])  # a locally administered address (bit 1 set)
 
@@ -83,10 +84,10 @@ class EmulatedLivox2(StreamingDevice):
         source: PointSource,
         *,
         ip: str = "127.0.0.1",
-        discovery_port: int = s2.DISCOVERY_PORT,
-        cmd_port: int = s2.CMD_PORT,
-        push_port: int = s2.PUSH_PORT,
-        point_port: int = s2.POINT_PORT,
+        discovery_port: int = c2.DISCOVERY_PORT,
+        cmd_port: int = c2.CMD_PORT,
+        push_port: int = c2.PUSH_PORT,
+        point_port: int = c2.POINT_PORT,
         serial: str = "0EMULATEDMID360",
         firmware: tuple[int, int, int, int] = (0, 1, 0, 0),
         data_type: int = 1,
@@ -110,7 +111,7 @@ class EmulatedLivox2(StreamingDevice):
         self.discoveries_answered = 0
         self.queries_answered = 0
         self.pushes_sent = 0
-        self.hosts: dict[int, s2.HostIpConfig] = {}  # key 0x0005/6/7 → its destination
+        self.hosts: dict[int, c2.HostIpConfig] = {}  # key 0x0005/6/7 → its destination
         self.imu_enabled = True
         socks: list[socket.socket] = []
         try:
@@ -142,14 +143,14 @@ class EmulatedLivox2(StreamingDevice):
 
     @property
     def work_state(self) -> int:
-        return s2.WORK_MODE_SAMPLING if self.sampling else s2.WORK_MODE_IDLE
+        return c2.WORK_MODE_SAMPLING if self.sampling else c2.WORK_MODE_IDLE
 
     def _sockets(self) -> list[socket.socket]:
         return [self._detect, self._cmd, self._push, self._points]
 
     def _tick(self, now: float) -> float:
         wait = super()._tick(now)
-        status = self.hosts.get(s2.KEY_STATE_HOST)
+        status = self.hosts.get(c2.KEY_STATE_HOST)
         if status is None or not self.answer_commands:
             return wait
         if now >= self._next_push:
@@ -157,17 +158,17 @@ class EmulatedLivox2(StreamingDevice):
             self._next_push = now + self.push_period_s
         return min(wait, self._next_push - now)
 
-    def _push_status(self, status: s2.HostIpConfig) -> None:
+    def _push_status(self, status: c2.HostIpConfig) -> None:
         self._push_seq += 1
-        data = s2.encode_key_values(
+        data = c2.encode_key_values(
             [
-                (s2.KEY_WORK_STATE, bytes([self.work_state])),
-                (s2.KEY_DATA_TYPE, bytes([self.data_type])),
+                (c2.KEY_WORK_STATE, bytes([self.work_state])),
+                (c2.KEY_DATA_TYPE, bytes([self.data_type])),
             ]
         )
-        frame = s2.CommandFrame(s2.PUSH, s2.REQ, self._push_seq, data, sender=s2.LIDAR)
+        frame = c2.CommandFrame(c2.PUSH, c2.REQ, self._push_seq, data, sender=c2.LIDAR)
         try:
-            self._push.sendto(s2.encode_frame(frame), (status.host_ip, status.host_port))
+            self._push.sendto(c2.encode_frame(frame), (status.host_ip, status.host_port))
             self.pushes_sent += 1
         except OSError:
             pass  # no route: try again next period
@@ -175,79 +176,79 @@ class EmulatedLivox2(StreamingDevice):
     # -- commands ---------------------------------------------------------------------
 
     def _reply(self, sock: socket.socket, buf: bytes) -> bytes | None:
-        frame = s2.decode_frame(buf)
+        frame = c2.decode_frame(buf)
         if not self.answer_commands:
             return None
         data: bytes | None = None
-        if frame.cmd_type == s2.REQ and sock is self._detect and frame.cmd_id == s2.DISCOVERY:
+        if frame.cmd_type == c2.REQ and sock is self._detect and frame.cmd_id == c2.DISCOVERY:
             ip, port = self.address
-            data = s2.DiscoveryAck(0, MID360, self.serial, ip, port).encode()
+            data = c2.DiscoveryAck(0, MID360, self.serial, ip, port).encode()
             self.discoveries_answered += 1
-        elif frame.cmd_type == s2.REQ and sock is self._cmd:
-            if frame.cmd_id == s2.SET_PARAMS:
-                data = self._set(s2.decode_key_values(frame.payload)).encode()
-            elif frame.cmd_id == s2.QUERY_PARAMS:
-                data = self._query(s2.decode_key_list(frame.payload)).encode()
+        elif frame.cmd_type == c2.REQ and sock is self._cmd:
+            if frame.cmd_id == c2.SET_PARAMS:
+                data = self._set(c2.decode_key_values(frame.payload)).encode()
+            elif frame.cmd_id == c2.QUERY_PARAMS:
+                data = self._query(c2.decode_key_list(frame.payload)).encode()
                 self.queries_answered += 1
         if data is None:
             self.commands_unknown += 1
             return None
-        ack = s2.CommandFrame(frame.cmd_id, s2.ACK, frame.seq, data, sender=s2.LIDAR)
-        return s2.encode_frame(ack)
+        ack = c2.CommandFrame(frame.cmd_id, c2.ACK, frame.seq, data, sender=c2.LIDAR)
+        return c2.encode_frame(ack)
 
-    def _set(self, items: list[tuple[int, bytes]]) -> s2.ParamAck:
+    def _set(self, items: list[tuple[int, bytes]]) -> c2.ParamAck:
         """Apply the keys in order up to the first that fails."""
         for key, value in items:
             ret = self._set_one(key, value)
-            if ret != s2.RET_OK:
-                return s2.ParamAck(ret, key)
-        return s2.ParamAck(s2.RET_OK)
+            if ret != c2.RET_OK:
+                return c2.ParamAck(ret, key)
+        return c2.ParamAck(c2.RET_OK)
 
     def _set_one(self, key: int, value: bytes) -> int:
         if key in _READ_ONLY:
-            return s2.RET_READ_ONLY
-        if key not in (*_HOST_KEYS, s2.KEY_DATA_TYPE, s2.KEY_WORK_MODE, s2.KEY_IMU_ENABLE):
-            return s2.RET_KEY_UNSUPPORTED
+            return c2.RET_READ_ONLY
+        if key not in (*_HOST_KEYS, c2.KEY_DATA_TYPE, c2.KEY_WORK_MODE, c2.KEY_IMU_ENABLE):
+            return c2.RET_KEY_UNSUPPORTED
         if len(value) != (8 if key in _HOST_KEYS else 1):
-            return s2.RET_BAD_LENGTH
+            return c2.RET_BAD_LENGTH
         if key in _HOST_KEYS:
-            self.hosts[key] = s2.HostIpConfig.decode(value)
-            return s2.RET_OK
+            self.hosts[key] = c2.HostIpConfig.decode(value)
+            return c2.RET_OK
         v = value[0]
-        if key == s2.KEY_DATA_TYPE:
+        if key == c2.KEY_DATA_TYPE:
             if v not in s2.LAYOUTS:
-                return s2.RET_OUT_OF_RANGE
+                return c2.RET_OUT_OF_RANGE
             self.data_type = v
-        elif key == s2.KEY_IMU_ENABLE:
+        elif key == c2.KEY_IMU_ENABLE:
             self.imu_enabled = bool(v)
-        elif v == s2.WORK_MODE_SAMPLING:
-            if s2.KEY_POINT_HOST not in self.hosts:
-                return s2.RET_NOT_PERMITTED
+        elif v == c2.WORK_MODE_SAMPLING:
+            if c2.KEY_POINT_HOST not in self.hosts:
+                return c2.RET_NOT_PERMITTED
             self._start_stream(time.monotonic())
-        elif v == s2.WORK_MODE_IDLE:
+        elif v == c2.WORK_MODE_IDLE:
             self.sampling = False
         else:
-            return s2.RET_OUT_OF_RANGE
-        return s2.RET_OK
+            return c2.RET_OUT_OF_RANGE
+        return c2.RET_OK
 
-    def _query(self, keys: list[int]) -> s2.QueryAck:
+    def _query(self, keys: list[int]) -> c2.QueryAck:
         known = {
-            s2.KEY_DATA_TYPE: bytes([self.data_type]),
-            s2.KEY_WORK_MODE: bytes([self.work_state]),
-            s2.KEY_SERIAL: self.serial.encode("ascii").ljust(16, b"\0"),
-            s2.KEY_PRODUCT_INFO: PRODUCT_INFO.encode("ascii").ljust(64, b"\0"),
-            s2.KEY_VERSION_APP: bytes(self.firmware),
-            s2.KEY_VERSION_LOADER: bytes([0, 1, 0, 0]),
-            s2.KEY_VERSION_HARDWARE: bytes([0, 0, 0, 1]),
-            s2.KEY_MAC: MAC,
-            s2.KEY_WORK_STATE: bytes([self.work_state]),
+            c2.KEY_DATA_TYPE: bytes([self.data_type]),
+            c2.KEY_WORK_MODE: bytes([self.work_state]),
+            c2.KEY_SERIAL: self.serial.encode("ascii").ljust(16, b"\0"),
+            c2.KEY_PRODUCT_INFO: PRODUCT_INFO.encode("ascii").ljust(64, b"\0"),
+            c2.KEY_VERSION_APP: bytes(self.firmware),
+            c2.KEY_VERSION_LOADER: bytes([0, 1, 0, 0]),
+            c2.KEY_VERSION_HARDWARE: bytes([0, 0, 0, 1]),
+            c2.KEY_MAC: MAC,
+            c2.KEY_WORK_STATE: bytes([self.work_state]),
         }
-        return s2.QueryAck(s2.RET_OK, tuple((k, known[k]) for k in keys if k in known))
+        return c2.QueryAck(c2.RET_OK, tuple((k, known[k]) for k in keys if k in known))
 
     # -- points -----------------------------------------------------------------------
 
     def _data_target(self) -> tuple[str, int] | None:
-        host = self.hosts.get(s2.KEY_POINT_HOST)
+        host = self.hosts.get(c2.KEY_POINT_HOST)
         return None if host is None else (host.host_ip, host.host_port)
 
     def _data_socket(self) -> socket.socket:
