@@ -120,7 +120,7 @@ def recording_info(path: Path) -> RecordingInfo:
 
         return LvxFile(path).info()
     if kind == "bag":
-        from dronetrack.sources.bag import BagFile
+        from dronetrack.sources.bag_file import BagFile
 
         if path.is_file() and sniff_file(path) == "mcap":
             from dronetrack.sources.mcap_info import mcap_info, mcap_profile
