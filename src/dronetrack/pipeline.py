@@ -240,11 +240,19 @@ class Pipeline:
             return _no_foreground()
         if fg.n_nonfinite:
             flags.append("nonfinite_points")
-        if self.hull is not None and len(fg.points):
-            fg = _keep(fg, self.hull.mask(fg.points))
-        if self.field is not None and len(fg.points):
-            fg = _keep(fg, self.field.contains(fg.points))
+        if (self.hull is not None or self.field is not None) and len(fg.points):
+            fg = _keep(fg, self._in_area(fg.points))
         return self._near_track(fg)
+
+    def _in_area(self, points: FloatArray) -> NDArray[np.bool_]:
+        """(N,) inside the hull crop and the field of regard, where set (the crop box is
+        applied with the background, by ``extract_foreground``)."""
+        inside = np.ones(len(points), dtype=bool)
+        if self.hull is not None and len(points):
+            inside &= self.hull.mask(points)
+        if self.field is not None and len(points):
+            inside &= self.field.contains(points)
+        return inside
 
     def _near_track(self, fg: Foreground) -> Foreground:
         """Add back the points the background dropped that lie within one frame's reach
@@ -262,10 +270,7 @@ class Pipeline:
         near[fg.index] = False
         back = np.flatnonzero(near)
         back = back[box_mask(world[back], self.crop_min, self.crop_max)]
-        if self.hull is not None and len(back):
-            back = back[self.hull.mask(world[back])]
-        if self.field is not None and len(back):
-            back = back[self.field.contains(world[back])]
+        back = back[self._in_area(world[back])]
         back = back[ranges.in_front(world[back], self.background.resolution)]
         if len(back) == 0:
             return fg
