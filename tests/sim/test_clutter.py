@@ -14,15 +14,13 @@ from dronetrack.config.run import ClutterConfig, ScenarioConfig, dump_scenario
 from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.control.aiming import aim_angles
 from dronetrack.preprocess.background import VoxelBackground
+from dronetrack.sim.birds import BIRD_DT_S, BIRD_TURN_MAX, Flock
 from dronetrack.sim.build import build_world
 from dronetrack.sim.clutter import (
-    BIRD_DT_S,
-    BIRD_TURN_MAX,
     CLUTTER_BIRD,
     CLUTTER_FALSE_ALARM,
     CLUTTER_SWAY,
     ClutterSpec,
-    Flock,
     Sway,
 )
 from dronetrack.sim.drones import make_drone

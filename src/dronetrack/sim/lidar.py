@@ -32,13 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.geometry.transforms import FloatArray, apply_interpolated_poses
-from dronetrack.sim.clutter import (
-    CLUTTER_BIRD,
-    CLUTTER_NONE,
-    CLUTTER_SWAY,
-    Clutter,
-    Flock,
-)
+from dronetrack.sim.birds import Flock
+from dronetrack.sim.clutter import CLUTTER_BIRD, CLUTTER_NONE, CLUTTER_SWAY, Clutter
 from dronetrack.sim.cubemap import CubeMapIndex, build_cube_map
 from dronetrack.sim.drones import DroneModel, attitude_from_acceleration
 from dronetrack.sim.patterns import Pulses
