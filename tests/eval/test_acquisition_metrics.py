@@ -120,3 +120,53 @@ def test_reacquire_properties(locked: list[bool], seen: list[bool]) -> None:
     assert all(0.0 <= x <= 0.1 * len(ok) for x in finished)
     a = acquire_time(t, visible, ok)
     assert a is None or 0.0 <= a <= t[-1]
+
+
+def test_acquire_in_reach_counts_from_the_first_returns_within_reach() -> None:
+    """A drone flying in from 150 m at 15 m/s (1.5 m a frame): one return from beyond
+    reach at frame 2, none until frame 12 (within 130 m from frame 14), locked on from
+    frame 16.  acquire_s runs from frame 2, acquire_in_reach_s from frame 14."""
+    err = np.zeros((30, 3))
+    err[:16, 0] = 50.0
+    tracked = np.ones(30, dtype=bool)
+    counts = np.where(np.arange(30) >= 12, 3, 0)
+    counts[2] = 1
+    range_m = 150.0 - 1.5 * np.arange(30)
+    inside = range_m <= 130.0
+    assert np.flatnonzero(inside)[0] == 14
+    out = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=inside)
+    assert out["acquire_s"] == pytest.approx(1.4)
+    assert out["acquire_in_reach_s"] == pytest.approx(0.2)
+    # Locked on before the drone came within reach: 0.
+    err[:] = 0.0
+    assert (
+        acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=inside)["acquire_in_reach_s"]
+        == 0.0
+    )
+    # Without a reach there is no such figure; never within reach: None.
+    assert "acquire_in_reach_s" not in acquisition_metrics(T, err, tracked, counts, 4.0)
+    never = np.zeros(30, dtype=bool)
+    out = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=never)
+    assert out["acquire_in_reach_s"] is None
+
+
+@settings(max_examples=200)
+@given(
+    locked=st.lists(st.booleans(), min_size=30, max_size=30),
+    seen=st.lists(st.booleans(), min_size=30, max_size=30),
+    reach=st.lists(st.booleans(), min_size=30, max_size=30),
+)
+def test_acquire_in_reach_is_acquire_s_of_the_frames_within_reach(
+    locked: list[bool], seen: list[bool], reach: list[bool]
+) -> None:
+    """Whatever the masks, the figure is acquire_time over visible ∧ in reach, and the
+    full reach gives acquire_s itself."""
+    err = np.where(np.array(locked)[:, None], 0.0, 50.0) * np.ones((30, 3))
+    tracked = np.ones(30, dtype=bool)
+    counts = np.array(seen, dtype=np.int64)
+    inside = np.array(reach)
+    out = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=inside)
+    ok = np.array(locked)
+    assert out["acquire_in_reach_s"] == acquire_time(T, counts.astype(bool) & inside, ok)
+    full = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=np.ones(30, dtype=bool))
+    assert full["acquire_in_reach_s"] == full["acquire_s"]

@@ -252,6 +252,11 @@ class EvaluationConfig(StrictModel):
     # A run whose longest stretch of correct frames is shorter than this scores 0
     # coverage and 0 tracking distance (seed 000's Tables II and III use 5).
     min_consecutive: int = Field(0, ge=0)
+    # The sensor's reach for the scenario's drone [m], from the sensor: given, metrics.json
+    # adds acquire_in_reach_s, acquire_s counted from the drone's first returns within it.
+    # A drone flying in from beyond reach draws single returns from a passing search out
+    # there, which acquire_s counts from (see the README's acquisition figures).
+    reach_m: float | None = Field(None, gt=0)
 
 
 class ControllerConfig(StrictModel):

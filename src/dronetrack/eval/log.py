@@ -226,6 +226,7 @@ class TrackLog:
         radius: float = CORRECT_RADIUS_M,
         min_consecutive: int = 0,
         in_field: NDArray[np.bool_] | None = None,
+        reach_m: float | None = None,
     ) -> dict[str, Any]:
         """The run's metrics (metrics.json); those needing ground truth only when it exists.
 
@@ -233,7 +234,8 @@ class TrackLog:
         ``min_consecutive``: a run with a shorter longest stretch of correct frames scores
         0 coverage and 0 distance (see ``scored_tracking``); ``in_field`` (one per row):
         the drone is inside the field of regard (the acquisition figures count only
-        those frames as visible).  ``dronetrack compare``'s table reads the same
+        those frames as visible); ``reach_m``: the sensor's reach for the drone, from
+        which ``acquire_in_reach_s`` counts.  ``dronetrack compare``'s table reads the same
         definitions (``experiments/compare/runner.py``).
         """
         a = self.arrays()
@@ -271,7 +273,15 @@ class TrackLog:
         r_tracked = rmse(err[tracked])
         out["rmse_tracked_m"] = r_tracked.value
         out.update(
-            acquisition_metrics(a["t"], err, tracked, a["n_target_points"], radius, in_field)
+            acquisition_metrics(
+                a["t"],
+                err,
+                tracked,
+                a["n_target_points"],
+                radius,
+                in_field,
+                in_reach=None if reach_m is None else a["range_m"] <= reach_m,
+            )
         )
         # Frames whose foreground reached the tracker (seed 003's detections).
         out["n_detections"] = int(np.count_nonzero(a["n_points"] > 0))

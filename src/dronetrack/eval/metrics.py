@@ -317,13 +317,17 @@ def acquisition_metrics(
     n_target_points: NDArray[np.int64],
     radius: float,
     in_field: NDArray[np.bool_] | None = None,
+    in_reach: NDArray[np.bool_] | None = None,
 ) -> dict[str, Any]:
     """The acquisition figures of a run with ground truth: ``false_lock_pct`` and, where
     the drone's returns are known (``n_target_points`` ≥ 0), ``acquire_s``,
     ``reacquire_s`` (the list), its worst entry ``reacquire_max_s``, ``losses`` (the
     list's length), ``reacquire_missed`` (its None entries) and ``lock_on_visible_pct``.
     ``in_field`` (N,) limits the visible frames to those with the drone inside the field
-    of regard (all frames without it)."""
+    of regard (all frames without it).  ``in_reach`` (N,): the drone lies within the
+    sensor's reach; given, ``acquire_in_reach_s`` counts from its first visible frame
+    there, so that returns from beyond reach, which a passing search can draw one at a
+    time, do not start the clock."""
     out: dict[str, Any] = {"false_lock_pct": false_lock_pct(errors, tracked, radius)}
     counts = np.asarray(n_target_points)
     if len(counts) == 0 or np.any(counts < 0):
@@ -344,4 +348,8 @@ def acquisition_metrics(
             "lock_on_visible_pct": lock_on_visible_pct(visible, locked),
         }
     )
+    if in_reach is not None:
+        out["acquire_in_reach_s"] = acquire_time(
+            t, visible & np.asarray(in_reach, dtype=bool), locked
+        )
     return out

@@ -141,7 +141,9 @@ class RunResult:
         gt = self.log.gt
         known = np.all(np.isfinite(gt), axis=1)
         area = detection_area(self.config, gt) if known.any() else None
-        out = self.log.summary(evaluation.correct_radius_m, evaluation.min_consecutive, area)
+        out = self.log.summary(
+            evaluation.correct_radius_m, evaluation.min_consecutive, area, evaluation.reach_m
+        )
         if area is not None:
             out["outside_field_pct"] = outside_share(area[known])
         out["realtime_factor"] = self.realtime_factor

@@ -43,6 +43,7 @@ LOWER_IS_BETTER = {
     "cpu_pct",
     "memory_mb",
     "acquire_s",
+    "acquire_in_reach_s",
     "reacquire_s",
     "reacquire_missed",
     "false_lock_pct",

@@ -203,7 +203,16 @@ def _acquisition_metrics(
     re-acquired."""
     gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
     area = detection_area(cfg, gt)
-    found = acquisition_metrics(a["t"], err, a["tracked"], a["n_target_points"], radius, area)
+    reach = cfg.pipeline.evaluation.reach_m
+    found = acquisition_metrics(
+        a["t"],
+        err,
+        a["tracked"],
+        a["n_target_points"],
+        radius,
+        area,
+        in_reach=None if reach is None else a["range_m"] <= reach,
+    )
     found["reacquire_s"] = found.pop("reacquire_max_s", None)
     return {k: math.nan if v is None else float(v) for k, v in found.items()}
 

@@ -62,6 +62,7 @@ def _grid(
 
 _ACQUISITION_METRICS = (
     "acquire_s",
+    "acquire_in_reach_s",
     "reacquire_s",
     "reacquire_missed",
     "lock_on_visible_pct",
@@ -331,7 +332,9 @@ _LIST.append(
             "search on.  A frame is visible when the drone returns points in it and lies in "
             "the field of regard; locked on when the tracker calls itself tracked within the "
             "4 m correct radius.  acquire_s: first visible frame to the first locked-on "
-            "one; reacquire_s: the run's longest re-acquisition (from the drone's return to "
+            "one; acquire_in_reach_s: the same from the first visible frame within the "
+            "sensor's reach (130 m for the Avia and a Phantom 4); reacquire_s: the run's "
+            "longest re-acquisition (from the drone's return to "
             "view to the re-lock), reacquire_missed: losses never re-acquired although the "
             "drone came back; lock_on_visible_pct: locked-on frames over visible frames; "
             "false_lock_pct: tracked frames off the drone over tracked frames.  A run where "
