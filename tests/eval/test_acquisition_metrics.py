@@ -12,6 +12,7 @@ from dronetrack.eval.metrics import (
     acquisition_metrics,
     false_lock_pct,
     lock_on_visible_pct,
+    lock_transfers,
     locked_on,
     reacquire_times,
 )
@@ -98,7 +99,10 @@ def test_summary_keys_and_field_of_regard_mask() -> None:
     out = acquisition_metrics(T, err, tracked, counts, 4.0, inside)
     assert out["acquire_s"] == pytest.approx(0.1)
     # Unknown returns (-1): only false_lock_pct.
-    assert set(acquisition_metrics(T, err, tracked, -np.ones(30, int), 4.0)) == {"false_lock_pct"}
+    assert set(acquisition_metrics(T, err, tracked, -np.ones(30, int), 4.0)) == {
+        "false_lock_pct",
+        "lock_transfers",
+    }
 
 
 @settings(max_examples=200)
@@ -170,3 +174,43 @@ def test_acquire_in_reach_is_acquire_s_of_the_frames_within_reach(
     assert out["acquire_in_reach_s"] == acquire_time(T, counts.astype(bool) & inside, ok)
     full = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=np.ones(30, dtype=bool))
     assert full["acquire_in_reach_s"] == full["acquire_s"]
+
+
+def test_lock_transfers_count_only_a_lock_carried_off_the_drone() -> None:
+    """Frames 0-4 on the drone, 5-7 on a bird with no frame lost between (one transfer);
+    lost at 8-9, then on a bird at 10-12 (a false lock, not a transfer); on the drone
+    at 13-19, where the truth is missing at 16 (no transfer counted across it)."""
+    err = np.zeros((20, 3))
+    err[5:8, 0] = 30.0
+    err[10:13, 0] = 60.0
+    err[16] = np.nan
+    tracked = _mask(20, (0, 8), (10, 20))
+    assert lock_transfers(err, tracked, 4.0) == 1
+    # A drift out of the radius while tracked is one too: the estimate left the drone.
+    drift = np.zeros((20, 3))
+    drift[12:, 0] = 5.0
+    assert lock_transfers(drift, np.ones(20, dtype=bool), 4.0) == 1
+    assert lock_transfers(np.full((20, 3), np.nan), tracked, 4.0) is None
+
+
+@settings(max_examples=200)
+@given(
+    tracked=st.lists(st.booleans(), min_size=2, max_size=40),
+    wrong=st.lists(st.booleans(), min_size=40, max_size=40),
+)
+def test_lock_transfers_are_false_lock_starts_after_a_correct_frame(
+    tracked: list[bool], wrong: list[bool]
+) -> None:
+    """Never more than the false-lock stretches; none once every false lock follows a
+    lost frame."""
+    live = np.array(tracked)
+    off_drone = np.array(wrong[: len(live)])
+    err = np.where(off_drone[:, None], 10.0, 0.0) * np.ones((len(live), 3))
+    n = lock_transfers(err, live, 4.0)
+    assert n is not None
+    off = live & off_drone
+    starts = int(off[0]) + int(np.count_nonzero(off[1:] & ~off[:-1]))
+    assert 0 <= n <= starts
+    lost_before = live.copy()
+    lost_before[:-1] &= ~off[1:]  # lose the lock the frame before each false one
+    assert lock_transfers(err, lost_before, 4.0) == 0

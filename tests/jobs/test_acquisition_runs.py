@@ -111,3 +111,15 @@ def test_after_a_long_loss_the_candidate_nearest_the_fix_is_taken_not_a_bird() -
     assert m["false_lock_pct"] <= 1.0
     assert m["reacquire_missed"] == 0
     assert m["reacquire_max_s"] <= 1.0
+
+
+@pytest.mark.parametrize("seed", [1, 8])
+def test_a_lock_on_the_drone_is_never_carried_onto_a_bird(seed: int) -> None:
+    """``outdoor-clutter``: the issue asks that a locked tracker stay on the drone.  The
+    false locks left are birds taken while the drone was out of the detection area
+    (seed 1: below the crop box's floor before take-off, 1.9 %) or lost at the
+    flight's far end (seed 8: 5.4 s after its last lock, 12.4 %); over seeds 0-9 none
+    began as a lock carried off the drone."""
+    m = _metrics("outdoor-clutter", seed)
+    assert m["lock_transfers"] == 0
+    assert m["false_lock_pct"] > 0.0  # the seed does lock a bird at some point

@@ -128,6 +128,8 @@ def print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
         ]
     if "false_lock_pct" in metrics:
         rows.append(("false locks", fmt(metrics.get("false_lock_pct"), " %", 1)))
+    if "lock_transfers" in metrics:
+        rows.append(("locks carried off the drone", fmt(metrics.get("lock_transfers"))))
     rows += [
         (
             "step time mean / std / max",

@@ -36,6 +36,7 @@ __all__ = [
     "detection_gaps",
     "false_lock_pct",
     "lock_on_visible_pct",
+    "lock_transfers",
     "locked_on",
     "longest_run",
     "max_tracking_distance",
@@ -310,6 +311,20 @@ def false_lock_pct(errors: FloatArray, tracked: NDArray[np.bool_], radius: float
     return 100.0 * int(np.count_nonzero(wrong)) / n
 
 
+def lock_transfers(errors: FloatArray, tracked: NDArray[np.bool_], radius: float) -> int | None:
+    """``lock_transfers``: how often the estimate went straight from correct to wrong while
+    the tracker kept its lock (tracked in both frames, the truth known in both): the lock
+    was carried off the drone, onto clutter or away from it, rather than lost and then
+    taken on something else.  None if no frame has a truth."""
+    known = np.all(np.isfinite(errors), axis=1)
+    if not known.any():
+        return None
+    live = np.asarray(tracked, dtype=bool)
+    right = correct(errors, radius)
+    on, off = live & right, live & known & ~right
+    return int(np.count_nonzero(on[:-1] & off[1:]))
+
+
 def acquisition_metrics(
     t: FloatArray,
     errors: FloatArray,
@@ -319,7 +334,8 @@ def acquisition_metrics(
     in_field: NDArray[np.bool_] | None = None,
     in_reach: NDArray[np.bool_] | None = None,
 ) -> dict[str, Any]:
-    """The acquisition figures of a run with ground truth: ``false_lock_pct`` and, where
+    """The acquisition figures of a run with ground truth: ``false_lock_pct``,
+    ``lock_transfers`` and, where
     the drone's returns are known (``n_target_points`` ≥ 0), ``acquire_s``,
     ``reacquire_s`` (the list), its worst entry ``reacquire_max_s``, ``losses`` (the
     list's length), ``reacquire_missed`` (its None entries) and ``lock_on_visible_pct``.
@@ -328,7 +344,10 @@ def acquisition_metrics(
     sensor's reach; given, ``acquire_in_reach_s`` counts from its first visible frame
     there, so that returns from beyond reach, which a passing search can draw one at a
     time, do not start the clock."""
-    out: dict[str, Any] = {"false_lock_pct": false_lock_pct(errors, tracked, radius)}
+    out: dict[str, Any] = {
+        "false_lock_pct": false_lock_pct(errors, tracked, radius),
+        "lock_transfers": lock_transfers(errors, tracked, radius),
+    }
     counts = np.asarray(n_target_points)
     if len(counts) == 0 or np.any(counts < 0):
         return out

@@ -47,6 +47,7 @@ LOWER_IS_BETTER = {
     "reacquire_s",
     "reacquire_missed",
     "false_lock_pct",
+    "lock_transfers",
 }
 # Interval ends are not rankings.
 UNRANKED = {"rmse_ci_low_m", "rmse_ci_high_m", "gap_min_s"}

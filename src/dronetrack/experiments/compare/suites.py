@@ -67,6 +67,7 @@ _ACQUISITION_METRICS = (
     "reacquire_missed",
     "lock_on_visible_pct",
     "false_lock_pct",
+    "lock_transfers",
     "coverage_pct",
     "rmse_m",
 )
@@ -337,7 +338,8 @@ _LIST.append(
             "longest re-acquisition (from the drone's return to "
             "view to the re-lock), reacquire_missed: losses never re-acquired although the "
             "drone came back; lock_on_visible_pct: locked-on frames over visible frames; "
-            "false_lock_pct: tracked frames off the drone over tracked frames.  A run where "
+            "false_lock_pct: tracked frames off the drone over tracked frames; lock_transfers: "
+            "times a lock went straight from the drone to something else.  A run where "
             "a figure does not exist (never acquired, no loss) leaves it out of the mean."
         ),
     )
