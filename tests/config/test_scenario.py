@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.config.run import dump_scenario, load_scenario_file
+from dronetrack.config.run import apply_overrides, dump_scenario, load_scenario_file
 from dronetrack.config.scenarios import SCENARIOS, get_scenario
 from dronetrack.errors import ScenarioError, SensorError
 from dronetrack.sim.build import build_world, resolve_scenario
@@ -38,6 +38,30 @@ def test_toml_with_base_and_overrides(tmp_path: Path) -> None:
     assert cfg.name == "foggy_f550"
     assert (cfg.seed, cfg.drone.model, cfg.weather.visibility_m) == (9, "f550", 80.0)
     assert cfg.sensor.model == "avia"  # from the base
+
+
+def test_the_reach_follows_the_sensor_the_drone_and_the_air(tmp_path: Path) -> None:
+    """acquire_in_reach_s counts from the Avia's 130 m reach for a Phantom 4 in clear
+    air; another drone, sensor or fog has no measured reach, from the command line or
+    from a file on a base, unless the file sets one."""
+    default = SCENARIOS["default"]
+    assert default.pipeline.evaluation.reach_m == 130.0
+    assert SCENARIOS["outdoor-incoming"].pipeline.evaluation.reach_m == 130.0
+    assert SCENARIOS["field-foggy"].pipeline.evaluation.reach_m is None
+    assert SCENARIOS["indoor-horizontal"].pipeline.evaluation.reach_m is None
+    assert apply_overrides(default, seed=4).pipeline.evaluation.reach_m == 130.0
+    for change in ({"visibility": 100.0}, {"drone": "f550"}, {"sensor": "mid360"}):
+        assert apply_overrides(default, **change).pipeline.evaluation.reach_m is None
+    assert apply_overrides(default, drone="phantom4").pipeline.evaluation.reach_m == 130.0
+    path = tmp_path / "f550.toml"
+    path.write_text('base = "default"\n[drone]\nmodel = "f550"\n')
+    assert get_scenario(str(path)).pipeline.evaluation.reach_m is None
+    path.write_text(
+        'base = "default"\n[drone]\nmodel = "f550"\n[pipeline.evaluation]\nreach_m = 90.0\n'
+    )
+    assert get_scenario(str(path)).pipeline.evaluation.reach_m == 90.0
+    path.write_text('base = "default"\nseed = 3\n')
+    assert get_scenario(str(path)).pipeline.evaluation.reach_m == 130.0
 
 
 def test_resolved_scenario_reproduces_the_run(tmp_path: Path) -> None:

@@ -29,6 +29,7 @@ from dronetrack.config.run import (
     TurretConfig,
     WeatherConfig,
     load_scenario_file,
+    sensor_reach,
 )
 from dronetrack.errors import ScenarioError
 
@@ -129,13 +130,6 @@ FIELD = PipelineConfig(
 )
 
 
-# The sensor's reach for a drone [m] (``[pipeline.evaluation] reach_m``, from which
-# acquire_in_reach_s counts).  Avia and Phantom 4: seed 000 tracked to about 130 m, and
-# on the simulator a Phantom 4 hovering on the Avia's axis returns points in 93 % of
-# frames at 120 m, 80 % at 130 m, 53 % at 140 m and 26 % at 150 m (400 frames each).
-REACH_M: dict[tuple[str, str], float] = {("avia", "phantom4"): 130.0}
-
-
 def _scenario(
     name: str,
     description: str,
@@ -164,7 +158,7 @@ def _scenario(
         pipeline=pipeline.model_copy(
             update={
                 "evaluation": pipeline.evaluation.model_copy(
-                    update={"reach_m": REACH_M.get((sensor, drone))}
+                    update={"reach_m": sensor_reach(sensor, drone, visibility)}
                 )
             }
         ),
