@@ -121,7 +121,7 @@ def print_metrics(metrics: dict[str, object], out_dir: Path) -> None:
         rows.append(("acquired after first returns", fmt(metrics.get("acquire_s"), " s", 1)))
         if "acquire_in_reach_s" in metrics:
             within = fmt(metrics.get("acquire_in_reach_s"), " s", 1)
-            rows.append(("acquired after first returns within reach", within))
+            rows.append(("acquired after returns within reach", within))
         rows += [
             ("re-acquisitions", _reacquisitions(metrics.get("reacquire_s"))),
             ("locked on while visible", fmt(metrics.get("lock_on_visible_pct"), " %", 1)),
