@@ -122,4 +122,3 @@ def test_a_lock_on_the_drone_is_never_carried_onto_a_bird(seed: int) -> None:
     began as a lock carried off the drone."""
     m = _metrics("outdoor-clutter", seed)
     assert m["lock_transfers"] == 0
-    assert m["false_lock_pct"] > 0.0  # the seed does lock a bird at some point
