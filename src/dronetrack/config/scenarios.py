@@ -29,7 +29,7 @@ from dronetrack.config.run import (
     TurretConfig,
     WeatherConfig,
     load_scenario_file,
-    sensor_reach,
+    with_rig_reach,
 )
 from dronetrack.errors import ScenarioError
 
@@ -144,7 +144,7 @@ def _scenario(
     pipeline: PipelineConfig = OUTDOOR,
     observer: ObserverConfig | None = None,
 ) -> ScenarioConfig:
-    return ScenarioConfig(
+    scenario = ScenarioConfig(
         name=name,
         description=description,
         duration_s=duration,
@@ -155,14 +155,9 @@ def _scenario(
         turret=TurretConfig(model=turret, base_height_m=base_height),
         weather=WeatherConfig(visibility_m=visibility),
         observer=observer,
-        pipeline=pipeline.model_copy(
-            update={
-                "evaluation": pipeline.evaluation.model_copy(
-                    update={"reach_m": sensor_reach(sensor, drone, visibility)}
-                )
-            }
-        ),
+        pipeline=pipeline,
     )
+    return with_rig_reach(scenario)
 
 
 def _outdoor(
