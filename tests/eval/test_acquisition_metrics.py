@@ -138,19 +138,21 @@ def test_acquire_in_reach_counts_from_the_first_returns_within_reach() -> None:
     range_m = 150.0 - 1.5 * np.arange(30)
     inside = range_m <= 130.0
     assert np.flatnonzero(inside)[0] == 14
-    out = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=inside)
+    out = acquisition_metrics(T, err, tracked, counts, 4.0, range_m=range_m, reach_m=130.0)
     assert out["acquire_s"] == pytest.approx(1.4)
     assert out["acquire_in_reach_s"] == pytest.approx(0.2)
     # Locked on before the drone came within reach: 0.
     err[:] = 0.0
     assert (
-        acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=inside)["acquire_in_reach_s"]
+        acquisition_metrics(T, err, tracked, counts, 4.0, range_m=range_m, reach_m=130.0)[
+            "acquire_in_reach_s"
+        ]
         == 0.0
     )
     # Without a reach there is no such figure; never within reach: None.
     assert "acquire_in_reach_s" not in acquisition_metrics(T, err, tracked, counts, 4.0)
-    never = np.zeros(30, dtype=bool)
-    out = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=never)
+    assert range_m.min() > 100.0
+    out = acquisition_metrics(T, err, tracked, counts, 4.0, range_m=range_m, reach_m=100.0)
     assert out["acquire_in_reach_s"] is None
 
 
@@ -163,16 +165,17 @@ def test_acquire_in_reach_counts_from_the_first_returns_within_reach() -> None:
 def test_acquire_in_reach_is_acquire_s_of_the_frames_within_reach(
     locked: list[bool], seen: list[bool], reach: list[bool]
 ) -> None:
-    """Whatever the masks, the figure is acquire_time over visible ∧ in reach, and the
-    full reach gives acquire_s itself."""
+    """Whatever the masks, the figure is acquire_time over visible ∧ in reach, and a
+    reach beyond every range gives acquire_s itself."""
     err = np.where(np.array(locked)[:, None], 0.0, 50.0) * np.ones((30, 3))
     tracked = np.ones(30, dtype=bool)
     counts = np.array(seen, dtype=np.int64)
     inside = np.array(reach)
-    out = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=inside)
+    range_m = np.where(inside, 100.0, 200.0)
+    out = acquisition_metrics(T, err, tracked, counts, 4.0, range_m=range_m, reach_m=150.0)
     ok = np.array(locked)
     assert out["acquire_in_reach_s"] == acquire_time(T, counts.astype(bool) & inside, ok)
-    full = acquisition_metrics(T, err, tracked, counts, 4.0, in_reach=np.ones(30, dtype=bool))
+    full = acquisition_metrics(T, err, tracked, counts, 4.0, range_m=range_m, reach_m=250.0)
     assert full["acquire_in_reach_s"] == full["acquire_s"]
 
 

@@ -280,7 +280,8 @@ class TrackLog:
                 a["n_target_points"],
                 radius,
                 in_field,
-                in_reach=None if reach_m is None else a["range_m"] <= reach_m,
+                a["range_m"],
+                reach_m,
             )
         )
         # Frames whose foreground reached the tracker (seed 003's detections).

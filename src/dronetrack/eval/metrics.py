@@ -332,7 +332,8 @@ def acquisition_metrics(
     n_target_points: NDArray[np.int64],
     radius: float,
     in_field: NDArray[np.bool_] | None = None,
-    in_reach: NDArray[np.bool_] | None = None,
+    range_m: FloatArray | None = None,
+    reach_m: float | None = None,
 ) -> dict[str, Any]:
     """The acquisition figures of a run with ground truth: ``false_lock_pct``,
     ``lock_transfers`` and, where
@@ -340,10 +341,10 @@ def acquisition_metrics(
     ``reacquire_s`` (the list), its worst entry ``reacquire_max_s``, ``losses`` (the
     list's length), ``reacquire_missed`` (its None entries) and ``lock_on_visible_pct``.
     ``in_field`` (N,) limits the visible frames to those with the drone inside the field
-    of regard (all frames without it).  ``in_reach`` (N,): the drone lies within the
-    sensor's reach; given, ``acquire_in_reach_s`` counts from its first visible frame
-    there, so that returns from beyond reach, which a passing search can draw one at a
-    time, do not start the clock."""
+    of regard (all frames without it).  Given the drone's range (N,) [m] and the
+    sensor's reach ``reach_m``, ``acquire_in_reach_s`` counts from its first visible
+    frame within reach, so that returns from beyond it, which a passing search can draw
+    one at a time, do not start the clock."""
     out: dict[str, Any] = {
         "false_lock_pct": false_lock_pct(errors, tracked, radius),
         "lock_transfers": lock_transfers(errors, tracked, radius),
@@ -367,8 +368,7 @@ def acquisition_metrics(
             "lock_on_visible_pct": lock_on_visible_pct(visible, locked),
         }
     )
-    if in_reach is not None:
-        out["acquire_in_reach_s"] = acquire_time(
-            t, visible & np.asarray(in_reach, dtype=bool), locked
-        )
+    if range_m is not None and reach_m is not None:
+        in_reach = np.asarray(range_m) <= reach_m
+        out["acquire_in_reach_s"] = acquire_time(t, visible & in_reach, locked)
     return out

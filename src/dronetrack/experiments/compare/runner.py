@@ -203,7 +203,6 @@ def _acquisition_metrics(
     re-acquired."""
     gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
     area = detection_area(cfg, gt)
-    reach = cfg.pipeline.evaluation.reach_m
     found = acquisition_metrics(
         a["t"],
         err,
@@ -211,7 +210,8 @@ def _acquisition_metrics(
         a["n_target_points"],
         radius,
         area,
-        in_reach=None if reach is None else a["range_m"] <= reach,
+        a["range_m"],
+        cfg.pipeline.evaluation.reach_m,
     )
     found["reacquire_s"] = found.pop("reacquire_max_s", None)
     return {k: math.nan if v is None else float(v) for k, v in found.items()}
