@@ -388,6 +388,35 @@ def test_a_truth_file_is_read_as_it_grows(tmp_path: object) -> None:
         TruthFile(path.with_name("none.csv"))
 
 
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        # a bad row: the column, the value and why it is refused, then the row
+        ("t,x,y,z\n0,1,2,3\n1.0,abc,2,3\n", "line 3: x is 'abc', not a number: '1.0,abc,2,3'"),
+        ("t,x,y,z\n0,1,nan,3\n", "line 2: y is 'nan', not a finite number: '0,1,nan,3'"),
+        ("t,x,y,z\n0,1,2\n", "line 2: 3 value(s), too few for column z (column 4 of the header)"),
+        ("t,x,y,z\n1,1,2,3\n0.5,1,2,3\n", "line 3: t must not decrease; it goes back from 1 to"),
+        # a wrong header: the header found
+        ("time,x,y,z\n0,1,2,3\n", "missing column(s): t; its header is 'time,x,y,z'"),
+        ("0.1,15,0,0.15\n", "missing column(s): t, x, y, z; its header is '0.1,15,0,0.15'"),
+    ],
+)
+def test_a_bad_truth_file_says_what_is_wrong(tmp_path: object, text: str, message: str) -> None:
+    """Each refusal names the file, the line, the column and the reason, or the header
+    it found where t,x,y,z were expected."""
+    from pathlib import Path
+
+    from dronetrack.errors import InputError
+    from dronetrack.sources.live import TruthFile
+
+    path = Path(str(tmp_path)) / "truth.csv"
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        TruthFile(path)
+    assert message in str(err.value)
+    assert str(path) in str(err.value)
+
+
 def test_truth_file_keeps_every_row_as_it_grows_past_its_buffer(tmp_path: object) -> None:
     """Rows arriving over many reads, past the buffer's first capacity: every row is
     kept in order, and a truth given out earlier does not change as rows are added."""

@@ -11,7 +11,16 @@ import numpy as np
 from dronetrack.errors import DronetrackError
 from dronetrack.geometry.transforms import FloatArray
 
-__all__ = ["read_csv_columns"]
+__all__ = ["missing_columns", "read_csv_columns"]
+
+
+def missing_columns(what: str, path: Path, missing: Sequence[str], header: str) -> str:
+    """The one line saying that the CSV ``path`` lacks the columns ``missing``, with the
+    header it has (a file without one shows its first row here)."""
+    return (
+        f"{what} {path} is missing column(s): {', '.join(missing)}; its header is "
+        f"{header.strip()!r}"
+    )
 
 
 def read_csv_columns(
@@ -26,10 +35,11 @@ def read_csv_columns(
     if not path.is_file():
         raise error(f"{what} not found: {path}")
     with path.open("r", encoding="utf-8-sig", errors="replace") as f:
-        header = [h.strip().lower() for h in f.readline().strip().split(",")]
+        line = f.readline()
+    header = [h.strip().lower() for h in line.strip().split(",")]
     missing = [c for c in columns if c.lower() not in header]
     if missing:
-        raise error(f"{what} {path} is missing column(s): {', '.join(missing)}")
+        raise error(missing_columns(what, path, missing, line))
     cols = [header.index(c.lower()) for c in columns]
     try:
         with warnings.catch_warnings():

@@ -65,6 +65,7 @@ from typing import Protocol
 import numpy as np
 
 from dronetrack.errors import ConfigError, DeviceError, DronetrackError, InputError
+from dronetrack.formats.tables import missing_columns
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, PoseHistory, StreamFrame
 from dronetrack.sources.frame_queue import POLL_S, FrameQueue
@@ -117,6 +118,25 @@ class Assembler(Protocol):
     def push(self, batch: PointBatch) -> list[StreamFrame]: ...
 
 
+TRUTH_COLUMNS = ("t", "x", "y", "z")
+
+
+def _truth_value(cells: list[str], index: int, name: str) -> float:
+    """Column ``name`` (at ``index``) of a truth row as a finite number; ValueError
+    saying what is wrong with it."""
+    if index >= len(cells):
+        raise ValueError(
+            f"{len(cells)} value(s), too few for column {name} (column {index + 1} of the header)"
+        )
+    try:
+        value = float(cells[index])
+    except ValueError:
+        raise ValueError(f"{name} is {cells[index]!r}, not a number") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} is {cells[index]!r}, not a finite number")
+    return value
+
+
 class TruthFile:
     """``--truth``: a CSV of t,x,y,z [s, m] read as it grows (``dronetrack emulate``
     writes it row by row while the run goes).  ``ground_truth`` reads the rows added
@@ -146,21 +166,23 @@ class TruthFile:
             return
         if self._columns is None:
             names = [c.lower() for c in cells]
-            missing = [c for c in ("t", "x", "y", "z") if c not in names]
+            missing = [c for c in TRUTH_COLUMNS if c not in names]
             if missing:
-                raise InputError(
-                    f"truth CSV {self.path} is missing column(s): {', '.join(missing)}"
-                )
-            self._columns = [names.index(c) for c in ("t", "x", "y", "z")]
+                header = line.lstrip("\ufeff")
+                raise InputError(missing_columns("truth CSV", self.path, missing, header))
+            self._columns = [names.index(c) for c in TRUTH_COLUMNS]
             return
+        where = f"truth CSV {self.path} line {self._line}"
+        pairs = zip(self._columns, TRUTH_COLUMNS, strict=True)
         try:
-            row = [float(cells[i]) for i in self._columns]
-        except (ValueError, IndexError):
-            raise InputError(f"truth CSV {self.path} line {self._line}: {line.strip()!r}") from None
-        if not all(math.isfinite(v) for v in row):
-            raise InputError(f"truth CSV {self.path} line {self._line}: not a finite number")
+            row = [_truth_value(cells, i, name) for i, name in pairs]
+        except ValueError as err:
+            raise InputError(f"{where}: {err}: {line.strip()!r}") from None
         if self._n and row[0] < self._rows[self._n - 1, 0]:
-            raise InputError(f"truth CSV {self.path} line {self._line}: t must not decrease")
+            raise InputError(
+                f"{where}: t must not decrease; it goes back from "
+                f"{self._rows[self._n - 1, 0]:g} to {row[0]:g} s"
+            )
         if self._n == len(self._rows):
             self._rows = np.concatenate([self._rows, np.empty_like(self._rows)])
         self._rows[self._n] = row
