@@ -259,3 +259,52 @@ def test_track_reads_pcd_folders_las_files_and_field_logs(tmp_path: Path) -> Non
     (logs / "filtered_points.csv").write_text("\n".join(lines) + "\n")
     assert run(["track", str(logs), *common, "--out", str(tmp_path / "f")]) == 0
     _check_track(tmp_path / "f", 30)
+
+
+def _pcd_folder(folder: Path) -> Path:
+    """30 .pcd files of the moving cluster, named by their Unix time in seconds."""
+    from dronetrack.formats.pcd import write_pcd
+
+    rng = np.random.default_rng(11)
+    folder.mkdir()
+    for k in range(30):
+        c = _moving_cluster(k, rng)
+        arr = np.zeros(len(c), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4")])
+        arr["x"], arr["y"], arr["z"] = c.T
+        write_pcd(folder / f"{1_700_000_000 + 0.1 * k:.3f}.pcd", arr)
+    return folder
+
+
+def test_truth_outside_the_recording_is_a_warning_with_both_spans(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The cluster's true path given in seconds from the recording's start scores the
+    run; the same path stamped in Unix seconds misses every frame, and ``track`` says so
+    in one ``warning:`` line and in ``metrics.json``, with the recording's span (from
+    its start and as stamped) and the truth's as given."""
+    pcd = _pcd_folder(tmp_path / "pcd")
+    t = 0.1 * np.arange(31)
+    path = np.c_[20.0 + 2.0 * t, np.zeros_like(t), np.full_like(t, 5.0)]
+    for name, shift in (("start.csv", 0.0), ("unix.csv", 1_700_000_000.0)):
+        rows = [
+            f"{ti + shift:.3f},{x:.3f},{y:.3f},{z:.3f}"
+            for ti, (x, y, z) in zip(t, path, strict=True)
+        ]
+        (tmp_path / name).write_text("t,x,y,z\n" + "\n".join(rows) + "\n")
+    common = ["track", str(pcd), "--background-from", "0", "--sensor-pose", "0,0,0,0,0,0"]
+    capsys.readouterr()
+    assert run([*common, "--truth", str(tmp_path / "start.csv"), "--out", str(tmp_path / "a")]) == 0
+    assert "warning" not in capsys.readouterr().err
+    scored = _metrics(tmp_path / "a")
+    assert "warnings" not in scored
+    assert float(scored["coverage_pct"]) > 50  # type: ignore[arg-type]
+    assert run([*common, "--truth", str(tmp_path / "unix.csv"), "--out", str(tmp_path / "b")]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("warning:")]
+    assert len(lines) == 1
+    warning = lines[0].removeprefix("warning: ")
+    assert _metrics(tmp_path / "b")["warnings"] == [warning]
+    assert warning.startswith("no truth sample falls inside the recording's time span")
+    assert "0.000 to 3.000 s from its start (1700000000.000 to 1700000003.000 s as stamped)" in (
+        warning
+    )
+    assert "unix.csv's t spans 1700000000.000 to 1700000003.000 s as given" in warning

@@ -5,12 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import get_args
 
+import numpy as np
 import pytest
 
 from dronetrack.errors import RecordingError
 from dronetrack.formats.magic import MCAP_MAGIC, ROSBAG1_MAGIC
 from dronetrack.sources import recordings
-from dronetrack.sources.recording import ReplayOptions
+from dronetrack.sources.recording import GroundTruth, ReplayOptions, truth_overlap_warning
 from dronetrack.sources.recordings import READERS, RecordingKind, open_recording, recording_kind
 
 
@@ -86,3 +87,46 @@ def test_a_folder_of_nothing_readable_is_one_error(tmp_path: Path) -> None:
     (tmp_path / "notes.txt").write_text("x\n")
     with pytest.raises(RecordingError, match="a folder with no bag"):
         open_recording(tmp_path)
+
+
+START = 1_767_225_600.0  # a recording made at 2026-01-01 00:00:00 UTC [Unix s]
+
+
+def _truth(t: list[float]) -> GroundTruth:
+    return GroundTruth(np.asarray(t), np.zeros((len(t), 3)))
+
+
+@pytest.mark.parametrize(
+    ("t", "looks_like"),
+    [
+        ([START + 0.1, START + 13.0], "absolute seconds (subtract the start, 1767225600.000 s)"),
+        ([100.0, 13_000.0], "milliseconds from the start (divide by 1000)"),
+        ([(START + 0.1) * 1e9, (START + 13.0) * 1e9], "absolute nanoseconds (divide by 1e+09"),
+        ([20.0, 30.0], None),  # after the end, in no unit that would fit
+    ],
+)
+def test_truth_outside_the_recording_is_named_with_both_spans(
+    t: list[float], looks_like: str | None
+) -> None:
+    """Truth that never overlaps the frames (0 to 13 s from the start): the warning gives
+    the recording's span from its start and as stamped, and the truth's as given."""
+    text = truth_overlap_warning(_truth(t), 0.0, 13.0, START, Path("truth.csv"))
+    assert text is not None
+    assert text.startswith("no truth sample falls inside the recording's time span")
+    assert (
+        "0.000 to 13.000 s from its start (1767225600.000 to 1767225613.000 s as stamped)" in text
+    )
+    assert f"truth.csv's t spans {t[0]:.3f} to {t[-1]:.3f} s as given" in text
+    if looks_like is None:
+        assert "look like" not in text
+    else:
+        assert f"they look like {looks_like}" in text
+
+
+def test_truth_that_touches_the_recording_gives_no_warning() -> None:
+    """One sample inside the frames' span is enough, even at its very end."""
+    assert truth_overlap_warning(_truth([13.0, 20.0]), 0.0, 13.0, START) is None
+    assert truth_overlap_warning(_truth([-5.0, 0.0]), 0.0, 13.0, START) is None
+    own = truth_overlap_warning(_truth([-60.0, -50.0]), 0.0, 13.0, START)
+    assert own is not None  # the recording's own truth, on another clock
+    assert "its ground truth spans -60.000 to -50.000 s from its start" in own

@@ -210,6 +210,7 @@ def track(
             viewers=viewers,
             compiling=compile_reporter(bar, task),
             log_sink=folder.log_sink,
+            truth_file=truth,
         )
     metrics = folder.finish(result.run, extra=result.metrics())
     write_commands_csv(result.commands, folder.out_dir / "commands.csv")

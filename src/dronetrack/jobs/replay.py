@@ -32,7 +32,7 @@ from dronetrack.seams import Sink
 from dronetrack.sinks.track_log import TrackLogSink
 from dronetrack.sinks.view import ViewerFeed, ViewerSink
 from dronetrack.sources.playback import RecordingSource
-from dronetrack.sources.recording import Recording
+from dronetrack.sources.recording import Recording, truth_overlap_warning
 from dronetrack.types import TurretCommand
 
 Progress = Callable[[int, int], None]
@@ -111,6 +111,7 @@ def run_replay(
     viewers: Sequence[ViewerSink] = (),
     compiling: CompileProgress | None = None,
     log_sink: LogSink | None = None,
+    truth_file: Path | None = None,
 ) -> ReplayRun:
     """Replay every frame of ``recording`` through the pipeline ``cfg`` describes.
 
@@ -118,7 +119,9 @@ def run_replay(
     of a simulated run replays as that run did.  The numba kernels are compiled (or
     loaded from the cache) before the clock starts; ``compiling`` follows that.
     ``log_sink`` gets the log after each tracking frame.  A Ctrl-C handled by
-    ``dronetrack.interrupt`` ends the replay after the frame in hand.
+    ``dronetrack.interrupt`` ends the replay after the frame in hand.  ``truth_file``:
+    the CSV the recording's ground truth was replaced from (``--truth``), for the
+    warning when no truth sample falls inside the frames' span.
     """
     period = recording.period
     if not 1e-3 <= period <= 1.0:
@@ -151,6 +154,9 @@ def run_replay(
             "give a shorter --background-from, or --background FILE"
         )
     run_ = RunResult(cfg, log.log, pipeline, stats.wall_s, stats.span_s, kernels, stats.interrupted)
-    warnings = (recording.pose_warning,) if recording.pose_warning else ()
-    has_truth = recording.ground_truth is not None
-    return ReplayRun(run_, commands.commands, dict(recording.skipped), has_truth, warnings)
+    truth = recording.ground_truth
+    missed = None
+    if truth is not None and not stats.interrupted:
+        missed = truth_overlap_warning(truth, stats.start, stats.end, recording.origin, truth_file)
+    warnings = tuple(w for w in (recording.pose_warning, missed) if w)
+    return ReplayRun(run_, commands.commands, dict(recording.skipped), truth is not None, warnings)

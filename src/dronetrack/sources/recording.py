@@ -32,11 +32,21 @@ __all__ = [
     "frame_period",
     "identity_pose_warning",
     "sensor_pose",
+    "truth_overlap_warning",
 ]
 
 
 TIME_TOL_S = 1e-6
 DEFAULT_PERIOD_S = 0.1  # a frame period when nothing else gives one [s]
+# What truth times that miss the recording may be in: (name, seconds per unit,
+# counted from the recording's start or absolute), tried in this order.
+TIME_UNITS: tuple[tuple[str, float, bool], ...] = (
+    ("absolute seconds", 1.0, False),
+    ("milliseconds from the start", 1e-3, True),
+    ("absolute milliseconds", 1e-3, False),
+    ("absolute microseconds", 1e-6, False),
+    ("absolute nanoseconds", 1e-9, False),
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -213,3 +223,52 @@ def frame_period(options: ReplayOptions, t: FloatArray | None) -> float:
         if len(steps):
             return float(np.median(steps))
     return DEFAULT_PERIOD_S
+
+
+def _span(start: float, end: float, origin: float) -> str:
+    """``start`` to ``end`` [s from the recording's start], and as stamped if that differs."""
+    text = f"{start:.3f} to {end:.3f} s from its start"
+    if origin != 0:
+        text += f" ({origin + start:.3f} to {origin + end:.3f} s as stamped)"
+    return text
+
+
+def _unit_hint(t: FloatArray, start: float, end: float, origin: float) -> str:
+    """What the truth times ``t`` look like when, read in another unit or from another
+    zero (``TIME_UNITS``), they would fit the frames' span [start, end]: at least half
+    of them inside it, over at least a tenth of its length; else ""."""
+    first, last = float(t[0]), float(t[-1])
+    for name, unit, relative in TIME_UNITS:
+        if not relative and origin == 0:
+            continue
+        shift = 0.0 if relative else origin
+        lo, hi = first * unit - shift, last * unit - shift
+        inside = min(hi, end) - max(lo, start)
+        if hi - lo >= 0.1 * (end - start) and inside >= 0.5 * (hi - lo):
+            steps = [f"divide by {1 / unit:g}"] if unit != 1.0 else []
+            steps += [] if relative else [f"subtract the start, {origin:.3f} s"]
+            return f"; they look like {name} ({' and '.join(steps)})"
+    return ""
+
+
+def truth_overlap_warning(
+    truth: GroundTruth, start: float, end: float, origin: float, truth_file: Path | None = None
+) -> str | None:
+    """The warning when no truth sample falls inside the frames' span [start, end] (s
+    from the recording's start, whose time is ``origin``), so no frame can be scored;
+    None when some does.  ``truth_file``: the CSV the truth came from (its t as given),
+    None for the recording's own."""
+    first, last = float(truth.t[0]), float(truth.t[-1])
+    if last >= start - TIME_TOL_S and first <= end + TIME_TOL_S:
+        return None
+    head = (
+        "no truth sample falls inside the recording's time span, so no frame is scored: "
+        f"the recording spans {_span(start, end, origin)}"
+    )
+    if truth_file is None:
+        return f"{head}; its ground truth spans {_span(first, last, origin)}"
+    return (
+        f"{head}; {truth_file.name}'s t spans {first:.3f} to {last:.3f} s as given, and "
+        "--truth takes t in seconds from the recording's start"
+        + _unit_hint(truth.t, start, end, origin)
+    )
