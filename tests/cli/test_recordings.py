@@ -308,3 +308,36 @@ def test_truth_outside_the_recording_is_a_warning_with_both_spans(
         warning
     )
     assert "unix.csv's t spans 1700000000.000 to 1700000003.000 s as given" in warning
+
+
+def test_sensor_pose_on_a_bag_with_tf_is_a_warning(
+    small_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The recorded bag's /tf places its LiDAR, so ``--sensor-pose`` changes nothing and
+    ``track`` says it is ignored, in a ``warning:`` line and in ``metrics.json``."""
+    capsys.readouterr()
+    out = tmp_path / "t"
+    assert run(["track", str(small_bag), "--sensor-pose", "1,2,3,0,0,90", "--out", str(out)]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("warning:")]
+    expected = (
+        "a.bag's /tf gives the pose of its LiDAR frame 'lidar' (the chain from 'world'), "
+        "so --sensor-pose is ignored"
+    )
+    assert lines.count(f"warning: {expected}") == 1
+    assert _metrics(out)["warnings"] == [expected]
+
+
+def test_period_on_a_bag_without_point_times_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sources.test_bag import _write_pc2_bag
+
+    xyz = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)]
+    path = tmp_path / "points"
+    _write_pc2_bag(path, [(xyz, np.arange(30, dtype="<f4").tobytes(), 10, 12)] * 5)
+    capsys.readouterr()
+    assert run(["track", str(path), "--period", "0.05", "--out", str(tmp_path / "t")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:")
+    assert "--period 0.05 s cannot re-cut /points" in err
+    assert len(err.splitlines()) == 1

@@ -393,3 +393,76 @@ def test_a_moving_observer_is_recorded_as_odometry_in_tf(tmp_path: Path) -> None
         bound = np.linalg.norm(a.points, axis=1) * 1e-3 + 1e-3
         miss = np.linalg.norm(b.world_points() - a.world_points(), axis=1)
         assert np.all(miss <= bound), float((miss / bound).max())
+
+
+@pytest.mark.parametrize("name", ["a.bag", "f_folder"])  # Livox CustomMsg, PointCloud2
+def test_period_recuts_a_bags_frames_by_the_points_times(
+    recorded: dict[str, Any], name: str
+) -> None:
+    """``--period`` T re-cuts the messages (0.1 s each): every point lands in the frame
+    [kT, (k + 1)T) its time falls in, none lost; T = 0.1 s gives the messages back.
+    (PointCloud2 times are float64 nanoseconds, ~0.3 µs: a point that close to a cut
+    may fall on either side.)"""
+    path = recorded["folder"] / name
+    messages = list(open_recording(path).frames())
+    t = np.concatenate([f.t for f in messages])
+    for period in (0.1, 0.05, 0.25):
+        rec = open_recording(path, ReplayOptions(period_s=period))
+        frames = list(rec.frames())
+        k = np.floor(t / period).astype(int)  # the frame each point belongs to
+        edge = np.abs(t / period - np.rint(t / period)) * period < 1e-6  # near a cut
+        assert [round(f.stamp / period) for f in frames] == sorted(set(k.tolist()))
+        assert sum(len(f) for f in frames) == len(t)
+        for f in frames:
+            i = round(f.stamp / period)
+            assert f.duration == pytest.approx(period, abs=1e-9)
+            assert np.all((f.t >= f.stamp - 1e-6) & (f.t < f.end + 1e-6))
+            near = np.count_nonzero(edge & ((k == i) | (k == i - 1) | (k == i + 1)))
+            assert abs(len(f) - np.count_nonzero(k == i)) <= near
+        assert rec.skipped == {}
+    again = list(open_recording(path, ReplayOptions(period_s=0.1)).frames())
+    assert len(again) == len(messages) == 25
+    for a, b in zip(messages, again, strict=True):
+        assert b.stamp == pytest.approx(a.stamp, abs=1e-9)
+        np.testing.assert_allclose(b.world_points(), a.world_points(), atol=1e-6)
+
+
+def test_period_is_refused_for_points_without_times(tmp_path: Path) -> None:
+    """Clouds with no time field cannot be re-cut: ``--period`` is refused with the
+    reason, unless it is the messages' own period (0.1 s here)."""
+    xyz = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)]
+    clouds = [(xyz, np.arange(30, dtype="<f4").tobytes(), 10, 12)] * 4
+    path = tmp_path / "points"
+    _write_pc2_bag(path, clouds)
+    with pytest.raises(RecordingError) as err:
+        open_recording(path, ReplayOptions(period_s=0.05))
+    assert "--period 0.05 s cannot re-cut /points" in str(err.value)
+    assert "no per-point time field (offset_time, t, time, timestamp)" in str(err.value)
+    assert "0.1 s apart by their stamps" in str(err.value)
+    frames = list(open_recording(path, ReplayOptions(period_s=0.1)).frames())
+    assert [f.stamp for f in frames] == pytest.approx([0.0, 0.1, 0.2, 0.3])
+
+
+def test_sensor_pose_is_ignored_with_a_warning_where_tf_gives_the_pose(
+    recorded: dict[str, Any], tmp_path: Path
+) -> None:
+    """A bag whose /tf places its LiDAR: the frames keep /tf's poses and the recording
+    says that --sensor-pose is ignored.  Without /tf, the pose is used, and no warning."""
+    shifted = np.eye(4)
+    shifted[:3, 3] = (5.0, 0.0, 0.0)
+    path = recorded["folder"] / "a.bag"
+    plain = list(open_recording(path).frames())
+    rec = open_recording(path, ReplayOptions(sensor_pose=shifted))
+    given = list(rec.frames())
+    for a, b in zip(plain, given, strict=True):
+        np.testing.assert_array_equal(a.poses, b.poses)
+    assert rec.pose_warning == (
+        "a.bag's /tf gives the pose of its LiDAR frame 'lidar' (the chain from 'world'), "
+        "so --sensor-pose is ignored"
+    )
+    xyz = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)]
+    bare = tmp_path / "points"
+    _write_pc2_bag(bare, [(xyz, np.arange(30, dtype="<f4").tobytes(), 10, 12)] * 2)
+    rec = open_recording(bare, ReplayOptions(sensor_pose=shifted))
+    np.testing.assert_array_equal(next(iter(rec.frames())).poses[0], shifted)
+    assert rec.pose_warning is None

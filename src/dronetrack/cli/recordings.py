@@ -141,7 +141,12 @@ def track(
     ] = 0.0,
     period: Annotated[
         float | None,
-        typer.Option("--period", min=1e-4, help="Frame period in s (default: from the stamps)."),
+        typer.Option(
+            "--period",
+            min=1e-4,
+            help="Frame period in s; a bag's points are re-cut by their times to it "
+            "(default: from the stamps).",
+        ),
     ] = None,
     timestamps: Annotated[
         Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")

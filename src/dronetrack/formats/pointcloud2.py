@@ -68,6 +68,7 @@ __all__ = [
     "decode_cloud",
     "encode_cloud",
     "fields_from_msg",
+    "has_point_times",
 ]
 
 # sensor_msgs/PointField datatype constants -> numpy type codes (no byte order).
@@ -93,6 +94,7 @@ _TIME_FIELDS: tuple[tuple[str, float, bool], ...] = (
     ("time", 1.0, False),
     ("timestamp", 0.0, True),  # unit chosen from the values
 )
+TIME_FIELD_NAMES = tuple(name for name, _, _ in _TIME_FIELDS)
 _INTENSITY_FIELDS = ("intensity", "reflectivity")
 _LINE_FIELDS = ("line", "ring")
 
@@ -119,6 +121,11 @@ class CloudPoints:
     t: FloatArray | None
     intensity: NDArray[np.float32]
     line: NDArray[np.uint8]
+
+
+def has_point_times(fields: list[Field]) -> bool:
+    """Whether clouds of these fields give every point its own time (``cloud_points``)."""
+    return any(f.name in TIME_FIELD_NAMES and f.count > 0 for f in fields)
 
 
 def fields_from_msg(msg: object) -> list[Field]:

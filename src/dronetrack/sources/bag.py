@@ -18,11 +18,21 @@ Topics:
   was made from (``dronetrack record``), so replay uses the same settings.
 
 Times are the messages' header stamps, relative to the first LiDAR stamp.
+
+Frames.  Each LiDAR message is a frame, its period the median step of the first
+stamps.  ``--period`` T re-cuts them by the points' own times, as a live stream is
+cut (``sources.assembly``): frame k holds the points of [t₀ + kT, t₀ + (k + 1)T), t₀
+the first stamp, whichever messages they came in (intensities are clipped to
+0-255 there, as a live stream's reflectivities; the tracker does not use them).
+Messages without per-point times cannot be re-cut: ``--period`` is refused unless it
+is their period already.  With /tf for the LiDAR's frame, ``--sensor-pose`` is
+ignored, with a warning.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -37,7 +47,12 @@ from dronetrack.formats.livox import (
     decode_livox_ros1,
     livox_points,
 )
-from dronetrack.formats.pointcloud2 import CloudPoints, cloud_points
+from dronetrack.formats.pointcloud2 import (
+    TIME_FIELD_NAMES,
+    CloudPoints,
+    cloud_points,
+    has_point_times,
+)
 from dronetrack.formats.pointcloud2_raw import (
     RawCloud,
     decode_pointcloud2_cdr,
@@ -45,6 +60,7 @@ from dronetrack.formats.pointcloud2_raw import (
 )
 from dronetrack.geometry.geodesy import enu_from_geodetic
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, StreamFrame
 from dronetrack.sources.bag_file import BAD_DATA, BagFile
 from dronetrack.sources.recording import (
     GroundTruth,
@@ -69,6 +85,7 @@ TF_TYPE = "tf2_msgs/msg/TFMessage"
 STRING_TYPE = "std_msgs/msg/String"
 CONFIG_TOPIC = "/dronetrack/config"
 _PERIOD_SAMPLES = 21  # LiDAR stamps read to estimate the frame period
+PERIOD_TOL = 0.01  # a --period this close (relative) to the messages' is theirs
 
 
 def _stamp_ns(header: Any) -> int:
@@ -83,6 +100,7 @@ class BagRecording(BagFile):
         self.options = options = options or ReplayOptions()
         self._lidar_frame: str | None = None  # the clouds' frame_id, once one is decoded
         self.pose_warning: str | None = None  # set once a frame has no pose source
+        self._point_times = False  # whether the first message gives each point its time
         with self._reader() as reader:
             conns = reader.connections
             lidar = _choose(conns, options.lidar_topic, LIDAR_TYPES, "LiDAR", "--lidar-topic")
@@ -97,7 +115,12 @@ class BagRecording(BagFile):
                 raise RecordingError(f"{path}: LiDAR topic {self.lidar.topic} has no messages")
             self.origin_ns = stamps[0]
             self.origin = self.origin_ns * 1e-9
-            self.period = frame_period(options, (np.asarray(stamps) - stamps[0]) * 1e-9)
+            steps = (np.asarray(stamps) - stamps[0]) * 1e-9
+            self.message_period = frame_period(ReplayOptions(), steps)
+            self.period = frame_period(options, steps)
+            self.recut = self._recut(options.period_s)
+            if self.recut:  # an estimate, for the progress bar
+                self.n_frames = math.ceil(self.n_frames * self.message_period / self.period)
             self.tf = self._read_tf(reader, conns)
             self.config_text = self._read_config(reader, conns)
             self.ground_truth = self._read_ground_truth(reader, gt) if gt is not None else None
@@ -108,6 +131,10 @@ class BagRecording(BagFile):
         for _, _, raw in self._messages(reader, [self.lidar]):
             header = self._parse(reader, raw)
             if header is not None:
+                if not stamps:
+                    self._point_times = isinstance(header, LivoxCloud) or has_point_times(
+                        header.fields
+                    )
                 self._lidar_frame = header.frame_id
                 stamps.append(header.stamp_ns)
             if len(stamps) >= _PERIOD_SAMPLES:
@@ -115,6 +142,22 @@ class BagRecording(BagFile):
         self.skipped.clear()  # frames() reads these messages again and counts them then
         self._warned.clear()
         return stamps
+
+    def _recut(self, period: float | None) -> bool:
+        """Whether ``--period`` re-cuts the messages into frames of that period (the
+        module docstring); RecordingError when their points have no times to cut by."""
+        if period is None:
+            return False
+        if self._point_times:
+            return True
+        if abs(period - self.message_period) <= PERIOD_TOL * self.message_period:
+            return False  # each message is a frame of that period already
+        names = ", ".join(TIME_FIELD_NAMES)
+        raise RecordingError(
+            f"{self.path}: --period {period:g} s cannot re-cut {self.lidar.topic}: its "
+            f"PointCloud2 messages have no per-point time field ({names}), so each message "
+            f"is one frame, {self.message_period:g} s apart by their stamps; leave out --period"
+        )
 
     def _read_tf(self, reader: Any, conns: Sequence[Any]) -> TransformBuffer:
         tf = TransformBuffer()
@@ -233,17 +276,58 @@ class BagRecording(BagFile):
 
     def frames(self) -> Iterator[Frame]:
         """The LiDAR frames in the pose frame's time line (see the module docstring)."""
+        clouds = self._clouds()
+        yield from self._recut_frames(clouds) if self.recut else self._message_frames(clouds)
+
+    def _clouds(self) -> Iterator[tuple[int, str, CloudPoints]]:
+        """(stamp [ns], frame_id, points) of each LiDAR message that decodes."""
         with self._reader() as reader:
             for _, _, raw in self._messages(reader, [self.lidar]):
                 msg = self._parse(reader, raw)
                 cloud = self._points(msg) if msg is not None else None
-                if msg is None or cloud is None:
-                    continue
-                stamp = (msg.stamp_ns - self.origin_ns) * 1e-9
-                t = stamp + cloud.t if cloud.t is not None else None
-                if t is not None and len(t):
-                    stamp = min(stamp, float(t.min()))
-                yield self._frame(stamp, msg.frame_id, cloud.points, t, cloud.intensity, cloud.line)
+                if msg is not None and cloud is not None:
+                    yield msg.stamp_ns, msg.frame_id, cloud
+
+    def _message_frames(self, clouds: Iterator[tuple[int, str, CloudPoints]]) -> Iterator[Frame]:
+        """One frame a message, from its stamp (or its earliest point) for a period."""
+        for stamp_ns, frame_id, cloud in clouds:
+            stamp = (stamp_ns - self.origin_ns) * 1e-9
+            t = stamp + cloud.t if cloud.t is not None else None
+            if t is not None and len(t):
+                stamp = min(stamp, float(t.min()))
+            yield self._frame(stamp, frame_id, cloud.points, t, cloud.intensity, cloud.line)
+
+    def _recut_frames(self, clouds: Iterator[tuple[int, str, CloudPoints]]) -> Iterator[Frame]:
+        """The messages' points cut into frames of ``period`` by their own times."""
+        assembler = FrameAssembler(self.period, self.origin_ns)
+        frame_id = ""
+        for stamp_ns, frame_id, cloud in clouds:
+            if cloud.t is None:
+                self._skip("bad_point_message", "no per-point time field to cut frames by")
+                continue
+            timed = np.isfinite(cloud.t)
+            if not timed.all():
+                self.skipped["untimed_points"] += int(np.count_nonzero(~timed))
+            t_ns = stamp_ns + np.rint(cloud.t[timed] * NS).astype(np.int64)
+            refl = np.clip(np.rint(cloud.intensity[timed]), 0, 255).astype(np.uint8)
+            batch = PointBatch(cloud.points[timed], t_ns, refl, cloud.line[timed])
+            for done in assembler.push(batch):
+                yield self._cut_frame(done, frame_id)
+        for done in assembler.flush():
+            yield self._cut_frame(done, frame_id)
+        if assembler.late_points:
+            self.skipped["late_points"] += assembler.late_points
+            log.warning(
+                "%s: dropped %d points older than the frame being filled",
+                self.path.name,
+                assembler.late_points,
+            )
+
+    def _cut_frame(self, done: StreamFrame, frame_id: str) -> Frame:
+        pts = done.points
+        stamp = (done.start_ns - self.origin_ns) / NS
+        t = (pts.t_ns - self.origin_ns) / NS
+        return self._frame(stamp, frame_id, pts.xyz, t, pts.reflectivity, pts.line)
 
     def _frame(
         self,
@@ -257,6 +341,11 @@ class BagRecording(BagFile):
         end = stamp + self.period
         root = self.options.pose_frame or self.tf.root(frame_id)
         if frame_id in self.tf and root != frame_id:
+            if self.options.sensor_pose is not None and self.pose_warning is None:
+                self.pose_warning = (
+                    f"{self.path.name}'s /tf gives the pose of its LiDAR frame {frame_id!r} "
+                    f"(the chain from {root!r}), so --sensor-pose is ignored"
+                )
             times = np.concatenate(
                 [[stamp], self.tf.sample_times(root, frame_id, stamp, end), [end]]
             )
