@@ -31,7 +31,9 @@ where the turret slews.
 
 from __future__ import annotations
 
-from collections import deque
+import logging
+from collections import Counter, deque
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +44,9 @@ from dronetrack.geometry.mount import MountGeometry, sensor_poses
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Frame, TurretState
 
-__all__ = ["FrameAssembler", "PointBatch", "PoseHistory", "StreamFrame"]
+__all__ = ["FrameAssembler", "PointBatch", "PoseHistory", "StreamFrame", "cut_by_time"]
+
+log = logging.getLogger(__name__)
 
 NS = 1_000_000_000  # nanoseconds per second
 
@@ -199,6 +203,30 @@ class FrameAssembler:
         frame = StreamFrame(k, t0 + k * self.period_ns, self.period_ns, _concat(self._parts))
         self._last_done, self._open, self._parts = k, None, []
         return frame
+
+
+def cut_by_time(
+    batches: Iterable[PointBatch],
+    period_s: float,
+    t0_ns: int | None,
+    skipped: Counter[str],
+    name: str,
+) -> Iterator[StreamFrame]:
+    """A recording's point batches, in time order, cut into frames of ``period_s`` as a
+    live stream's are (``FrameAssembler`` from ``t0_ns``), to the last one; the points
+    dropped as older than the frame being filled are counted in
+    ``skipped["late_points"]`` and logged, ``name`` naming the recording."""
+    assembler = FrameAssembler(period_s, t0_ns)
+    for batch in batches:
+        yield from assembler.push(batch)
+    yield from assembler.flush()
+    if assembler.late_points:
+        skipped["late_points"] += assembler.late_points
+        log.warning(
+            "%s: dropped %d points older than the frame being filled (the clock went back)",
+            name,
+            assembler.late_points,
+        )
 
 
 class PoseHistory:

@@ -60,7 +60,7 @@ from dronetrack.formats.pointcloud2_raw import (
 )
 from dronetrack.geometry.geodesy import enu_from_geodetic
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, StreamFrame
+from dronetrack.sources.assembly import NS, PointBatch, StreamFrame, cut_by_time
 from dronetrack.sources.bag_file import BAD_DATA, BagFile
 from dronetrack.sources.recording import (
     GroundTruth,
@@ -298,10 +298,17 @@ class BagRecording(BagFile):
             yield self._frame(stamp, frame_id, cloud.points, t, cloud.intensity, cloud.line)
 
     def _recut_frames(self, clouds: Iterator[tuple[int, str, CloudPoints]]) -> Iterator[Frame]:
-        """The messages' points cut into frames of ``period`` by their own times."""
-        assembler = FrameAssembler(self.period, self.origin_ns)
-        frame_id = ""
-        for stamp_ns, frame_id, cloud in clouds:
+        """The messages' points cut into frames of ``period`` by their own times, in the
+        first message's frame."""
+        batches = self._batches(clouds)
+        frame_id = self._lidar_frame or ""
+        name = self.path.name
+        for done in cut_by_time(batches, self.period, self.origin_ns, self.skipped, name):
+            yield self._cut_frame(done, frame_id)
+
+    def _batches(self, clouds: Iterator[tuple[int, str, CloudPoints]]) -> Iterator[PointBatch]:
+        """Each message's timed points as a batch on the absolute clock [ns]."""
+        for stamp_ns, _, cloud in clouds:
             if cloud.t is None:
                 self._skip("bad_point_message", "no per-point time field to cut frames by")
                 continue
@@ -310,18 +317,7 @@ class BagRecording(BagFile):
                 self.skipped["untimed_points"] += int(np.count_nonzero(~timed))
             t_ns = stamp_ns + np.rint(cloud.t[timed] * NS).astype(np.int64)
             refl = np.clip(np.rint(cloud.intensity[timed]), 0, 255).astype(np.uint8)
-            batch = PointBatch(cloud.points[timed], t_ns, refl, cloud.line[timed])
-            for done in assembler.push(batch):
-                yield self._cut_frame(done, frame_id)
-        for done in assembler.flush():
-            yield self._cut_frame(done, frame_id)
-        if assembler.late_points:
-            self.skipped["late_points"] += assembler.late_points
-            log.warning(
-                "%s: dropped %d points older than the frame being filled",
-                self.path.name,
-                assembler.late_points,
-            )
+            yield PointBatch(cloud.points[timed], t_ns, refl, cloud.line[timed])
 
     def _cut_frame(self, done: StreamFrame, frame_id: str) -> Frame:
         pts = done.points

@@ -62,7 +62,7 @@ from dronetrack.formats.lvx import (
     parse_header,
     split_packages,
 )
-from dronetrack.sources.assembly import NS, FrameAssembler, StreamFrame
+from dronetrack.sources.assembly import NS, PointBatch, StreamFrame, cut_by_time
 from dronetrack.sources.livox_points import hits_in_time_order
 from dronetrack.sources.livox_udp import LINES
 from dronetrack.sources.recording import (
@@ -264,7 +264,12 @@ class LvxRecording(PointFileRecording):
 
     def frames(self) -> Iterator[Frame]:
         """The frames in time order, each point at its own time."""
-        assembler = FrameAssembler(self.period, self.origin_ns)
+        name = self.path.name
+        for done in cut_by_time(self._batches(), self.period, self.origin_ns, self.skipped, name):
+            yield self._frame(done)
+
+    def _batches(self) -> Iterator[PointBatch]:
+        """The device's points, a batch for each frame of the file that holds any."""
         with self.path.open("rb") as fh:
             for lvx_frame in self._frames:
                 pts, line, bad = self.file.decode(fh, lvx_frame, self.device)
@@ -274,18 +279,7 @@ class LvxRecording(PointFileRecording):
                 if len(pts) == 0:
                     continue
                 firings = (int(pts.t_ns.min()), int(pts.t_ns.max()))
-                batch = replace(hits_in_time_order([pts], [line]), firings=firings)
-                for done in assembler.push(batch):
-                    yield self._frame(done)
-            for done in assembler.flush():
-                yield self._frame(done)
-        if assembler.late_points:
-            self.skipped["late_points"] += assembler.late_points
-            log.warning(
-                "%s: dropped %d points older than the frame being filled (the clock went back)",
-                self.path.name,
-                assembler.late_points,
-            )
+                yield replace(hits_in_time_order([pts], [line]), firings=firings)
 
     def _frame(self, done: StreamFrame) -> Frame:
         pts = done.points
