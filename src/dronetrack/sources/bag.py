@@ -299,7 +299,7 @@ class BagRecording(BagFile):
 
     def _recut_frames(self, clouds: Iterator[tuple[int, str, CloudPoints]]) -> Iterator[Frame]:
         """The messages' points cut into frames of ``period`` by their own times, in the
-        first message's frame."""
+        clouds' frame_id (one for the topic)."""
         batches = self._batches(clouds)
         frame_id = self._lidar_frame or ""
         name = self.path.name
