@@ -99,7 +99,7 @@ class BagRecording(BagFile):
         super().__init__(path, check=False)  # opened below
         self.options = options = options or ReplayOptions()
         self._lidar_frame: str | None = None  # the clouds' frame_id, once one is decoded
-        self.pose_warning: str | None = None  # set once a frame has no pose source
+        self.pose_warning: str | None = None  # set by the first frame that needs one
         self._point_times = False  # whether the first message gives each point its time
         with self._reader() as reader:
             conns = reader.connections

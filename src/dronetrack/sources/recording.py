@@ -132,7 +132,8 @@ class Recording(Protocol):
     ground_truth: GroundTruth | None
     config_text: str | None  # a dronetrack scenario (TOML) the recording carries, if any
     skipped: Counter[str]
-    # Set when no pose source was found and the sensor is taken as fixed at the origin.
+    # What replay must say of the sensor's pose: none was found and the sensor is taken
+    # as fixed at the origin, or a bag's /tf gives it and --sensor-pose is ignored.
     pose_warning: str | None
 
     def frames(self) -> Iterator[Frame]:
