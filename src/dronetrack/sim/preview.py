@@ -19,9 +19,11 @@ if TYPE_CHECKING:
 
     from dronetrack.sim.world import FrameTruth
 
-__all__ = ["plot_preview"]
+__all__ = ["legend_below", "plot_preview", "preview_figure"]
 
 MAX_POINTS = 60_000
+# The views' place on the figure, in fractions of it (subplots_adjust)
+MARGINS = {"left": 0.05, "right": 0.96, "bottom": 0.15, "top": 0.88, "wspace": 0.3}
 
 
 def _draw_scene(ax: Axes, scene: Scene) -> None:
@@ -70,26 +72,48 @@ def _draw_sensor_view(fig: Figure, view: Axes, last: Frame, truth: FrameTruth) -
     taz, tel = np.degrees(azimuth_elevation(rel))
     view.plot(taz, tel, "r+", ms=14, label="true target direction")
     view.set_title(f"sensor view, last frame (t = {last.stamp:.1f} s, {len(last)} points)")
-    view.legend(loc="upper right", fontsize=8)
+    legend_below(fig, view)
     if len(last) and np.ptp(az) < 120:
         view.set_aspect("equal")
 
 
-def plot_preview(
+LEGEND_DROP_PT = 32.0  # from the axes' bottom edge down to the legend: the tick labels
+# and the x label (10 pt) lie between
+
+
+def legend_below(fig: Figure, ax: Axes) -> None:
+    """The axes' legend under its x label, outside the axes: it covers no data."""
+    from matplotlib.transforms import offset_copy
+
+    below = offset_copy(ax.transAxes, fig=fig, y=-LEGEND_DROP_PT, units="points")
+    ax.legend(
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        bbox_transform=below,
+        ncol=3,
+        fontsize=8,
+        frameon=False,
+    )
+
+
+def preview_figure(
     scene: Scene,
     frames: Sequence[Frame],
     truths: Sequence[FrameTruth],
     world: Sequence[FloatArray],
-    out: Path,
     title: str = "",
-) -> None:
-    """Save a PNG: a bird's-eye view of all returns, and the last frame as the sensor saw it."""
+) -> Figure:
+    """A bird's-eye view of all returns, and the last frame as the sensor saw it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (top, view) = plt.subplots(1, 2, figsize=(15, 6.5), gridspec_kw={"width_ratios": [1.1, 1]})
+    # A fixed layout (no layout engine: with axes of a fixed shape those drift from one
+    # drawing to the next): margins for the tick labels, the x labels and the legends
+    # below, and between the views room for a colour bar and the next y label.
+    fig, (top, view) = plt.subplots(1, 2, figsize=(15, 7), width_ratios=(1.1, 1), dpi=110)
+    fig.subplots_adjust(**MARGINS)
     pts = np.concatenate(world) if world else np.empty((0, 3))
     hit = np.concatenate([tr.hit_target for tr in truths]) if truths else np.empty(0, bool)
     rng = np.random.default_rng(0)
@@ -124,7 +148,7 @@ def plot_preview(
     top.set_xlabel("x [m]")
     top.set_ylabel("y [m]")
     top.set_title("bird's-eye view, all frames")
-    top.legend(loc="upper right", fontsize=8)
+    legend_below(fig, top)
 
     if frames:
         _draw_sensor_view(fig, view, frames[-1], truths[-1])
@@ -132,6 +156,21 @@ def plot_preview(
     view.set_ylabel("elevation [deg]")
     view.invert_xaxis()  # left of the sensor (+y) on the left
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    return fig
+
+
+def plot_preview(
+    scene: Scene,
+    frames: Sequence[Frame],
+    truths: Sequence[FrameTruth],
+    world: Sequence[FloatArray],
+    out: Path,
+    title: str = "",
+) -> None:
+    """Save ``preview_figure`` as a PNG."""
+    import matplotlib.pyplot as plt
+
+    fig = preview_figure(scene, frames, truths, world, title)
+    # The views keep their shapes (equal scale), which leaves margins: trim them.
+    fig.savefig(out, dpi=110, bbox_inches="tight", pad_inches=0.15)
     plt.close(fig)
