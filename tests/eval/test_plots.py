@@ -23,6 +23,7 @@ from dronetrack.eval.log import TrackLog
 from dronetrack.eval.plots import (
     KALMAN_FILTERS,
     PARTICLE_FILTERS,
+    log_limits,
     lost_stretches,
     plot_error_and_spread,
     plot_points_vs_distance,
@@ -149,6 +150,46 @@ def test_error_figure_of_a_particle_filter_names_the_particle_spread(
     text = _all_text(keep_figures())
     assert "σ_particles" in text
     assert "σ_threshold = 0.75 m" in text
+
+
+@pytest.mark.parametrize("kind", sorted(PARTICLE_FILTERS))
+def test_sigma_threshold_reads_the_same_on_both_axes(
+    tmp_path: Path, keep_figures: Callable[[], Figure], kind: str
+) -> None:
+    threshold = 0.75
+    plot_error_and_spread(_flight(), threshold, tmp_path / "err.png", kind=kind)
+    fig = keep_figures()
+    left, right = fig.axes[0], fig.axes[1]
+    # the threshold line belongs to the spread's axis (the right), at y = σ_threshold
+    flat = [
+        line
+        for line in right.get_lines()
+        if len(set(np.asarray(line.get_ydata(), dtype=float))) == 1
+    ]
+    assert len(flat) == 1
+    assert float(np.asarray(flat[0].get_ydata(), dtype=float)[0]) == pytest.approx(threshold)
+    # where it is drawn reads as σ_threshold against the left axis too (both are metres)
+    screen = right.transData.transform((0.5 * sum(right.get_xlim()), threshold))
+    on_left = left.transData.inverted().transform(screen)[1]
+    assert on_left == pytest.approx(threshold, rel=1e-6)
+    assert left.get_yscale() == right.get_yscale() == "log"
+    assert left.get_ylim() == pytest.approx(right.get_ylim())
+    # and every drawn value lies within the limits: errors of 0.5 m, spreads 0.3-2.29 m
+    lo, hi = left.get_ylim()
+    assert lo < 0.3
+    assert hi > 0.3 + 0.01 * 199
+
+
+def test_log_limits_span_every_positive_value_with_a_margin() -> None:
+    # 0.01 to 10: three decades, 5 % of them (0.15 decade) beyond each end
+    lo, hi = log_limits(np.array([0.01, 1.0, np.nan, 0.0]), np.array([10.0, -1.0]))
+    assert lo == pytest.approx(10.0**-2.15)
+    assert hi == pytest.approx(10.0**1.15)
+    # one value: a decade's span about it, at least
+    lo, hi = log_limits(np.array([0.5]))
+    assert lo == pytest.approx(0.5 * 10.0**-0.05)
+    assert hi == pytest.approx(0.5 * 10.0**0.05)
+    assert log_limits(np.array([np.nan, 0.0])) == (0.1, 10.0)
 
 
 @pytest.mark.parametrize("kind", sorted(KALMAN_FILTERS))

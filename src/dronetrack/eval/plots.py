@@ -14,6 +14,7 @@ from dronetrack.eval.metrics import CORRECT_RADIUS_M, correct, points_by_distanc
 __all__ = [
     "KALMAN_FILTERS",
     "PARTICLE_FILTERS",
+    "log_limits",
     "lost_stretches",
     "plot_error_and_spread",
     "plot_points_vs_distance",
@@ -152,6 +153,18 @@ def plot_top_view(
     plt.close(fig)
 
 
+def log_limits(*series: NDArray[Any], margin: float = 0.05) -> tuple[float, float]:
+    """Limits of a log axis spanning every finite positive value of the series, with
+    ``margin`` of the span (in decades) beyond each end; (0.1, 10) without any value."""
+    values = np.concatenate([np.ravel(np.asarray(v, dtype=np.float64)) for v in series])
+    values = values[np.isfinite(values) & (values > 0)]
+    if len(values) == 0:
+        return 0.1, 10.0
+    lo, hi = np.log10(values.min()), np.log10(values.max())
+    pad = margin * max(hi - lo, 1.0)
+    return float(10.0 ** (lo - pad)), float(10.0 ** (hi + pad))
+
+
 def plot_error_and_spread(
     a: dict[str, NDArray[Any]],
     threshold: float,
@@ -199,6 +212,15 @@ def plot_error_and_spread(
         )
     ax2.set_yscale("log")
     ax2.set_ylabel(f"{spread} [m]", color="tab:orange")
+    # Both are metres: the two axes get one scale, so the spread and its threshold read
+    # the same against either (with a scale of its own, a line at σ_threshold on the
+    # right would read as another value on the left).
+    drawn = [err, a["sigma_particles"]] + (
+        [np.array([threshold])] if kind in PARTICLE_FILTERS else []
+    )
+    lo, hi = log_limits(*drawn)
+    ax.set_ylim(lo, hi)
+    ax2.set_ylim(lo, hi)
     for axis in (ax.yaxis, ax2.yaxis):  # 0.1 and 2, not 10⁻¹ and 2 × 10⁰
         axis.set_major_formatter(plt.matplotlib.ticker.FuncFormatter(_plain))
         axis.set_minor_formatter(plt.matplotlib.ticker.FuncFormatter(_minor))
