@@ -193,6 +193,19 @@ def test_a_wrong_or_absent_servo_is_named(model: int | None, problem: str) -> No
     assert problem in message
 
 
+def test_servos_at_another_baud_rate_are_one_error_naming_the_rate_tried() -> None:
+    with PtyServoLink(turret_bus(1, 2, ManualClock()), lifetime=30.0) as link:
+        begin = time.monotonic()
+        with pytest.raises(DeviceError) as info:
+            DynamixelTurret.from_uri(f"dynamixel://{link.device}?baud=57600")
+        assert time.monotonic() - begin < 10.0
+        turret = DynamixelTurret(link.device)  # at the servos' 1 Mbit/s they answer
+        turret.close()
+    message = str(info.value)
+    assert message.startswith(f"Dynamixel turret on {link.device}: no servo answered at 57600 baud")
+    assert "\n" not in message
+
+
 def test_a_missing_device_raises_device_error() -> None:
     with pytest.raises(DeviceError, match="cannot open the port"):
         DynamixelTurret("/nonexistent/ttyDXL")

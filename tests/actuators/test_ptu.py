@@ -185,7 +185,7 @@ def test_a_reply_that_never_comes_is_a_device_error_in_bounded_time() -> None:
     begin = time.monotonic()
     with pytest.raises(
         DeviceError,
-        match=r"FLIR PTU on /dev/fake: read the positions: no answer within 0\.\d+ s "
+        match=r"FLIR PTU on /dev/fake: read the positions: no answer at 9600 baud within 0\.\d+ s "
         r"\(1 of 2 replies\)",
     ):
         turret.state()

@@ -48,7 +48,9 @@ def test_emulate_prints_its_devices_streams_the_scenario_and_exits_0(tmp_path: P
     with _emulator(tmp_path, flight_s=0.5) as emu:
         lidar, turret_line = emu.lines
         assert lidar.startswith(f"lidar: livox://{emu.ip}  (Livox Avia, UDP {emu.ip}:65000)")
-        pattern = r"turret: dynamixel://(\S+)  \(2 XM430-W350, pan ID 1, tilt ID 2, on "
+        pattern = (
+            r"turret: dynamixel://(\S+)  \(2 XM430-W350, pan ID 1, tilt ID 2, 1000000 baud, on "
+        )
         found = re.match(pattern, turret_line)
         assert found is not None
         assert found.group(1) == str(emu.link)

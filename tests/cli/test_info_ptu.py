@@ -53,7 +53,7 @@ def test_info_of_a_silent_line_is_one_error_line(capsys: pytest.CaptureFixture[s
         os.close(master)
         os.close(slave)
     err = capsys.readouterr().err.strip()
-    assert err.startswith(f"error: FLIR PTU on {path}: echo off: no answer within 0.")
+    assert err.startswith(f"error: FLIR PTU on {path}: echo off: no answer at 9600 baud within 0.")
     assert "\n" not in err
     assert run(["info", "ptu:///dev/no-such-ptu"]) == 2
     err = capsys.readouterr().err.strip()

@@ -21,9 +21,12 @@ import numpy as np
 import pytest
 
 from dronetrack.cli.main import run
+from dronetrack.config.rig import make_turret
 from dronetrack.formats.dynamixel import ADDR
 from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
+from dronetrack.sim.emulate.ptu import EmulatedPtu
+from dronetrack.sim.emulate.ptu_link import PtyPtuLink
 from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
 
 LIVE_METRICS = {"latency_ms_p50", "latency_ms_p99", "frames_dropped", "packets_lost",
@@ -222,6 +225,41 @@ def test_sigterm_holds_the_turret_keeps_the_files_and_exits_130(
     assert bus.value(1, ADDR.TORQUE_ENABLE) == 1
     assert len(bus.servo(1).goals) >= 5
     assert abs(bus.value(1, ADDR.GOAL_POSITION) - bus.value(1, ADDR.PRESENT_POSITION)) <= 50
+
+
+def test_a_turret_at_another_baud_rate_is_one_error_line_naming_the_rate(
+    tmp_path: Path,
+    servos: tuple[ServoBus, PtyServoLink],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    pytest.importorskip("serial")
+    _, link = servos
+    bag = tmp_path / "flight.bag"
+    _write_bag(bag, 10)
+    ptu = PtyPtuLink(EmulatedPtu.from_turret(make_turret("ptu-e46")), lifetime=60.0)
+    turrets = {
+        f"dynamixel://{link.device}?baud=57600": "no servo answered at 57600 baud",
+        f"ptu://{ptu.device}?baud=38400": "no answer at 38400 baud",
+    }
+    try:
+        for turret, problem in turrets.items():
+            args = ["live", "--lidar", f"file://{bag}", "--turret", turret, "--scan-s", "0"]
+            assert run([*args, "--out", str(tmp_path / "run")]) == 2
+            lines = _error_lines(capsys.readouterr().err)
+            assert len(lines) == 1
+            assert problem in lines[0]
+    finally:
+        ptu.close()
+
+
+def test_info_of_servos_at_another_baud_rate_is_one_error_line_naming_the_rate(
+    servos: tuple[ServoBus, PtyServoLink], capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, link = servos
+    assert run(["info", f"dynamixel://{link.device}?baud=57600"]) == 2
+    lines = _error_lines(capsys.readouterr().err)
+    assert len(lines) == 1
+    assert f"on {link.device}: no servo answered at 57600 baud" in lines[0]
 
 
 def _free_udp_port() -> int:

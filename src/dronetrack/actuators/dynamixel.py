@@ -10,7 +10,9 @@ axis whose positive direction must be the other way is reversed on the servo
 itself (Drive Mode bit 0, which Interbotix sets on the WidowX tilt); opening the
 turret keeps that bit.
 
-Opening, for each servo: ping (it must answer as model 1020, XM430-W350); torque
+Opening, for each servo: ping (it must answer as model 1020, XM430-W350; when it
+does not and no servo answers a broadcast ping either, the error says that nothing
+answered at the URI's baud rate); torque
 off; position control mode (3) and a velocity-based profile (Drive Mode bit 2
 cleared); the joint limits of the turret preset written as the servo's position
 limits; the preset's rate and acceleration as the profile; torque on, which makes
@@ -36,7 +38,7 @@ import math
 import time
 from collections.abc import Callable
 
-from dronetrack.actuators.dynamixel_port import ServoPort, le32, signed32
+from dronetrack.actuators.dynamixel_port import ServoPort, le32, no_servo_answered, signed32
 from dronetrack.actuators.dynamixel_probe import ServoReport, probe_servos
 from dronetrack.actuators.dynamixel_uri import (
     DEFAULT_POLL_HZ,
@@ -170,9 +172,19 @@ class DynamixelTurret:
     def name(self) -> str:
         return f"Dynamixel turret on {self.device}"
 
+    def _ping(self, ident: int) -> int:
+        """Servo ``ident``'s model number; DeviceError naming the servo, or saying that
+        no servo answers at this baud rate when none answers a broadcast ping either."""
+        try:
+            return self.line.ping(ident)
+        except DeviceError:
+            if self.line.bus_silent():
+                raise DeviceError(no_servo_answered(self.device, self.line.baud)) from None
+            raise
+
     def _configure(self, ident: int, axis: AxisSpec) -> None:
         line = self.line
-        model = line.ping(ident)
+        model = self._ping(ident)
         if model != MODEL_XM430_W350:
             raise DeviceError(
                 f"{line.who(ident)}: model number {model}, not an XM430-W350 ({MODEL_XM430_W350})"

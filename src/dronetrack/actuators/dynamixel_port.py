@@ -29,7 +29,15 @@ from typing import Any
 from dronetrack.errors import DeviceError, MissingExtraError
 from dronetrack.formats.dynamixel import ERROR_NAMES, Err
 
-__all__ = ["IO_ERRORS", "READ_WAIT_S", "ServoPort", "le32", "load_sdk", "signed32"]
+__all__ = [
+    "IO_ERRORS",
+    "READ_WAIT_S",
+    "ServoPort",
+    "le32",
+    "load_sdk",
+    "no_servo_answered",
+    "signed32",
+]
 
 READ_WAIT_S = 0.001  # longest a read waits for the first byte before the SDK looks again
 
@@ -65,6 +73,15 @@ def signed32(value: int) -> int:
     return value - (1 << 32) if value & 0x80000000 else value
 
 
+def no_servo_answered(device: str, baud: int) -> str:
+    """The one line saying that nothing on the bus answered at ``baud``."""
+    return (
+        f"Dynamixel turret on {device}: no servo answered at {baud} baud, not even a "
+        "broadcast ping: check the URI's baud= (the servos' Baud Rate), the power and "
+        "the wiring"
+    )
+
+
 def le32(value: int) -> list[int]:
     """A 4-byte control-table value as its little-endian bytes."""
     return list((value & 0xFFFFFFFF).to_bytes(4, "little"))
@@ -97,6 +114,7 @@ class ServoPort:
         sdk = load_sdk()
         self.sdk = sdk
         self.device = device
+        self.baud = baud
         self.ids = ids
         self.ok = sdk.COMM_SUCCESS
         self.lock = threading.RLock()
@@ -168,6 +186,15 @@ class ServoPort:
                 return call()
             except IO_ERRORS as exc:
                 raise DeviceError(f"{self.both}: {what}: {exc}") from exc
+
+    def bus_silent(self) -> bool:
+        """Whether no servo at all answers a broadcast ping (the line fails: silent too)."""
+        with self.lock:
+            try:
+                found, result = self.ph.broadcastPing(self.port)
+            except IO_ERRORS:
+                return True
+        return result != self.ok or not found
 
     def first_silent(self) -> int:
         """The first servo that does not answer a ping (-1 if both do): who to name when

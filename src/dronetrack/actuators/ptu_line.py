@@ -12,7 +12,8 @@ taken for the next one's.
 
 Errors.  A reply ``! message`` raises DeviceError naming the unit, the command and
 the message; no complete answer within ``REPLY_TIMEOUT_S`` plus the bytes' time on
-the line raises DeviceError naming the unit and what was asked; so does a line that
+the line raises DeviceError naming the unit, what was asked and, on a serial line,
+the baud rate tried; so does a line that
 fails (unplugged adapter, connection reset).
 
 When the unit saw a command.  A serial byte takes 10/baud seconds (8N1), so the
@@ -258,7 +259,8 @@ class PtuLine:
                 self._dirty = True
                 self.timeouts += 1
                 got = f" ({len(replies)} of {count} replies)" if replies else ""
-                raise DeviceError(f"{self.name}: {what}: no answer within {limit:.2f} s{got}")
+                at = f" at {self.baud} baud" if self.baud else ""
+                raise DeviceError(f"{self.name}: {what}: no answer{at} within {limit:.2f} s{got}")
             buffer += self.transport.read(left)
 
     def _drain(self) -> None:

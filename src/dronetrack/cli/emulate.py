@@ -238,7 +238,8 @@ def emulate(
             if rig.ptu is not None:
                 what = f"FLIR PTU-E46, {rig.ptu_baud} baud 8N1"
             else:
-                what = "2 XM430-W350, pan ID 1, tilt ID 2"
+                rate = "/".join(map(str, sorted(rig.bus.rates())))
+                what = f"2 XM430-W350, pan ID 1, tilt ID 2, {rate} baud"
             typer.echo(f"turret: {rig.turret_uri}  ({what}, on {rig.link.path})")
         sys.stdout.flush()
         scan_s = scan_duration(cfg.pipeline)

@@ -284,13 +284,17 @@ def info(
 
 def _servo_info(uri: str) -> None:
     """``info dynamixel://…``: one line per servo found; DeviceError if the turret's pan
-    or tilt servo does not answer (after the lines)."""
+    or tilt servo does not answer (after the lines), or if no servo answers at all."""
     import math
 
-    from dronetrack.actuators.dynamixel import probe_servos
+    from dronetrack.actuators.dynamixel import parse_dynamixel_uri, probe_servos
+    from dronetrack.actuators.dynamixel_port import no_servo_answered
     from dronetrack.errors import DeviceError
 
     reports = probe_servos(uri)
+    if all(r.model is None for r in reports):  # not even the broadcast ping was answered
+        where = parse_dynamixel_uri(uri)
+        raise DeviceError(no_servo_answered(where.device, where.baud))
     missing = []
     for r in reports:
         head = f"servo ID {r.ident} ({r.role})"

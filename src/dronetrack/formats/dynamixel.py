@@ -42,6 +42,7 @@ from dronetrack.errors import DecodeError
 __all__ = [
     "ACCEL_UNIT",
     "ADDR",
+    "BAUD_RATE_CODES",
     "BROADCAST_ID",
     "ERROR_NAMES",
     "HEADER",
@@ -149,6 +150,8 @@ class ADDR:
     EEPROM_END = 64
 
 
+# The rate [baud] each code of the Baud Rate item (address 8) sets, code 0 first.
+BAUD_RATE_CODES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
 TICKS_PER_REV = 4096
 TICK_ZERO = 2048
 # ω [rad/s] per velocity unit: 0.229 rev/min · 2π rad/rev / 60 s/min

@@ -183,6 +183,22 @@ def test_a_pseudo_terminal_answers_raw_bytes_at_the_lines_pace() -> None:
             os.close(fd)
 
 
+def test_a_host_at_another_baud_rate_gets_no_answer() -> None:
+    serial = pytest.importorskip("serial")
+    with (
+        PtyPtuLink(_unit(), lifetime=30.0) as link,
+        serial.Serial(link.device, baudrate=38400, timeout=0.3) as line,
+    ):
+        line.write(b"ED ")
+        assert line.read(16) == b""  # 0.3 s: the reply would take 6 ms at 9600
+        assert link.host_baud == 38400
+        line.baudrate = 9600
+        line.write(b"ED ")
+        assert line.read_until(b"\n", 16) == b"ED *\r\n"
+    with PtyPtuLink(_unit(), lifetime=30.0) as link:
+        assert link.host_baud == 9600  # the terminal starts at the unit's rate
+
+
 def test_the_tcp_server_answers_each_connection() -> None:
     ptu = EmulatedPtu.from_turret(E46)
     with TcpPtuServer(ptu) as server:

@@ -249,6 +249,56 @@ def test_an_unplugged_servo_does_not_answer(bus: ServoBus, port: Any, ph: Any) -
     assert _ok(ph.ping(port, 1)) == 1020
 
 
+def test_a_host_at_another_baud_rate_gets_no_answer(port: Any, ph: Any) -> None:
+    # the turret's servos run at 1 Mbit/s: at 57,600 baud nothing hears the host
+    assert port.setBaudRate(57_600)
+    _, result, _ = ph.ping(port, 1)
+    assert result == sdk.COMM_RX_TIMEOUT
+    found, result = ph.broadcastPing(port)
+    assert found == {}
+    # nor is a write acted on
+    result, _ = ph.write1ByteTxRx(port, 1, ADDR.LED, 1)
+    assert result == sdk.COMM_RX_TIMEOUT
+    assert port.setBaudRate(1_000_000)
+    assert _ok(ph.read1ByteTxRx(port, 1, ADDR.LED)) == 0
+    assert _ok(ph.ping(port, 1)) == 1020
+
+
+def test_a_servo_hears_at_the_rate_its_baud_rate_item_sets(port: Any, ph: Any) -> None:
+    _ok(ph.write1ByteTxRx(port, 2, ADDR.BAUD_RATE, 1))  # code 1: 57,600 baud
+    _, result, _ = ph.ping(port, 2)
+    assert result == sdk.COMM_RX_TIMEOUT
+    assert _ok(ph.ping(port, 1)) == 1020
+    assert port.setBaudRate(57_600)
+    assert _ok(ph.ping(port, 2)) == 1020
+    _, result, _ = ph.ping(port, 1)
+    assert result == sdk.COMM_RX_TIMEOUT
+
+
+@pytest.mark.parametrize("baud", [9600, 57_600, 1_000_000, 4_000_000])
+def test_the_line_speed_the_sdk_sets_is_read_back(baud: int) -> None:
+    with PtyServoLink(turret_bus(), lifetime=30.0) as served:
+        assert served.host_baud == 1_000_000  # the terminal starts at the servos' rate
+        handle = sdk.PortHandler(served.device)
+        assert handle.openPort()
+        try:
+            assert handle.setBaudRate(baud)
+            assert served.host_baud == baud
+        finally:
+            handle.closePort()
+
+
+def test_a_rate_with_no_termios_constant_is_read_back() -> None:
+    serial = pytest.importorskip("serial")
+    # 4.5 Mbit/s (an XM430's code 7): pyserial sets it as a custom rate (Linux's BOTHER)
+    with PtyServoLink(turret_bus(baud=4_500_000), lifetime=30.0) as served:
+        with serial.Serial(served.device, baudrate=4_500_000, timeout=0.5) as line:
+            assert served.host_baud == 4_500_000
+            line.write(encode_instruction(1, Inst.PING))
+            replies = PacketParser().feed(line.read(14))
+        assert [(r.ident, r.data[:2]) for r in replies] == [(1, (1020).to_bytes(2, "little"))]
+
+
 def test_the_link_path_reaches_the_emulator_and_goes_away(tmp_path: Path) -> None:
     path = tmp_path / "ttyDXL"
     served = PtyServoLink(turret_bus(), link=path, lifetime=30.0)

@@ -16,6 +16,10 @@ So ``PP TP `` at 9600 baud has the pan query whole 3.1 ms after the write, the
 tilt one at 6.3 ms, and their replies back at about 13.5 and 23.5 ms: what the
 host sees of a unit at that rate.  Over TCP there is no pacing (replies go as soon
 as their command is whole).
+
+Speed.  On the pseudo-terminal the unit hears only a host whose line is set to its
+rate (``pty_link``): bytes written at another speed are dropped unanswered, as a real
+unit's would be noise to it.
 """
 
 from __future__ import annotations
@@ -85,8 +89,9 @@ class LineTiming:
 
 
 class PtyPtuLink(PtyLink):
-    """Serves ``ptu`` on a new pseudo-terminal (``PtyLink``), paced at ``baud`` (the
-    unit's power-up 9600 by default; None: unpaced)."""
+    """Serves ``ptu`` on a new pseudo-terminal (``PtyLink``) at ``baud`` (the unit's
+    power-up 9600 by default; None: unpaced, at any speed): paced at that rate, and
+    deaf to a host whose line is set to another."""
 
     def __init__(
         self,
@@ -100,7 +105,12 @@ class PtyPtuLink(PtyLink):
         self.ptu = ptu
         self.baud = baud
         self.timing = LineTiming(ptu, baud)
-        super().__init__(link, lifetime=lifetime, poll=poll, name="ptu-emulator")
+        super().__init__(link, baud=baud, lifetime=lifetime, poll=poll, name="ptu-emulator")
+
+    def _hears(self) -> bool:
+        """Whether the host's line is at the unit's rate (or either is unknown)."""
+        speed = self.host_baud
+        return self.baud is None or speed is None or speed == self.baud
 
     def _serve(self) -> None:
         timing = self.timing
@@ -119,7 +129,7 @@ class PtyPtuLink(PtyLink):
                     return  # the terminal is gone
                 if data == b"":
                     return
-                if data:
+                if data and self._hears():
                     timing.receive(data, time.monotonic())
             for reply in timing.step(time.monotonic()):
                 self._send(reply)

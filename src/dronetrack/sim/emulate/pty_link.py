@@ -1,13 +1,28 @@
 """A pseudo-terminal that serves an emulated serial device (the servos, the pan-tilt
 unit): its slave end is the serial device a driver opens (optionally reachable
-through a symlink)."""
+through a symlink).
+
+Line speed.  A pseudo-terminal moves bytes whatever speed is set on it, but the speed
+a host sets (pyserial's ``baudrate``, the DYNAMIXEL SDK's ``setBaudRate``: a
+``tcsetattr`` on the slave end) stays in the terminal's settings, where the emulator
+reads it back (``line_speed``) and, as a device at another rate would hear only
+noise, stays silent when it is not the device's.  A rate with no ``B…`` constant
+(pyserial sets those as Linux's ``BOTHER`` with the number in ``termios2``) is read
+with the ``TCGETS2`` ioctl; a speed that cannot be read is taken as right.  The
+terminal starts at the device's rate, as a port a previous session left set.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import math
 import os
+import re
 import select
+import struct
+import sys
+import termios
 import threading
 import time
 import tty
@@ -19,7 +34,46 @@ from dronetrack.errors import DeviceError
 from dronetrack.formats.dynamixel import PacketParser
 from dronetrack.sim.emulate.servo_bus import ServoBus
 
-__all__ = ["PtyLink", "PtyServoLink"]
+__all__ = ["PtyLink", "PtyServoLink", "line_speed", "set_line_speed"]
+
+# termios speed constant → rate [baud], for every ``B<rate>`` this platform defines
+_RATES = {
+    getattr(termios, name): int(name[1:]) for name in dir(termios) if re.fullmatch(r"B\d+", name)
+}
+_CONSTANTS = {rate: code for code, rate in _RATES.items()}
+# Linux: ``struct termios2`` (4 flag words, c_line, c_cc[19], c_ispeed, c_ospeed) and
+# the ioctl that reads it (the asm-generic number: x86, ARM, RISC-V)
+_TCGETS2 = 0x802C542A
+_TERMIOS2 = struct.Struct("=4IB19sII")
+
+
+def line_speed(fd: int) -> int | None:
+    """The output speed [baud] set on terminal ``fd``; None if it cannot be read."""
+    try:
+        code = termios.tcgetattr(fd)[5]
+    except (termios.error, OSError):
+        return None
+    rate = _RATES.get(code)
+    if rate is not None or not sys.platform.startswith("linux"):
+        return rate
+    buffer = bytearray(_TERMIOS2.size)
+    try:
+        fcntl.ioctl(fd, _TCGETS2, buffer, True)
+    except OSError:
+        return None
+    return int(_TERMIOS2.unpack(buffer)[-1])
+
+
+def set_line_speed(fd: int, baud: int) -> bool:
+    """Set terminal ``fd``'s input and output speed to ``baud``; False if the platform
+    has no constant for that rate (nothing is changed then)."""
+    code = _CONSTANTS.get(baud)
+    if code is None:
+        return False
+    attrs = termios.tcgetattr(fd)
+    attrs[4] = attrs[5] = code
+    termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    return True
 
 
 class PtyLink(ABC):
@@ -28,7 +82,8 @@ class PtyLink(ABC):
 
     The slave end is put in raw mode (no echo, no line editing, no CR/LF or 8th-bit
     translation) so bytes pass untouched.  With ``link`` the slave path is also
-    reachable through that symlink (replacing a stale symlink, never a file).  The
+    reachable through that symlink (replacing a stale symlink, never a file).  ``baud``:
+    the device's rate, which the terminal starts at (see the module docstring).  The
     serving thread polls a stop event every ``poll`` seconds and ends after
     ``lifetime`` seconds if given.  The subclass sets what ``_serve`` needs before
     calling this ``__init__``, which starts the thread.
@@ -38,12 +93,15 @@ class PtyLink(ABC):
         self,
         link: Path | str | None = None,
         *,
+        baud: int | None = None,
         lifetime: float | None = None,
         poll: float = 0.02,
         name: str = "pty-emulator",
     ) -> None:
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
+        if baud is not None:
+            set_line_speed(self._slave, baud)
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
         self.link = Path(link) if link is not None else None
@@ -69,6 +127,11 @@ class PtyLink(ABC):
     @property
     def serving(self) -> bool:
         return self._thread.is_alive()
+
+    @property
+    def host_baud(self) -> int | None:
+        """The speed the host set on the line [baud]; None if it cannot be read."""
+        return line_speed(self._slave)
 
     @property
     def running(self) -> bool:
@@ -115,6 +178,8 @@ class PtyLink(ABC):
 class PtyServoLink(PtyLink):
     """Serves ``bus`` on a new pseudo-terminal (``PtyLink``); a partial packet is dropped
     after ``idle_reset`` seconds of silence, as a servo drops it after its own timeout.
+    Each packet goes to the bus with the host's line speed, so a servo set to another
+    rate does not hear it; the terminal starts at the servos' rate if they share one.
     """
 
     def __init__(
@@ -128,7 +193,9 @@ class PtyServoLink(PtyLink):
     ) -> None:
         self.bus = bus
         self._idle_reset = idle_reset
-        super().__init__(link, lifetime=lifetime, poll=poll, name="dxl-emulator")
+        rates = bus.rates()
+        baud = rates.pop() if len(rates) == 1 else None
+        super().__init__(link, baud=baud, lifetime=lifetime, poll=poll, name="dxl-emulator")
 
     def _serve(self) -> None:
         parser = PacketParser()
@@ -151,6 +218,7 @@ class PtyServoLink(PtyLink):
             if not data:
                 return
             last = time.monotonic()
+            speed = self.host_baud
             for packet in parser.feed(data):
-                for reply in self.bus.handle(packet):
+                for reply in self.bus.handle(packet, speed):
                     self._send(reply)

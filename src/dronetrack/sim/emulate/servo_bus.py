@@ -1,7 +1,8 @@
 """Emulated XM430s sharing one bus: each received Protocol 2.0 packet turned into the
 status packets the protocol prescribes (none for broadcast reads and writes and for
 sync write; one per listed servo, in the listed order, for sync read; one per servo
-in ID order for a broadcast ping)."""
+in ID order for a broadcast ping).  A packet sent at another rate than a servo's own
+(its Baud Rate item) is noise to that servo: it neither acts on it nor answers."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from collections.abc import Iterable
 from dronetrack.errors import DeviceError
 from dronetrack.formats.dynamixel import (
     ADDR,
+    BAUD_RATE_CODES,
     BROADCAST_ID,
     BadPacket,
     Err,
@@ -45,9 +47,14 @@ class ServoBus:
                     return s
         raise DeviceError(f"no emulated servo with ID {ident}")
 
-    def _present(self, ident: int) -> EmulatedXM430 | None:
-        for s in self.servos:
-            if s.ident == ident and s.online:
+    def rates(self) -> set[int]:
+        """The rates [baud] the servos listen at (their Baud Rate items)."""
+        with self.lock:
+            return {s.baud for s in self.servos}
+
+    def _present(self, ident: int, hearing: list[EmulatedXM430]) -> EmulatedXM430 | None:
+        for s in hearing:
+            if s.ident == ident:
                 return s
         return None
 
@@ -62,20 +69,25 @@ class ServoBus:
         with self.lock:
             self.servo(ident).online = online
 
-    def handle(self, packet: Packet | BadPacket) -> list[bytes]:
+    def handle(self, packet: Packet | BadPacket, baud: int | None = None) -> list[bytes]:
+        """The status packets ``packet``, sent at ``baud`` (None: whatever rate the
+        servos are at), calls for from the servos online at that rate."""
         with self.lock:
-            return self._handle(packet, self.clock())
+            hearing = [s for s in self.servos if s.online and baud in (None, s.baud)]
+            return self._handle(packet, self.clock(), hearing)
 
-    def _handle(self, packet: Packet | BadPacket, t: float) -> list[bytes]:
+    def _handle(
+        self, packet: Packet | BadPacket, t: float, hearing: list[EmulatedXM430]
+    ) -> list[bytes]:
         if isinstance(packet, BadPacket):
-            s = self._present(packet.ident) if packet.crc else None
+            s = self._present(packet.ident, hearing) if packet.crc else None
             return [encode_status(s.ident, s.error_byte(Err.CRC))] if s is not None else []
         if packet.is_status:
             return []  # another device's answer
         inst, p = packet.instruction, packet.params
         if packet.ident == BROADCAST_ID:
-            return self._broadcast(inst, p, t)
-        s = self._present(packet.ident)
+            return self._broadcast(inst, p, t, hearing)
+        s = self._present(packet.ident, hearing)
         if s is None:
             return []
         level = s.values[ADDR.STATUS_RETURN_LEVEL]
@@ -103,8 +115,10 @@ class ServoBus:
         model = s.values[ADDR.MODEL_NUMBER].to_bytes(2, "little")
         return encode_status(s.ident, s.error_byte(Err.NONE), model + bytes([FIRMWARE_VERSION]))
 
-    def _broadcast(self, inst: int, p: bytes, t: float) -> list[bytes]:
-        online = sorted((s for s in self.servos if s.online), key=lambda s: s.ident)
+    def _broadcast(
+        self, inst: int, p: bytes, t: float, hearing: list[EmulatedXM430]
+    ) -> list[bytes]:
+        online = sorted(hearing, key=lambda s: s.ident)
         if inst == Inst.PING:
             return [self._ping(s) for s in online]
         if inst == Inst.WRITE and len(p) >= 3:
@@ -115,14 +129,14 @@ class ServoBus:
             blocks = p[4:]
             if length >= 1 and len(blocks) % (length + 1) == 0:
                 for k in range(0, len(blocks), length + 1):
-                    target = self._present(blocks[k])
+                    target = self._present(blocks[k], hearing)
                     if target is not None:
                         target.write(address, blocks[k + 1 : k + 1 + length], t)
         elif inst == Inst.SYNC_READ and len(p) >= 5:
             address, length = int.from_bytes(p[:2], "little"), int.from_bytes(p[2:4], "little")
             replies = []
             for ident in p[4:]:  # each listed servo answers in the listed order
-                listed = self._present(ident)
+                listed = self._present(ident, hearing)
                 if listed is not None and listed.values[ADDR.STATUS_RETURN_LEVEL] >= 1:
                     err, data = listed.read(address, length, t)
                     replies.append(encode_status(ident, listed.error_byte(err), data))
@@ -139,6 +153,14 @@ def turret_bus(
     clock: Clock = time.monotonic,
     pan: JointModel | None = None,
     tilt: JointModel | None = None,
+    baud: int = 1_000_000,
 ) -> ServoBus:
-    """A pan-tilt turret's two servos, factory-set but for their IDs."""
-    return ServoBus([EmulatedXM430(pan_id, pan), EmulatedXM430(tilt_id, tilt)], clock)
+    """A pan-tilt turret's two servos, factory-set but for their IDs and their rate
+    (``baud``, one of ``BAUD_RATE_CODES``: 1 Mbit/s, as Interbotix sets a WidowX's
+    and as ``dynamixel://`` assumes; the factory's is 57,600)."""
+    if baud not in BAUD_RATE_CODES:
+        raise DeviceError(f"an XM430 runs at one of {BAUD_RATE_CODES} baud, not {baud}")
+    servos = [EmulatedXM430(pan_id, pan), EmulatedXM430(tilt_id, tilt)]
+    for s in servos:
+        s.values[ADDR.BAUD_RATE] = BAUD_RATE_CODES.index(baud)
+    return ServoBus(servos, clock)

@@ -9,7 +9,7 @@ addr    size  area   item                    rule here
 0       2     EEPROM model number            read-only, 1020
 6       1     EEPROM firmware version        read-only
 7       1     EEPROM ID                      0–252
-8       1     EEPROM baud rate               0–7 (stored only: a pty has no baud)
+8       1     EEPROM baud rate               0–7 (the rate it hears: ``ServoBus``)
 9       1     EEPROM return delay time       0–254 (stored only)
 10      1     EEPROM drive mode              bits 0, 2, 3 (stored only)
 11      1     EEPROM operating mode          0, 1, 3, 4, 5, 16 (motion modelled for 3)
@@ -54,6 +54,7 @@ from typing import Protocol
 
 from dronetrack.formats.dynamixel import (
     ADDR,
+    BAUD_RATE_CODES,
     Err,
     rad_to_ticks,
     rate_to_units,
@@ -203,6 +204,11 @@ class EmulatedXM430:
     @property
     def ident(self) -> int:
         return self.values[ADDR.ID]
+
+    @property
+    def baud(self) -> int:
+        """The rate it listens and answers at (its Baud Rate item) [baud]."""
+        return BAUD_RATE_CODES[self.values[ADDR.BAUD_RATE]]
 
     @property
     def torque(self) -> bool:
