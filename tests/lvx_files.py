@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from pathlib import Path
 
 MAGIC = 0xAC0EA767
 T0 = 1_767_225_600_000_000_000  # ns: a PTP time, 2026-01-01 UTC
@@ -101,3 +102,21 @@ def chain(offset: int, bodies: Sequence[bytes], first_index: int = 0) -> bytes:
 def lvx_file(head: bytes, bodies: Sequence[bytes]) -> bytes:
     """A whole file: ``head`` (public and private headers, device infos), then frames."""
     return head + chain(len(head), bodies)
+
+
+def mid40_lvx(path: Path, packets: int = 100) -> Path:
+    """A Mid-40's LVX file (device type 1, data type 0: 100 firings 10 µs apart a
+    packet, x, y, z i32 mm and reflectivity): a return 20 m ahead at every firing, 1 m
+    left to right across each packet, extrinsics enabled (1 m up)."""
+    records = b"".join(struct.pack("<iiiB", 20_000, k * 10, 5_000, 9) for k in range(100))
+    head = (
+        public_header((1, 1, 0, 0))
+        + private_header(1)
+        + lvx1_device(b"0TFDG1234567890", 0, 1, 1, (0.0, 0.0, 0.0, 0.0, 0.0, 1.0))
+    )
+    interval = 100 * 10_000  # ns a packet spans
+    body = b"".join(
+        lvx1_package(0, sdk1_packet(0, T0 + k * interval, records)) for k in range(packets)
+    )
+    path.write_bytes(lvx_file(head, [body]))
+    return path

@@ -23,7 +23,7 @@ import pytest
 from dronetrack.cli.main import run
 from dronetrack.config.rig import make_turret
 from dronetrack.formats.dynamixel import ADDR
-from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource
+from dronetrack.sim.emulate.livox import MID40, EmulatedLivox, GridSource
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
 from dronetrack.sim.emulate.ptu import EmulatedPtu
 from dronetrack.sim.emulate.ptu_link import PtyPtuLink
@@ -260,6 +260,51 @@ def test_info_of_servos_at_another_baud_rate_is_one_error_line_naming_the_rate(
     lines = _error_lines(capsys.readouterr().err)
     assert len(lines) == 1
     assert f"on {link.device}: no servo answered at 57600 baud" in lines[0]
+
+
+def test_a_velodyne_against_a_livox_scenario_is_one_error_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The default scenario's sensor is an Avia: a VLP-16's stream is refused before
+    anything is opened (its frames, head mount and scan would be guesses)."""
+    args = ["live", "default", "--lidar", f"velodyne://127.0.0.1:{_free_udp_port()}"]
+    assert run([*args, "--turret", "none", "--out", str(tmp_path / "run")]) == 2
+    lines = _error_lines(capsys.readouterr().err)
+    assert len(lines) == 1
+    assert "VLP-16" in lines[0]
+    assert "'avia'" in lines[0]
+    assert "vlp16-side" in lines[0]
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_livox_of_another_model_is_run_as_what_it_says_it_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An emulated Mid-40 (device type 1 in its discovery broadcast) against the default
+    scenario's Avia: one warning line naming both, and config.toml records the Mid-40."""
+    listen = _free_udp_port()
+    lidar = EmulatedLivox(
+        GridSource(10_000, 5.0, stride=10),
+        dev_type=MID40,
+        device_port=0,
+        broadcast_to=("127.0.0.1", listen),
+        broadcast_period_s=0.1,
+    ).start()
+    port = lidar.address[1]
+    uri = f"livox://127.0.0.1?device_port={port}&cmd_port=0&data_port=0&broadcast_port={listen}"
+    out = tmp_path / "run"
+    args = ["live", "default", "--lidar", uri, "--turret", "none", "--scan-s", "0.3"]
+    try:
+        assert run([*args, "--duration", "0.5", "--out", str(out)]) == 0
+    finally:
+        lidar.close()
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning:" in line]
+    assert len(warnings) == 1
+    assert "Livox Mid-40 (device type 1" in warnings[0]
+    assert "'avia'" in warnings[0]
+    config = (out / "config.toml").read_text()
+    assert 'model = "mid40"' in config
+    assert 'model = "avia"' not in config
 
 
 def _free_udp_port() -> int:

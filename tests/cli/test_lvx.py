@@ -4,6 +4,7 @@ flight recorded as a bag, and bad input as one ``error:`` line."""
 from __future__ import annotations
 
 import json
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,9 @@ import pytest
 
 from dronetrack.cli.main import run
 from dronetrack.sources.recordings import open_recording
+from lvx_files import mid40_lvx
+
+SITE = Path(__file__).parents[2] / "examples" / "site.toml"
 
 
 def _metrics(folder: Path) -> dict[str, float]:
@@ -116,3 +120,21 @@ def test_bad_input_is_one_line_and_exit_2(
     assert err.startswith("error:")
     assert message in err
     assert len(err.splitlines()) == 1
+
+
+def test_track_of_a_mid40_recording_with_an_avia_site_file_records_the_mid40(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The LVX header's device type (1, a Mid-40) overrides examples/site.toml's Avia,
+    with one warning line naming both, and config.toml records what was replayed."""
+    recording = mid40_lvx(tmp_path / "mid40.lvx", packets=300)  # 0.3 s
+    out = tmp_path / "run"
+    args = ["--config", str(SITE), "--background-from", "0", "--period", "0.01"]
+    assert run(["track", str(recording), *args, "--out", str(out)]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning:" in line]
+    assert len(warnings) == 1
+    assert "Livox Mid-40" in warnings[0]
+    assert "'avia'" in warnings[0]
+    config = tomllib.loads((out / "config.toml").read_text())
+    assert config["sensor"]["model"] == "mid40"
+    assert _metrics(out)["frames"] == 30

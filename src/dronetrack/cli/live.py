@@ -162,6 +162,7 @@ def live(
                 compiling=compile_reporter(bar, task),
                 log_sink=folder.log_sink,
                 on_start=started,
+                warn=lambda text: _say(f"warning: {text}"),
             )
         finally:
             for viewer in viewers:

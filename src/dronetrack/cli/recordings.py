@@ -173,6 +173,7 @@ def track(
     from dronetrack.actuators.command_log import write_commands_csv
     from dronetrack.config.run import load_scenario_file
     from dronetrack.config.scenarios import SCENARIOS
+    from dronetrack.jobs.lidar_model import adopt_lidar, recording_lidar
     from dronetrack.jobs.replay import recording_config, run_replay
     from dronetrack.jobs.run import RunFolder
     from dronetrack.sinks.run_folder import default_run_dir
@@ -203,6 +204,9 @@ def track(
         background_file=background,
         background_from=background_from,
     )
+    cfg, warning = adopt_lidar(cfg, recording_lidar(source), recording.name)
+    if warning is not None:
+        err_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
     outputs = run_outputs(
         folder, foxglove, rerun, start=source.origin, publish=publish, ros_domain_id=ros_domain_id
     )

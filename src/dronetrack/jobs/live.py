@@ -44,6 +44,13 @@ from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.eval.log import TrackLog
 from dronetrack.formats.ros2_names import ROS2_SCHEME
 from dronetrack.jobs.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
+from dronetrack.jobs.lidar_model import (
+    FoundLidar,
+    adopt_lidar,
+    check_lidar_kind,
+    livox_lidar,
+    recording_lidar,
+)
 from dronetrack.jobs.replay import TARGET_MARGIN_M, recording_config
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
 from dronetrack.pipeline import run
@@ -70,6 +77,7 @@ __all__ = [
 
 Progress = Callable[[int, int], None]
 LogSink = Callable[[TrackLog], None]
+Warn = Callable[[str], None]
 LIDAR_SCHEMES = ("livox://", "livox2://", "velodyne://", FILE_SCHEME, ROS2_SCHEME)
 OPEN_TIMEOUT_S = 5.0  # how long a LiDAR has to answer the connection and start sampling
 
@@ -260,19 +268,24 @@ def run_live(
     compiling: CompileProgress | None = None,
     log_sink: LogSink | None = None,
     on_start: Callable[[ScenarioConfig], None] | None = None,
+    warn: Warn | None = None,
 ) -> LiveRun:
     """Run ``cfg``'s pipeline on the rig ``setup`` names (see the module docstring).
 
     ``cfg`` should come through ``live_config``.  The kernels are compiled (or loaded)
     before any device is opened; ``on_start`` is told the resolved configuration
-    once both devices answer.  ``sinks`` see every frame, the scan's too.  A device
-    error after the devices opened ends the run early: the returned ``LiveRun`` holds
-    it in ``error`` with the frames done (the caller writes them, then raises it).
+    once both devices answer, with the sensor model the LiDAR or the recording says
+    it is (``lidar_model``; ``warn`` is told when that is not the scenario's); a
+    VLP-16 against a Livox scenario, or the other way round, is a ConfigError.
+    ``sinks`` see every frame, the scan's too.  A device error after the devices
+    opened ends the run early: the returned ``LiveRun`` holds it in ``error`` with
+    the frames done (the caller writes them, then raises it).
     """
     lidar = setup.lidar
     if not lidar.startswith(LIDAR_SCHEMES):
         open_point_stream(lidar)  # raises the ConfigError that lists the schemes
     check_turret_uri(setup.turret)
+    check_lidar_kind(cfg, lidar)
     truth = TruthFile(setup.truth) if setup.truth is not None else None
     radius = 0.5 * target_spec(cfg.drone.model).s_diag + TARGET_MARGIN_M
     stream: OpenStream | None = None
@@ -282,6 +295,7 @@ def run_live(
         from dronetrack.sources.recordings import open_recording
 
         recording = open_recording(_recording_path(lidar))
+        cfg = _adopt(cfg, recording_lidar(recording), lidar, warn)
         period = _frame_period(recording.period, lidar)
     elif lidar.startswith(ROS2_SCHEME):
         from dronetrack.jobs.live_ros2 import Ros2Link
@@ -335,6 +349,7 @@ def run_live(
                     )
                 else:
                     stream.open(OPEN_TIMEOUT_S)
+                    cfg = _adopt(cfg, _device_lidar(stream), lidar, warn)
                 try:
                     if stream is not None:
                         source = LiveSource(
@@ -381,6 +396,26 @@ def run_live(
         setup.turret,
         failed[0] if failed else None,
     )
+
+
+def _device_lidar(stream: OpenStream) -> FoundLidar | None:
+    """What an opened Livox said it is in discovery (nothing for a VLP-16, whose client
+    takes a VLP-16's packets only)."""
+    from dronetrack.sources.livox_commands import LivoxCommands
+
+    if not isinstance(stream, LivoxCommands):
+        return None
+    return livox_lidar(stream.dev_type, "from its discovery")
+
+
+def _adopt(
+    cfg: ScenarioConfig, found: FoundLidar | None, lidar: str, warn: Warn | None
+) -> ScenarioConfig:
+    """``cfg`` with the LiDAR's own model (``lidar_model.adopt_lidar``), ``warn`` told why."""
+    cfg, warning = adopt_lidar(cfg, found, f"--lidar {lidar}")
+    if warning is not None and warn is not None:
+        warn(warning)
+    return cfg
 
 
 def _packet_counters(stream: OpenStream | None) -> tuple[int, int, int]:

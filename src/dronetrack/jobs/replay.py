@@ -26,6 +26,7 @@ from dronetrack.errors import ConfigError, RecordingError
 from dronetrack.eval.log import TrackLog
 from dronetrack.jobs.factory import scan_duration
 from dronetrack.jobs.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
+from dronetrack.jobs.lidar_model import adopt_lidar, recording_lidar
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
 from dronetrack.pipeline import run
 from dronetrack.seams import Sink
@@ -73,14 +74,17 @@ def recording_config(
     background_from: float | None = None,
 ) -> ScenarioConfig:
     """The configuration to replay with: ``base`` (``--config``), else the scenario the
-    recording carries, else the defaults; then the command line's choices."""
+    recording carries, else the defaults with the recording's own LiDAR model if it
+    names one (``lidar_model``); then the command line's choices."""
     if base is None and recording.config_text is not None:
         try:
             data = tomllib.loads(recording.config_text)
         except tomllib.TOMLDecodeError as err:
             raise RecordingError(f"{recording.path}: the carried configuration: {err}") from None
         base = validate_scenario(data, f"{recording.path} (carried configuration)")
-    cfg = base if base is not None else ScenarioConfig(name="replay")
+    if base is None:  # the defaults claim no sensor: the recording's own, if it says
+        base, _ = adopt_lidar(ScenarioConfig(name="replay"), recording_lidar(recording), "")
+    cfg = base
     if background_file is not None and background_from is not None:
         raise ConfigError("give --background or --background-from, not both")
     pipeline = cfg.pipeline
