@@ -432,6 +432,46 @@ def _ws_messages(port: int, until_s: float) -> Iterator[dict[str, object]]:
         sock.close()
 
 
+def test_the_foxglove_port_prints_its_address_and_the_sdks_log_is_a_warning_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--foxglove-port`` says where to connect; a client the server drops (plain HTTP)
+    gets one ``warning:`` line of ours, not the SDK's bare log line."""
+    pytest.importorskip("foxglove")
+    bag = tmp_path / "flight.bag"
+    _write_bag(bag, 20)
+    port = _free_tcp_port()
+
+    def refused_client() -> None:
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline:
+            try:
+                with socket.create_connection(("127.0.0.1", port), timeout=1.0) as conn:
+                    conn.sendall(b"GET / HTTP/1.1\r\nHost: localhost\r\n\r\n")
+                    conn.settimeout(2.0)
+                    conn.recv(1024)
+                return
+            except OSError:
+                time.sleep(0.05)
+
+    client = threading.Thread(target=refused_client, daemon=True)
+    client.start()
+    args = ["live", "--lidar", f"file://{bag}", "--turret", "none", "--scan-s", "0.5"]
+    assert run([*args, "--foxglove-port", str(port), "--out", str(tmp_path / "run")]) == 0
+    client.join(timeout=5.0)
+    err = capsys.readouterr().err.splitlines()
+    assert any(line.startswith(f"foxglove: ws://127.0.0.1:{port}") for line in err), err
+    dropped = [line for line in err if "Dropping client" in line]
+    assert dropped, err
+    assert all(line.startswith("warning: Foxglove SDK: Dropping client") for line in dropped)
+
+
+def _free_tcp_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
 def test_the_live_foxglove_server_advertises_the_runs_topics() -> None:
     pytest.importorskip("foxglove")
     from dronetrack.sinks.foxglove_live import FoxgloveServer

@@ -195,5 +195,7 @@ def _live_viewers(
     if port is not None:
         from dronetrack.sinks.foxglove_live import FoxgloveServer
 
-        sinks.append(FoxgloveServer(port, turret_spec(cfg.turret).mount))
+        server = FoxgloveServer(port, turret_spec(cfg.turret).mount)
+        _say(f"foxglove: {server.url}  (Foxglove app: Open connection, Foxglove WebSocket)")
+        sinks.append(server)
     return sinks

@@ -20,7 +20,7 @@ from dronetrack.cli import (  # noqa: F401  (they register on app)
     sweep,
 )
 from dronetrack.cli.app import INTERRUPTED, RunInterruptedError, app
-from dronetrack.cli.output import err_console
+from dronetrack.cli.output import console_logging, err_console
 from dronetrack.errors import DronetrackError
 
 __all__ = ["main", "run"]
@@ -38,7 +38,7 @@ def run(argv: list[str] | None = None) -> int:
         argv = ["--help"]  # bare `dronetrack`: the help, and no error
     command = typer.main.get_command(app)
     try:
-        with handling_sigint():
+        with handling_sigint(), console_logging():
             result = command.main(args=argv, prog_name="dronetrack", standalone_mode=False)
     except typer.Exit as stop:
         return int(stop.exit_code)

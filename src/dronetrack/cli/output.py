@@ -1,10 +1,16 @@
 """What the commands print: progress bars and the metrics table (rich).
 
-Results go to standard output; progress and warnings to standard error.
+Results go to standard output; progress and warnings to standard error.  While a
+command runs, the log records of dronetrack's loggers (and those handed on to them,
+such as foxglove-sdk's) from warnings up are one ``warning: …`` line each there
+(``console_logging``).
 """
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,6 +25,7 @@ if TYPE_CHECKING:
 __all__ = [
     "COMPILING",
     "compile_reporter",
+    "console_logging",
     "err_console",
     "print_kernel_note",
     "print_metrics",
@@ -29,6 +36,29 @@ __all__ = [
 COMPILING = "compiling kernels, first run only"
 
 err_console = Console(stderr=True)
+
+
+class _WarningLines(logging.Handler):
+    """A record as one ``warning: …`` line on standard error (above a progress bar)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            text = " ".join(record.getMessage().split())
+            err_console.print(f"warning: {text}", markup=False, highlight=False, soft_wrap=True)
+        except Exception:  # a log line must never end a command
+            self.handleError(record)
+
+
+@contextmanager
+def console_logging(logger: str = "dronetrack") -> Iterator[None]:
+    """While inside: ``logger``'s records from warnings up are ``warning: …`` lines."""
+    handler = _WarningLines(logging.WARNING)
+    target = logging.getLogger(logger)
+    target.addHandler(handler)
+    try:
+        yield
+    finally:
+        target.removeHandler(handler)
 
 
 def progress_columns() -> tuple[ProgressColumn, ...]:

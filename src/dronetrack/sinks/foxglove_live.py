@@ -43,8 +43,14 @@ class FoxgloveServer(FoxgloveChannels):
         except (OSError, RuntimeError) as err:
             self._close_channels()
             raise ConfigError(f"--foxglove-port {port}: cannot serve on it ({err})") from None
+        self.host = host
         self.port = int(self._server.port)
         self._feed = ViewerFeed([self], mount)
+
+    @property
+    def url(self) -> str:
+        """Where the Foxglove app connects: ``ws://HOST:PORT``."""
+        return f"ws://{self.host}:{self.port}"
 
     def write(self, sample: Sample, result: StepResult) -> None:
         """The run loop's sink: the frame as the viewers show it."""

@@ -24,11 +24,17 @@ a replayed recording keeps its real clock (a simulation starts at the epoch).
 
 Each writer logs through its own ``foxglove.Context`` and channels, so two
 writers in one process (or one test session) never see each other's messages.
+
+The SDK's own log records (Python ``logging`` on the ``foxglove`` loggers, e.g. the
+server's ``Dropping client …: handshake failed``) are handed on to this module's
+logger, ``Foxglove SDK: `` before each, warnings and worse only
+(``relay_sdk_log``): the application's logging shows them, as it shows ours.
 """
 
 from __future__ import annotations
 
 import importlib
+import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -56,7 +62,10 @@ if TYPE_CHECKING:
         Timestamp,
     )
 
-__all__ = ["TOPICS", "FoxgloveChannels", "FoxgloveWriter", "require_foxglove"]
+__all__ = ["TOPICS", "FoxgloveChannels", "FoxgloveWriter", "relay_sdk_log", "require_foxglove"]
+
+log = logging.getLogger(__name__)
+SDK_LOGGER = "foxglove"  # the root of the SDK's loggers (its Rust modules' paths)
 
 TOPICS = (
     "/lidar/points",
@@ -84,6 +93,23 @@ def require_foxglove() -> None:
         raise MissingExtraError(_HINT) from err
 
 
+class _SdkRelay(logging.Handler):
+    """Hands each of the SDK's records on to this module's logger."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        log.log(record.levelno, "Foxglove SDK: %s", record.getMessage())
+
+
+def relay_sdk_log() -> None:
+    """Route the SDK's log records (warnings and worse) through our logger instead of
+    their own (which, with no handler anywhere, Python prints bare); idempotent."""
+    sdk = logging.getLogger(SDK_LOGGER)
+    if not any(isinstance(h, _SdkRelay) for h in sdk.handlers):
+        sdk.addHandler(_SdkRelay())
+    sdk.setLevel(logging.WARNING)
+    sdk.propagate = False
+
+
 def _time_ns(start: float, t: float) -> int:
     ns = round((start + t) * 1e9)
     if ns < 0:
@@ -98,6 +124,7 @@ class FoxgloveChannels:
 
     def __init__(self, start: float, what: str) -> None:
         require_foxglove()
+        relay_sdk_log()
         import foxglove
         from foxglove.channels import (
             FrameTransformChannel,

@@ -1,0 +1,53 @@
+"""``sinks.foxglove_live``: the server's address, and foxglove-sdk's own log records
+handed on to our logger rather than printed bare (loopback only, bounded waits)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import socket
+import time
+
+import pytest
+
+pytest.importorskip("foxglove")
+
+from dronetrack.sinks.foxglove_live import FoxgloveServer
+
+
+def _refused_handshake(port: int) -> None:
+    """A client that speaks plain HTTP, not WebSocket: the server drops it."""
+    with socket.create_connection(("127.0.0.1", port), timeout=2.0) as conn:
+        conn.sendall(b"GET / HTTP/1.1\r\nHost: localhost\r\n\r\n")
+        conn.settimeout(2.0)
+        with contextlib.suppress(TimeoutError):
+            conn.recv(1024)
+
+
+def test_the_server_says_where_to_connect() -> None:
+    server = FoxgloveServer(0)
+    try:
+        assert server.url == f"ws://127.0.0.1:{server.port}"
+        with socket.create_connection(("127.0.0.1", server.port), timeout=2.0):
+            pass  # it listens there
+    finally:
+        server.close()
+
+
+def test_the_sdks_log_goes_through_our_logger(
+    caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]
+) -> None:
+    server = FoxgloveServer(0)
+    try:
+        with caplog.at_level(logging.WARNING, logger="dronetrack"):
+            _refused_handshake(server.port)
+            deadline = time.monotonic() + 5.0
+            while "Dropping client" not in caplog.text and time.monotonic() < deadline:
+                time.sleep(0.02)
+    finally:
+        server.close()
+    ours = [r for r in caplog.records if "Dropping client" in r.getMessage()]
+    assert ours
+    assert all(r.name == "dronetrack.sinks.foxglove_out" for r in ours)
+    assert ours[0].getMessage().startswith("Foxglove SDK: Dropping client 127.0.0.1:")
+    assert "Dropping client" not in capsys.readouterr().err
