@@ -8,6 +8,7 @@ import base64
 import csv
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -186,6 +187,30 @@ def test_a_lidar_that_falls_silent_is_one_error_line_and_the_folder_is_kept(
     metrics = json.loads((out / "metrics.json").read_text())
     assert "no point packet" in metrics["error"]
     assert len(_rows(out / "frames.csv")) >= 5
+
+
+def test_a_lidar_that_sends_nothing_to_the_host_ip_given_names_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # a device told a host address it cannot reach sends nothing this host receives;
+    # on loopback every 127.x address reaches the client, so the device sends nothing
+    lidar = EmulatedLivox(GridSource(4_167, 10.0, stride=10), device_port=0)
+    lidar.paused = True
+    lidar.start()
+    port = lidar.address[1]
+    uri = f"livox://127.0.0.1?device_port={port}&cmd_port=0&data_port=0&broadcast_port=0"
+    out = tmp_path / "run"
+    try:
+        code = run(["live", "--lidar", uri, "--turret", "none", "--host-ip", "127.0.0.9",
+                    "--scan-s", "0.3", "--out", str(out)])  # fmt: skip
+    finally:
+        lidar.close()
+    assert code == 2
+    lines = _error_lines(capsys.readouterr().err)
+    assert len(lines) == 1
+    told = r"no point packet for 1\.\d s; it was told to send to 127\.0\.0\.9:\d+ "
+    routed = r"\(this host reaches 127\.0\.0\.1 from 127\.0\.0\.1\): check --host-ip"
+    assert re.search(told + routed, lines[0])
 
 
 def test_sigterm_holds_the_turret_keeps_the_files_and_exits_130(

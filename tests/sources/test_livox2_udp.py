@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -352,6 +353,33 @@ def test_close_stops_sampling_and_is_idempotent() -> None:
         assert not any(t.is_alive() for t in client._threads)
         with pytest.raises(DeviceError, match="not sampling"):
             client.read(0.1)
+
+
+@pytest.mark.parametrize(
+    ("taken", "what"), [("cmd_port", "commands"), ("point_port", "point data")]
+)
+def test_a_second_client_on_a_taken_port_is_refused_and_the_first_runs_on(
+    taken: str, what: str
+) -> None:
+    # with SO_REUSEADDR the second would bind too and, bound last, take the first's
+    # ACKs or points, and configure the device to send to its own ports
+    with linked(GridSource(DT, 5.0)) as (first, dev):
+        first.open(timeout_s=2.0)
+        ports = {"cmd_port": first.cmd_port, "point_port": first.point_port}
+        hosts = dict(dev.hosts)
+        ep = replace(first.endpoint, device_port=dev.address[1], **{taken: ports[taken]})
+        second = Livox2Client(ep, discover_s=0.0)
+        in_use = (
+            rf"Livox SDK 2 device at 127\.0\.0\.1: UDP port {ports[taken]} \({what}\) is in "
+            rf"use on this host, most likely by another dronetrack live or info on this "
+            rf"LiDAR; a second LiDAR needs its own \(the URI's {taken}=\)$"
+        )
+        with pytest.raises(DeviceError, match=in_use):
+            second.open(timeout_s=1.0)
+        before = first.packets_received
+        read_for(first, 1.5)  # raises if no point packet comes for 1 s
+        assert first.packets_received - before > 1000  # 1.5 s of 2,083 packets/s
+        assert dev.hosts == hosts  # the second configured nothing
 
 
 def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:

@@ -7,9 +7,11 @@ Sockets are on 127.0.0.1 with ports the kernel picks; every wait is bounded."""
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -29,11 +31,16 @@ N = {7: 96, 1: 100}  # firings per packet of data types 2 and 0
 
 @contextmanager
 def linked(
-    source: GridSource, dev_type: int = 7, broadcast: bool = True, **client_kw: object
+    source: GridSource,
+    dev_type: int = 7,
+    broadcast: bool = True,
+    host: str | None = None,
+    **client_kw: object,
 ) -> Iterator[tuple[LivoxClient, EmulatedLivox]]:
-    """An emulated device and a bound client that knows its port, both closed after."""
+    """An emulated device and a bound client that knows its port (and announces
+    ``host``, if given, as its address), both closed after."""
     dev = EmulatedLivox(source, dev_type=dev_type, device_port=0, broadcast_period_s=0.05)
-    ep = LivoxEndpoint(LOOP, None, 0, 0, 0, dev.address[1])
+    ep = LivoxEndpoint(LOOP, host, 0, 0, 0, dev.address[1])
     kw: dict[str, object] = {"heartbeat_period_s": 0.2, "discover_s": 1.0} | client_kw
     client = LivoxClient(ep, **kw)  # type: ignore[arg-type]
     try:
@@ -132,6 +139,32 @@ def test_a_device_that_stops_sending_raises_device_error_within_1_5_s() -> None:
         assert 0.9 < time.monotonic() - t0 < 1.5
 
 
+@pytest.mark.parametrize(
+    ("host", "why"),
+    [
+        (None, None),
+        ("192.0.2.1", ", not an address of this host"),  # TEST-NET-1: on no interface
+        ("127.0.0.9", r" \(this host reaches 127\.0\.0\.1 from 127\.0\.0\.1\)"),
+    ],
+)
+def test_no_point_packet_at_all_names_a_given_host_address(
+    host: str | None, why: str | None
+) -> None:
+    with linked(GridSource(DT[7], 5.0), host=host) as (client, dev):
+        dev.paused = True  # nothing arrives, as from a device told a wrong address
+        client.open(timeout_s=2.0)
+        with pytest.raises(DeviceError, match="no point packet for 1") as failed:
+            read_for(client, 3.0)
+        assert dev.host is not None
+        assert dev.host.ip == (host or LOOP)
+        sent = re.escape(f"; it was told to send to {host}:{client.data_port}")
+    message = str(failed.value)
+    if why is None:  # the routed address: the device reaches it
+        assert "--host-ip" not in message
+    else:
+        assert re.search(rf"{sent}{why}: check --host-ip \(the URI's host=\)$", message)
+
+
 def test_a_dead_heartbeat_raises_device_error() -> None:
     with linked(GridSource(DT[7], 5.0), heartbeat_period_s=0.1, heartbeat_timeout_s=0.5) as (
         client,
@@ -175,6 +208,42 @@ def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:
         assert not any(t.is_alive() for t in client._threads)
     finally:
         silent.close()
+
+
+@pytest.mark.parametrize(("taken", "what"), [("cmd_port", "commands"), ("data_port", "point data")])
+def test_a_second_client_on_a_taken_port_is_refused_and_the_first_runs_on(
+    taken: str, what: str
+) -> None:
+    # with SO_REUSEADDR the second would bind too and, bound last, take the first's
+    # ACKs or points: the first then stops with "no point packet"
+    with linked(GridSource(DT[7], 5.0)) as (first, dev):
+        first.open(timeout_s=2.0)
+        ports = {"cmd_port": first.cmd_port, "data_port": first.data_port}
+        ep = LivoxEndpoint(LOOP, None, 0, 0, 0, dev.address[1])
+        second = LivoxClient(replace(ep, **{taken: ports[taken]}), discover_s=0.1)
+        in_use = (
+            rf"Livox SDK 1 device at 127\.0\.0\.1: UDP port {ports[taken]} \({what}\) is in "
+            rf"use on this host, most likely by another dronetrack live or info on this "
+            rf"LiDAR; a second LiDAR needs its own \(the URI's {taken}=\)$"
+        )
+        with pytest.raises(DeviceError, match=in_use):
+            second.open(timeout_s=1.0)
+        before = first.packets_received
+        read_for(first, 1.5)  # raises if no point packet comes for 1 s
+        assert first.packets_received - before > 1000  # 1.5 s of an Avia's 2,500/s
+        assert dev.host is not None  # still the first's: the second sent no handshake
+        assert (dev.host.cmd_port, dev.host.data_port) == (first.cmd_port, first.data_port)
+
+
+def test_a_second_client_shares_the_discovery_port() -> None:
+    # the device's broadcast reaches every host socket on the port (livox_net)
+    with linked(GridSource(DT[7], 1.0)) as (first, _):
+        second = LivoxClient(LivoxEndpoint(LOOP, None, 0, 0, first.broadcast_port))
+        try:
+            second.bind()
+            assert second.broadcast_port == first.broadcast_port
+        finally:
+            second.close()
 
 
 def test_the_queue_keeps_the_newest_packets_and_counts_the_dropped() -> None:

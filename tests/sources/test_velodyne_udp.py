@@ -220,6 +220,30 @@ def test_on_loopback_the_client_reads_what_the_sensor_sends_until_it_falls_silen
         assert time.monotonic() - started < 1.0
 
 
+def test_a_second_listener_on_the_port_is_refused_and_the_first_gets_every_packet() -> None:
+    # with SO_REUSEADDR the second would bind too and, bound last, take every packet
+    # sent to this address
+    packet = vlp16_packet(steady_azimuths(9000, 20), POINTS, stamp_us=STAMP_US)
+    with _client() as first, _sender() as tx:
+        first.bind()
+        port = first.address[1]
+        second = VelodyneClient(VelodyneEndpoint("0.0.0.0", port))
+        in_use = (
+            rf"VLP-16 on UDP 0\.0\.0\.0:{port}: UDP port {port} is in use on this host, most "
+            r"likely by another dronetrack live or info on this LiDAR$"
+        )
+        with pytest.raises(DeviceError, match=in_use):
+            second.open(1.0)
+        sender = _send_later(tx, packet, first.address, 3)
+        first.open(2.0)
+        sender.join()
+        got = 0
+        deadline = time.monotonic() + 2.0
+        while got < 3 * len(POINTS) and time.monotonic() < deadline:
+            got += len(first.read(0.1))
+        assert got == 3 * len(POINTS)
+
+
 def test_packets_from_another_address_are_ignored_with_device() -> None:
     packet = vlp16_packet([0] * 12, {(0, 0): (5000, 1)})
     with VelodyneClient(VelodyneEndpoint(LOOP, 0, device_ip="127.0.0.2")) as c, _sender() as tx:

@@ -141,6 +141,7 @@ class Livox2Client(LivoxLink):
     sdk = "SDK 2 device"
     device_types = DEVICE_TYPES
     connect_name = "host configuration"
+    data_key = "point_port"
     keepalive_name = "work-state"
     ack_wait_s = ACK_WAIT_S
 

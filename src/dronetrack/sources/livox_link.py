@@ -32,6 +32,7 @@ importable from it.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -40,7 +41,13 @@ from typing import Self, TypedDict
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox_commands import LivoxCommands
-from dronetrack.sources.livox_net import MAX_DATAGRAM, POLL_S, route_source_ip, udp_socket
+from dronetrack.sources.livox_net import (
+    MAX_DATAGRAM,
+    POLL_S,
+    is_local_address,
+    route_source_ip,
+    udp_socket,
+)
 from dronetrack.sources.livox_points import hits_in_time_order
 from dronetrack.sources.livox_queues import PacketQueue
 from dronetrack.sources.livox_uri import parse_device_uri
@@ -86,6 +93,7 @@ class LivoxLink(LivoxCommands):
     """
 
     connect_name = "connect"
+    data_key = "data_port"  # the URI key of the host's point-data port
 
     def __init__(
         self,
@@ -105,6 +113,7 @@ class LivoxLink(LivoxCommands):
         self.stall_s = stall_s
         self.discover_s = discover_s
         self.host_ip: str | None = host_ip
+        self._host_given = host_ip is not None  # by the user, not routed
         self.packets_malformed = 0
         self.packets_lost = 0
         self._packets = PacketQueue(max_packets)
@@ -160,19 +169,23 @@ class LivoxLink(LivoxCommands):
 
     def bind(self) -> None:
         """Bind the sockets (``open`` does it if needed); with port 0 the kernel picks a
-        free port, readable afterwards."""
+        free port, readable afterwards.  DeviceError naming a port another process
+        holds: the command and point-data ports are this client's alone
+        (``livox_net``)."""
         if self._closed:
             raise DeviceError(f"{self.name}: the client is closed")
         if self._socks:
             return
         discovery, cmd, data = self._ports()
         try:
-            self._socks["discovery"] = udp_socket(discovery, "discovery")
-            self._socks["cmd"] = udp_socket(cmd, "commands")
-            self._socks["data"] = udp_socket(data, "point data", rcvbuf=4 << 20)
-        except DeviceError:
+            # the ports one client holds first (livox_net): a client refused there has
+            # not touched the shared discovery port
+            self._socks["cmd"] = udp_socket(cmd, "commands", key="cmd_port")
+            self._socks["data"] = udp_socket(data, "point data", 4 << 20, key=self.data_key)
+            self._socks["discovery"] = udp_socket(discovery, "discovery", shared=True)
+        except DeviceError as exc:
             self._close_sockets()
-            raise
+            raise DeviceError(f"{self.name}: {exc}") from exc
 
     # -- opening ---------------------------------------------------------------------
 
@@ -249,7 +262,25 @@ class LivoxLink(LivoxCommands):
         if since is not None and self._packets.empty():
             quiet = time.monotonic() - max(since, self._packets.last_arrival)
             if quiet > self.stall_s:
-                raise DeviceError(f"{self.name}: no point packet for {quiet:.1f} s")
+                hint = self._host_hint() if self._packets.received == 0 else ""
+                raise DeviceError(f"{self.name}: no point packet for {quiet:.1f} s{hint}")
+
+    def _host_hint(self) -> str:
+        """Why no point packet came at all, when the host address the device sends to
+        was given (``--host-ip``, the URI's ``host=``) rather than routed: it names the
+        address and whether this host has it and routes to the device from it."""
+        if not self._host_given or self.host_ip is None:
+            return ""
+        detail = ""
+        if not is_local_address(self.host_ip):
+            detail = ", not an address of this host"
+        else:
+            with contextlib.suppress(DeviceError):
+                routed = route_source_ip(*self._device_address())
+                if routed != self.host_ip:
+                    detail = f" (this host reaches {self.device_ip} from {routed})"
+        sent = f"{self.host_ip}:{self._port('data')}"
+        return f"; it was told to send to {sent}{detail}: check --host-ip (the URI's host=)"
 
     def packets(self, timeout_s: float = 0.1) -> list[bytes]:
         """The raw packets received so far (waiting up to ``timeout_s`` for the first);

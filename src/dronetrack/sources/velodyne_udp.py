@@ -28,7 +28,9 @@ revolution starts in them (``PointBatch.cuts``, at azimuth ``cut_deg``).
 Liveness: ``open`` waits for the first packet (DeviceError if none comes within its
 time-out), and a stream with no packet for ``stall_s`` (1 s) raises DeviceError naming
 the port.  Packets from another product than a VLP-16 (product ID 0x22, shared with
-the Puck LITE) raise DeviceError: its elevations differ.
+the Puck LITE) raise DeviceError: its elevations differ.  The port is bound without
+SO_REUSEADDR: a second listener on it (another ``live`` or ``info``), which would take
+every packet sent to this host's address, is refused with an error naming the port.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ from dronetrack.errors import ConfigError, DeviceError, MissingExtraError
 from dronetrack.formats import velodyne as fv
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sources.assembly import PointBatch
-from dronetrack.sources.livox_net import POLL_S
+from dronetrack.sources.livox_net import POLL_S, PORT_IN_USE, port_in_use
 from dronetrack.sources.livox_queues import PacketQueue
 from dronetrack.sources.velodyne_timing import PacketClock, RevolutionCuts, spin_advance
 
@@ -225,7 +227,8 @@ class VelodyneClient:
 
     def bind(self) -> None:
         """Bind the port and start the reader (``open`` does it if needed);
-        DeviceError if the port cannot be bound."""
+        DeviceError if the port cannot be bound, naming it as in use if another
+        socket (another dronetrack live or info) holds it."""
         if self._closed:
             raise DeviceError(f"{self.name}: the client is closed")
         if self._sock is not None:
@@ -233,11 +236,14 @@ class VelodyneClient:
         e = self.endpoint
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            # no SO_REUSEADDR: a second listener would take every unicast packet
+            # (``livox_net``); it is refused instead
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
             sock.bind((e.bind_ip, e.port))
         except OSError as exc:
             sock.close()
+            if port_in_use(exc):
+                raise DeviceError(f"{self.name}: UDP port {e.port} {PORT_IN_USE}") from exc
             raise DeviceError(f"{self.name}: cannot bind the port: {exc}") from exc
         sock.settimeout(POLL_S)
         self._sock = sock

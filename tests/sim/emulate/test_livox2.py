@@ -98,7 +98,8 @@ def test_a_host_on_the_same_machine_binds_the_detection_port_too() -> None:
     # 127.0.0.1) keeps the answer, sent back to 127.0.0.1, away from its own socket.
     with _device(ip="127.0.0.3") as dev:
         port = dev.discovery_address[1]
-        with udp_socket(port, "discovery") as host:  # 0.0.0.0:port, as the client binds
+        # 0.0.0.0:port, shared, as the client binds it
+        with udp_socket(port, "discovery", shared=True) as host:
             host.settimeout(2.0)
             _seq, cmd_id, cmd_type, sender, data = _ask(
                 host, dev.discovery_address, sdk2_frame(0x0000, 0, 5, b"")
