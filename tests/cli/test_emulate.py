@@ -20,8 +20,10 @@ import pytest
 from dronetrack.actuators.dynamixel import DynamixelTurret
 from dronetrack.cli.main import run
 from dronetrack.errors import DeviceError
+from dronetrack.sim.emulate.servos import PtyServoLink, turret_bus
 from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
 from emulated_rig import Emulator, emulator
+from livox_helpers import read_for
 
 AVIA_SLICE_S = 50 * 96 * 4_167e-9  # one device block: 50 packets of 96 firings
 
@@ -84,6 +86,68 @@ def test_emulate_prints_its_devices_streams_the_scenario_and_exits_0(tmp_path: P
     assert table.shape == (slices + 1, 4)
     np.testing.assert_allclose(table[:, 0], np.arange(slices + 1) * AVIA_SLICE_S, atol=1e-9)
     assert not emu.link.exists()  # the link goes with the command
+
+
+def _finish(emu: Emulator, within_s: float) -> tuple[int, str]:
+    """The emulator's exit code and stderr, once it has ended by itself."""
+    rc = emu.proc.wait(timeout=within_s)
+    return rc, emu.proc.stderr.read().decode() if emu.proc.stderr else ""
+
+
+def test_emulate_exits_0_by_itself_when_the_host_stops_before_the_end(tmp_path: Path) -> None:
+    # 0.5 s scan + 0.5 s flight + 0.2 s tail from the start, then 2 s while the host
+    # closes: about 3.2 s after the start
+    with _emulator(tmp_path, flight_s=0.5) as emu:
+        with _client(emu.ip) as client:
+            client.open(timeout_s=3.0)
+            read_for(client, 0.3)
+        assert emu.proc.poll() is None  # still serving: a host may start it again
+        rc, err = _finish(emu, within_s=15.0)
+    assert rc == 0, err
+    assert err.count("sampling started") == 1
+    assert re.search(r"streamed \d\.\d\d s of short: \d+ point packets", err)
+    assert "Traceback" not in err
+
+
+def test_emulate_serves_a_host_that_starts_again_after_the_stream(tmp_path: Path) -> None:
+    slices = math.ceil((0.5 + 0.5 + 0.2) / AVIA_SLICE_S)
+    with _emulator(tmp_path, flight_s=0.5) as emu:
+        for _ in range(2):  # the second starts within the 2 s after the first stream
+            with _client(emu.ip) as client:
+                client.open(timeout_s=3.0)
+                with pytest.raises(DeviceError, match="no point packet"):
+                    read_for(client, 10.0)  # until the stream ends
+                # the whole scenario, 50 packets a slice (the last slice's may end
+                # early, with its last point)
+                assert client.packets_received > 50 * (slices - 1)
+        rc, err = _finish(emu, within_s=15.0)
+    assert rc == 0, err
+    assert err.count("sampling started") == 2
+    assert len(np.loadtxt(emu.truth, delimiter=",", skiprows=1)) == slices + 1
+
+
+def test_emulate_without_a_host_gives_up_after_its_wait(tmp_path: Path) -> None:
+    with emulator(tmp_path, str(_scenario(tmp_path, 0.5)), "--wait-s", "1") as emu:
+        rc, err = _finish(emu, within_s=15.0)
+    assert rc == 2, err
+    want = "error: short: waited 1 s for a host to start sampling, none came (--wait-s)"
+    assert err.strip().splitlines()[-1] == want
+    assert not emu.link.exists()
+
+
+def test_emulate_refuses_a_serial_link_another_emulator_holds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    link = tmp_path / "ttyDXL"
+    ip = f"127.0.0.{20 + (os.getpid() + 100) % 200}"  # not the subprocess emulators'
+    with PtyServoLink(turret_bus(), link=link, lifetime=60.0) as held:
+        args = ["emulate", str(_scenario(tmp_path, 0.5)), "--lidar-ip", ip]
+        assert run([*args, "--serial-link", str(link)]) == 2
+        assert os.readlink(link) == held.path  # still the first one's
+    err = capsys.readouterr().err.strip()
+    want = rf"error: cannot link {link} to /dev/pts/\d+: it links to {held.path}, still open"
+    assert re.match(want, err)
+    assert "\n" not in err
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])

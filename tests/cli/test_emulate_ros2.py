@@ -50,5 +50,6 @@ def test_live_over_ros2_against_the_emulated_rig_tracks_as_the_simulation_does(
             "--ros-domain-id",
             domain,
         )
+        assert emu.proc.wait(timeout=15.0) == 0  # the scenario streamed, it ends by itself
     assert got["lidar"] == "ros2:///livox/lidar"
     assert_tracks_as_simulated(got, want)

@@ -1,7 +1,9 @@
 """The whole live chain on one machine: ``dronetrack emulate`` (the simulator in real time
 behind an emulated Livox LiDAR on UDP and two emulated XM430 servos on a pseudo-terminal)
 in its own process, and ``dronetrack live`` against it through the real protocols, for
-20 s of flight:
+20 s of flight (and, first, a short run with ``dronetrack info`` of the same LiDAR
+started beside it: refused in one line, the live run untouched, both processes ending
+by themselves with exit code 0):
 
 - SDK 1: an Avia, the ``default`` flight after its 10 s background scan, with the
   sensor's random false alarms off (``emulated_rig.without_false_alarms``);
@@ -38,17 +40,73 @@ of eight, at a load average of 2.5, ended on its points arriving 1 s late."""
 
 from __future__ import annotations
 
+import re
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
 
+from dronetrack.cli.main import run
 from emulated_rig import (
     FLIGHT_S,
     assert_tracks_as_simulated,
     emulator,
     live_then_simulate,
+    metrics_of,
     without_false_alarms,
 )
+
+# emulate ends 2 s after the scenario's end, when live (which stops at the flight's end)
+# has closed; simulate runs in between
+EMULATOR_END_S = 15.0
+
+
+def test_info_beside_a_running_live_is_refused_and_both_end_by_themselves(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scenario = tmp_path / "short.toml"
+    scenario.write_text('base = "default"\n[pipeline.background]\nscan_s = 0.5\n')
+    flight = "2"
+    out = tmp_path / "live"
+    with emulator(tmp_path, str(scenario), "--seed", "0", "--duration", flight) as emu:
+        cmd = [sys.executable, "-m", "dronetrack", "live", str(scenario), "--lidar",
+               f"livox://{emu.ip}", "--turret", emu.turret, "--duration", flight, "--out",
+               str(out)]  # fmt: skip
+        live = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            frames = out / "frames.csv"
+            deadline = time.monotonic() + 60.0
+            while time.monotonic() < deadline and live.poll() is None:
+                if frames.exists() and len(frames.read_text().splitlines()) > 3:
+                    break  # tracking
+                time.sleep(0.05)
+            assert live.poll() is None, live.communicate()[1]
+            code = run(["info", f"livox://{emu.ip}"])
+            _, live_err = live.communicate(timeout=60.0)
+        finally:
+            if live.poll() is None:
+                live.kill()
+                live.wait(timeout=5.0)
+        emulate_rc = emu.proc.wait(timeout=EMULATOR_END_S)
+        emulate_err = emu.proc.stderr.read().decode() if emu.proc.stderr else ""
+    info = capsys.readouterr()
+    assert code == 2
+    assert info.out == ""
+    assert re.fullmatch(
+        rf"error: Livox SDK 1 device at {re.escape(emu.ip)}: UDP port 55501 \(commands\) is in use "
+        r"on this host, most likely by another dronetrack live or info on this LiDAR; a "
+        r"second LiDAR needs its own \(the URI's cmd_port=\)\n",
+        info.err,
+    )
+    assert live.returncode == 0, live_err
+    metrics = metrics_of(out)
+    assert "error" not in metrics
+    assert metrics["packets_lost"] == 0
+    assert len((out / "frames.csv").read_text().splitlines()) == 1 + 20  # 2 s of 10 Hz
+    assert emulate_rc == 0, emulate_err
+    assert emulate_err.count("sampling started") == 1  # info started nothing
 
 
 def test_live_against_the_emulated_rig_tracks_as_the_simulation_does(tmp_path: Path) -> None:
@@ -56,7 +114,7 @@ def test_live_against_the_emulated_rig_tracks_as_the_simulation_does(tmp_path: P
     with emulator(tmp_path, scenario, "--seed", "0", "--duration", FLIGHT_S) as emu:
         lidar, turret = f"livox://{emu.ip}", f"dynamixel://{emu.link}"
         got, want = live_then_simulate(tmp_path, emu, scenario, lidar, turret)
-        assert emu.proc.poll() is None  # a device: it waits for the next host to sample
+        assert emu.proc.wait(timeout=EMULATOR_END_S) == 0  # the scenario streamed, it ends
     assert got["lidar"] == lidar
     assert_tracks_as_simulated(got, want)
 
@@ -69,7 +127,7 @@ def test_live_against_an_emulated_mid360_over_sdk2_tracks_as_the_simulation_does
         assert emu.lines[0].startswith(f"lidar: livox2://{emu.ip}  (Livox Mid-360")
         lidar, turret = f"livox2://{emu.ip}", f"dynamixel://{emu.link}"
         got, want = live_then_simulate(tmp_path, emu, scenario, lidar, turret)
-        assert emu.proc.poll() is None
+        assert emu.proc.wait(timeout=EMULATOR_END_S) == 0
     assert got["lidar"] == lidar
     assert_tracks_as_simulated(got, want)
 
@@ -82,7 +140,7 @@ def _against_simulate(tmp_path: Path, scenario: str, uri_of: str) -> None:
         assert emu.lines[0].startswith(f"lidar: {uri}  ({uri_of}")
         assert emu.turret.startswith("ptu://")
         got, want = live_then_simulate(tmp_path, emu, scenario, uri, emu.turret)
-        assert emu.proc.poll() is None  # a VLP-16 waits for the next host
+        assert emu.proc.wait(timeout=EMULATOR_END_S) == 0
     assert got["lidar"] == uri
     assert_tracks_as_simulated(got, want)
 

@@ -6,7 +6,6 @@ without hardware."""
 from __future__ import annotations
 
 import ipaddress
-import math
 import signal
 import sys
 import threading
@@ -15,7 +14,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -28,10 +27,14 @@ from dronetrack.cli.options import (
 )
 from dronetrack.cli.output import err_console
 
+if TYPE_CHECKING:
+    from dronetrack.sim.emulate.rig import EmulatedRig
+
 __all__ = ["emulate"]
 
 POLL_S = 0.05  # how often the waiting command looks at Ctrl-C, SIGTERM and the rig
 LINGER_S = 2.0  # the devices answer this long after the stream, while the host closes
+WAIT_S = 600.0  # how long it waits for a host by default
 
 
 @contextmanager
@@ -87,6 +90,33 @@ def _destination(text: str) -> tuple[str, int]:
     if not port.isdigit() or not 1 <= int(port) <= 65535:
         raise ConfigError(f"--lidar-dest {text!r}: {port!r} is not a UDP port in 1..65535")
     return ip, int(port)
+
+
+def _serve(rig: EmulatedRig, stop: threading.Event, began: str, wait_s: float) -> bool | None:
+    """Let the rig serve hosts until its run is over: True once the scenario clock, from
+    the last start, has passed the streamed length and the stream has ended (a host that
+    stopped sampling ended it), and ``LINGER_S`` more have passed while the host closes
+    (stops sampling, parks the turret); False on a stop request; None if no host started
+    the scenario within ``wait_s``.  Says each start."""
+    from dronetrack.interrupt import stop_requested
+
+    ready = streaming = time.monotonic()
+    announced = 0
+    while not (stop.is_set() or stop_requested()):
+        now = time.monotonic()
+        if rig.starts > announced:
+            announced = rig.starts
+            _say(f"{began}: the scenario clock runs")
+        elapsed = rig.scenario_time(now)
+        if rig.device.sampling:
+            streaming = now
+        if elapsed is None:
+            if now - ready > wait_s:
+                return None
+        elif elapsed >= rig.duration_s + LINGER_S and now - streaming >= LINGER_S:
+            return True
+        time.sleep(POLL_S)
+    return False
 
 
 @app.command()
@@ -146,6 +176,15 @@ def emulate(
         ),
     ] = False,
     ros_domain_id: RosDomainOption = None,
+    wait_s: Annotated[
+        float,
+        typer.Option(
+            "--wait-s",
+            min=0.1,
+            help="Seconds to wait for a host to start the scenario (start sampling, listen "
+            "or subscribe); none came: error, exit code 2.",
+        ),
+    ] = WAIT_S,
     pointcloud2: Annotated[
         bool,
         typer.Option(
@@ -172,13 +211,18 @@ def emulate(
     PTU-E46.  The scenario starts when a host starts sampling (a VLP-16: when a host
     listens): the background scan, then the flight, as simulate runs them.  With
     --ros2, both are ROS 2 topics instead, and the scenario starts when the point topic
-    gets a subscriber.  Prints the devices' addresses, then runs until the scenario has
-    been streamed, and 2 s more while the host closes (exit 0), or until Ctrl-C or
-    SIGTERM (exit 130; the truth file is kept).
+    gets a subscriber.  A later start (after a host stopped) runs it again from its
+    start, and the scenario clock starts again.
+
+    Prints the devices' addresses, then waits for a host, at most --wait-s seconds
+    (none came: exit 2).  It exits 0 2 s after the scenario clock of the last start has
+    passed the length it says it streams (scan, flight and a 2-frame tail) and the
+    stream has ended, whether the host sampled to the end or stopped before; Ctrl-C or
+    SIGTERM end it sooner (exit 130; the truth file is kept).
     """
-    from dronetrack.errors import ConfigError
+    from dronetrack.errors import ConfigError, DeviceError
     from dronetrack.formats.ptu import BAUD_RATES
-    from dronetrack.interrupt import stop_requested, stoppable
+    from dronetrack.interrupt import stoppable
     from dronetrack.jobs.emulate import emulated_rig, emulated_seconds
     from dronetrack.jobs.factory import scan_duration
     from dronetrack.realtime import frozen_heap
@@ -248,21 +292,13 @@ def emulate(
             f"background scan and {cfg.duration_s:g} s of flight "
             f"({emulated_seconds(cfg):g} s streamed)"
         )
-        announced = 0
-        linger_until = math.inf
-        while not (stop.is_set() or stop_requested()) and time.monotonic() < linger_until:
-            if rig.starts > announced:
-                announced = rig.starts
-                _say(f"{began}: the scenario clock runs")
-            if linger_until < math.inf:
-                time.sleep(POLL_S)
-            elif rig.finished.wait(POLL_S):
-                # the host closes after its last frame: stop sampling, park the turret
-                linger_until = time.monotonic() + LINGER_S
+        ended = _serve(rig, stop, began, wait_s)
+        if ended is None:
+            raise DeviceError(f"{cfg.name}: waited {wait_s:g} s for {waits}, none came (--wait-s)")
     device = rig.device
     what = "point messages" if options is not None else "point packets"
     kept = f"; truth ({rig.truth_rows} rows) kept in {truth}" if truth is not None else ""
-    if not rig.finished.is_set():
+    if not ended:
         raise RunInterruptedError(f"{kept}; {device.packets_sent} {what} sent")
     _say(
         f"streamed {rig.slices * rig.slice_s:.2f} s of {cfg.name}: "

@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from dronetrack.errors import DeviceError
 from dronetrack.formats.dynamixel import (
     ADDR,
     BROADCAST_ID,
@@ -316,6 +317,39 @@ def test_the_link_path_reaches_the_emulator_and_goes_away(tmp_path: Path) -> Non
     assert not served.serving
 
 
+def test_a_link_to_a_running_emulator_is_refused_and_still_reaches_it(tmp_path: Path) -> None:
+    path = tmp_path / "ttyDXL"
+    first = PtyServoLink(turret_bus(), link=path, lifetime=30.0)
+    try:
+        refused = (
+            rf"cannot link {path} to /dev/pts/\d+: it links to {first.path}, still open, most "
+            r"likely another dronetrack emulate's \(give another path, or end that one\)$"
+        )
+        with pytest.raises(DeviceError, match=refused):
+            PtyServoLink(turret_bus(), link=path, lifetime=30.0)
+        assert os.readlink(path) == first.path
+        handle = sdk.PortHandler(str(path))
+        assert handle.openPort()
+        assert _ok(sdk.PacketHandler(2.0).ping(handle, 1)) == 1020
+        handle.closePort()
+    finally:
+        first.close()
+    assert not path.is_symlink()
+
+
+def test_a_stale_link_is_replaced_and_a_link_taken_over_is_left_alone(tmp_path: Path) -> None:
+    path, gone, other = tmp_path / "ttyDXL", tmp_path / "gone", tmp_path / "other"
+    path.symlink_to(gone)  # an emulator's that ended without removing it
+    served = PtyServoLink(turret_bus(), link=path, lifetime=30.0)
+    try:
+        assert os.readlink(path) == served.path
+        path.unlink()
+        path.symlink_to(other)  # since made by someone else
+    finally:
+        served.close()
+    assert os.readlink(path) == str(other)
+
+
 def test_the_serving_thread_stops_by_itself_after_its_lifetime() -> None:
     served = PtyServoLink(turret_bus(), lifetime=0.1, poll=0.01)
     deadline = time.monotonic() + 2.0
@@ -340,7 +374,5 @@ def test_the_rate_limited_joint_moves_at_its_rate() -> None:
 
 
 def test_a_bus_refuses_two_servos_with_one_id() -> None:
-    from dronetrack.errors import DeviceError
-
     with pytest.raises(DeviceError, match="distinct IDs"):
         ServoBus([EmulatedXM430(1), EmulatedXM430(1)])

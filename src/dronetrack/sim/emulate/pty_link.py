@@ -76,17 +76,45 @@ def set_line_speed(fd: int, baud: int) -> bool:
     return True
 
 
+def _points_to(link: Path, target: str) -> bool:
+    """Whether ``link`` is a symlink to ``target``."""
+    try:
+        return os.readlink(link) == target
+    except OSError:
+        return False
+
+
+def _link(link: Path, target: str) -> None:
+    """Make ``link`` a symlink to ``target``, replacing a stale symlink (to a path that
+    is gone: the pseudo-terminal of an emulator that has ended); DeviceError if it
+    cannot be made (a file is there), or if ``link`` links to a device still there,
+    most likely another running emulator's pseudo-terminal."""
+    try:
+        if link.is_symlink():
+            if link.exists():
+                raise DeviceError(
+                    f"cannot link {link} to {target}: it links to {os.readlink(link)}, still "
+                    "open, most likely another dronetrack emulate's (give another path, or "
+                    "end that one)"
+                )
+            link.unlink()
+        link.symlink_to(target)
+    except OSError as exc:
+        raise DeviceError(f"cannot link {link} to {target}: {exc}") from exc
+
+
 class PtyLink(ABC):
     """A new pseudo-terminal served by a thread of its own (``_serve``, which subclasses
     write); ``device`` is what a driver opens.
 
     The slave end is put in raw mode (no echo, no line editing, no CR/LF or 8th-bit
     translation) so bytes pass untouched.  With ``link`` the slave path is also
-    reachable through that symlink (replacing a stale symlink, never a file).  ``baud``:
-    the device's rate, which the terminal starts at (see the module docstring).  The
-    serving thread polls a stop event every ``poll`` seconds and ends after
-    ``lifetime`` seconds if given.  The subclass sets what ``_serve`` needs before
-    calling this ``__init__``, which starts the thread.
+    reachable through that symlink (replacing a stale symlink, never a file nor a
+    symlink to a device still there, another emulator's); ``close`` removes it if it
+    still points here.  ``baud``: the device's rate, which the terminal starts at (see
+    the module docstring).  The serving thread polls a stop event every ``poll``
+    seconds and ends after ``lifetime`` seconds if given.  The subclass sets what
+    ``_serve`` needs before calling this ``__init__``, which starts the thread.
     """
 
     def __init__(
@@ -107,12 +135,10 @@ class PtyLink(ABC):
         self.link = Path(link) if link is not None else None
         if self.link is not None:
             try:
-                if self.link.is_symlink():
-                    self.link.unlink()
-                self.link.symlink_to(self.path)
-            except OSError as exc:
+                _link(self.link, self.path)
+            except DeviceError:
                 self._close_fds()
-                raise DeviceError(f"cannot link {self.link} to {self.path}: {exc}") from exc
+                raise
         self._poll = poll
         self._deadline = time.monotonic() + lifetime if lifetime is not None else math.inf
         self._stop = threading.Event()
@@ -165,8 +191,9 @@ class PtyLink(ABC):
         self._stop.set()
         self._thread.join(timeout=2.0)
         self._close_fds()
-        if self.link is not None and self.link.is_symlink():
-            self.link.unlink()
+        if self.link is not None and _points_to(self.link, self.path):
+            with contextlib.suppress(OSError):
+                self.link.unlink()
 
     def __enter__(self) -> Self:
         return self

@@ -268,13 +268,18 @@ class EmulatedRig:
 
     def start(self) -> Self:
         """Open the turret's pseudo-terminal (and its link; not with ``servos`` False, when
-        the device drives the turret itself) and start the device."""
+        the device drives the turret itself) and start the device; if either fails, the
+        rig is closed."""
         if not self._running:
-            if self._servos and self.ptu is not None:
-                self.link = PtyPtuLink(self.ptu, self.serial_link, baud=self.ptu_baud)
-            elif self._servos:
-                self.link = PtyServoLink(self.bus, self.serial_link)
-            self.device.start()
+            try:
+                if self._servos and self.ptu is not None:
+                    self.link = PtyPtuLink(self.ptu, self.serial_link, baud=self.ptu_baud)
+                elif self._servos:
+                    self.link = PtyServoLink(self.bus, self.serial_link)
+                self.device.start()
+            except BaseException:
+                self.close()
+                raise
             self._running = True
         return self
 
