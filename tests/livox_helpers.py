@@ -2,8 +2,8 @@
 packets built by hand from the protocol document (livox_wiki_en
 ``livox_eth_protocol_mid360.md``) with ``struct.pack`` and a bitwise CRC-16 written
 from its definition, never with dronetrack's encoders; the hypothesis strategy of
-damaged packets both SDKs' fuzz tests feed their decoders; loopback sockets; and
-reading a client for a bounded time."""
+damaged packets both SDKs' fuzz tests feed their decoders; loopback sockets;
+reading a client for a bounded time; and a client refused on a port another holds."""
 
 from __future__ import annotations
 
@@ -15,8 +15,10 @@ from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
+import pytest
 from hypothesis import strategies as st
 
+from dronetrack.errors import DeviceError
 from dronetrack.sources.assembly import PointBatch
 
 LOOP = "127.0.0.1"
@@ -151,3 +153,29 @@ def read_for(client: Reader, seconds: float) -> None:
     t0 = time.monotonic()
     while time.monotonic() - t0 < seconds:
         client.read(0.05)
+
+
+class Link(Reader, Protocol):
+    @property
+    def packets_received(self) -> int: ...
+
+    def open(self, timeout_s: float = 3.0) -> None: ...
+
+
+def assert_refused_beside(
+    first: Link, second: Link, sdk: int, port: int, what: str, key: str
+) -> None:
+    """``second`` (a Livox SDK ``sdk`` client on ``first``'s host port ``port``, for
+    ``what``, moved by URI key ``key``) fails to open with the one-line error naming the
+    port as in use, and ``first`` still receives over 1000 packets in the next 1.5 s
+    (both devices send over 2,000 a second) and no silence of 1 s."""
+    in_use = (
+        rf"Livox SDK {sdk} device at 127\.0\.0\.1: UDP port {port} \({what}\) is in use on "
+        rf"this host, most likely by another dronetrack live or info on this LiDAR; a "
+        rf"second LiDAR needs its own \(the URI's {key}=\)$"
+    )
+    with pytest.raises(DeviceError, match=in_use):
+        second.open(timeout_s=1.0)
+    before = first.packets_received
+    read_for(first, 1.5)  # raises if no point packet comes for 1 s
+    assert first.packets_received - before > 1000

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.geometry.transforms import rot_x
 from dronetrack.sources.velodyne_udp import VelodyneClient, VelodyneEndpoint, parse_velodyne_uri
-from livox_helpers import LOOP, damaged_packets, read_for
+from livox_helpers import LOOP, collect, damaged_packets, read_for
 from velodyne_helpers import (
     FIRING_SEQUENCE_US,
     manual_xyz,
@@ -207,11 +207,7 @@ def test_on_loopback_the_client_reads_what_the_sensor_sends_until_it_falls_silen
         sender = _send_later(tx, packet, c.address, 3)
         c.open(2.0)
         sender.join()
-        got = 0
-        deadline = time.monotonic() + 2.0
-        while got < 3 * len(POINTS) and time.monotonic() < deadline:
-            got += len(c.read(0.1))
-        assert got == 3 * len(POINTS)
+        assert len(collect(c, 3 * len(POINTS), 2.0)) == 3 * len(POINTS)
         assert c.source_ip == LOOP
         assert c.packets_received == 3
         started = time.monotonic()
@@ -237,11 +233,7 @@ def test_a_second_listener_on_the_port_is_refused_and_the_first_gets_every_packe
         sender = _send_later(tx, packet, first.address, 3)
         first.open(2.0)
         sender.join()
-        got = 0
-        deadline = time.monotonic() + 2.0
-        while got < 3 * len(POINTS) and time.monotonic() < deadline:
-            got += len(first.read(0.1))
-        assert got == 3 * len(POINTS)
+        assert len(collect(first, 3 * len(POINTS), 2.0)) == 3 * len(POINTS)
 
 
 def test_packets_from_another_address_are_ignored_with_device() -> None:

@@ -300,16 +300,24 @@ def test_a_rate_with_no_termios_constant_is_read_back() -> None:
         assert [(r.ident, r.data[:2]) for r in replies] == [(1, (1020).to_bytes(2, "little"))]
 
 
+def _ping_through(path: Path, servo_id: int) -> int:
+    """The model number servo ``servo_id`` answers a ping with, the SDK opening ``path``."""
+    handle = sdk.PortHandler(str(path))
+    assert handle.openPort()
+    assert handle.setBaudRate(1_000_000)  # the turret's servos' rate
+    try:
+        return int(_ok(sdk.PacketHandler(2.0).ping(handle, servo_id)))
+    finally:
+        handle.closePort()
+
+
 def test_the_link_path_reaches_the_emulator_and_goes_away(tmp_path: Path) -> None:
     path = tmp_path / "ttyDXL"
     served = PtyServoLink(turret_bus(), link=path, lifetime=30.0)
     try:
         assert path.is_symlink()
         assert os.path.realpath(path) == os.path.realpath(served.path)
-        handle = sdk.PortHandler(str(path))
-        assert handle.openPort()
-        assert _ok(sdk.PacketHandler(2.0).ping(handle, 2)) == 1020
-        handle.closePort()
+        assert _ping_through(path, 2) == 1020
     finally:
         served.close()
     assert not path.exists()
@@ -328,10 +336,7 @@ def test_a_link_to_a_running_emulator_is_refused_and_still_reaches_it(tmp_path: 
         with pytest.raises(DeviceError, match=refused):
             PtyServoLink(turret_bus(), link=path, lifetime=30.0)
         assert os.readlink(path) == first.path
-        handle = sdk.PortHandler(str(path))
-        assert handle.openPort()
-        assert _ok(sdk.PacketHandler(2.0).ping(handle, 1)) == 1020
-        handle.closePort()
+        assert _ping_through(path, 1) == 1020
     finally:
         first.close()
     assert not path.is_symlink()
