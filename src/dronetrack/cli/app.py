@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from dronetrack import __version__
+from dronetrack.cli.helpformat import ReadableGroup, ReadableTyper
 from dronetrack.cli.output import (
     err_console,
     print_kernel_note,
@@ -32,7 +33,8 @@ __all__ = [
     "stop_if_interrupted",
 ]
 
-app = typer.Typer(
+app = ReadableTyper(
+    cls=ReadableGroup,
     add_completion=False,
     no_args_is_help=True,
     context_settings={"help_option_names": ["-h", "--help"]},

@@ -29,8 +29,15 @@ from rich.table import Table
 from dronetrack.cli.app import app
 from dronetrack.cli.options import RunDirOption
 from dronetrack.cli.output import progress_bar
+from dronetrack.experiments.bench import FULL, LIVE_FULL, LIVE_QUICK, QUICK
+from dronetrack.experiments.bench.replay import MIN_REPLAY_S
 
 __all__ = ["bench", "bench_table", "live_table"]
+
+
+def _with_quick(full: float, quick: float, unit: str = "") -> str:
+    """An option's default as its help shows it: the full run's, then --quick's."""
+    return f"{full:g}{unit}; {quick:g}{unit} with --quick"
 
 
 def _target_cells(targets: dict[str, Any], key: str) -> tuple[str, str]:
@@ -175,7 +182,7 @@ def _live(
     """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
     from dataclasses import replace
 
-    from dronetrack.experiments.bench import LIVE_FULL, LIVE_QUICK, live_bench
+    from dronetrack.experiments.bench import live_bench
     from dronetrack.sinks.run_folder import prepare_run_dir
 
     settings = LIVE_QUICK if quick else LIVE_FULL
@@ -203,28 +210,37 @@ def bench(
     out: RunDirOption = None,
     rounds: Annotated[
         int | None,
-        typer.Option("--rounds", min=1, help="Rounds per measurement; the best counts [3]."),
+        typer.Option(
+            "--rounds",
+            min=1,
+            help="Rounds per measurement; the best counts.",
+            show_default=_with_quick(FULL.rounds, QUICK.rounds),
+        ),
     ] = None,
     repeats: Annotated[
         int | None,
         typer.Option(
             "--repeats",
             min=1,
-            help="Timed steps or frames per round (a fifth at 100,000 particles) [200].",
+            help="Timed steps or frames per round (a fifth at 100,000 particles).",
+            show_default=_with_quick(FULL.repeats, QUICK.repeats),
         ),
     ] = None,
     replay_seconds: Annotated[
         float | None,
         typer.Option(
-            "--replay-seconds", help="Length of the replayed recording, at least 5 s [30]."
+            "--replay-seconds",
+            help=f"Length of the replayed recording, at least {MIN_REPLAY_S:g} s.",
+            show_default=_with_quick(FULL.replay_s, QUICK.replay_s, " s"),
         ),
     ] = None,
     quick: Annotated[
         bool,
         typer.Option(
             "--quick",
-            help="A smoke test: 5 steps, 1 round, a 5 s recording, unless given "
-            "(with --live: 2 s of latency, a 4 s soak).",
+            help=f"A smoke test: {QUICK.repeats} steps, {QUICK.rounds} round, a "
+            f"{QUICK.replay_s:g} s recording, unless given (with --live: "
+            f"{LIVE_QUICK.latency_s:g} s of latency, a {LIVE_QUICK.soak_s:g} s soak).",
         ),
     ] = False,
     live: Annotated[
@@ -237,16 +253,26 @@ def bench(
     ] = False,
     latency_s: Annotated[
         float | None,
-        typer.Option("--latency-s", help="With --live: the latency run's flight [20 s]."),
+        typer.Option(
+            "--latency-s",
+            help="With --live: the latency run's flight.",
+            show_default=_with_quick(LIVE_FULL.latency_s, LIVE_QUICK.latency_s, " s"),
+        ),
     ] = None,
     soak_s: Annotated[
         float | None,
-        typer.Option("--soak-s", help="With --live: the soak's flight, 0 for none [600 s]."),
+        typer.Option(
+            "--soak-s",
+            help="With --live: the soak's flight, 0 for none.",
+            show_default=_with_quick(LIVE_FULL.soak_s, LIVE_QUICK.soak_s, " s"),
+        ),
     ] = None,
     warmup_s: Annotated[
         float | None,
         typer.Option(
-            "--warmup-s", help="With --live: the soak's warm-up before memory counts [60 s]."
+            "--warmup-s",
+            help="With --live: the soak's warm-up before memory counts.",
+            show_default=_with_quick(LIVE_FULL.warmup_s, LIVE_QUICK.warmup_s, " s"),
         ),
     ] = None,
     turret: Annotated[
@@ -254,19 +280,25 @@ def bench(
         typer.Option(
             "--turret",
             help="With --live: the emulated turret driven, dynamixel (the scenario's WidowX), "
-            "ptu (a FLIR PTU-E46 on its ASCII line) or none (a fixed sensor) [dynamixel].",
+            "ptu (a FLIR PTU-E46 on its ASCII line) or none (a fixed sensor).",
+            show_default=LIVE_FULL.turret,
         ),
     ] = None,
     ptu_baud: Annotated[
         int | None,
-        typer.Option("--ptu-baud", help="With --live --turret ptu: the line's baud rate [9600]."),
+        typer.Option(
+            "--ptu-baud",
+            help="With --live --turret ptu: the line's baud rate.",
+            show_default=str(LIVE_FULL.ptu_baud),
+        ),
     ] = None,
     scenario: Annotated[
         str | None,
         typer.Option(
             "--scenario",
             help="With --live: the scenario emulated, and so its LiDAR (e.g. walk-line for "
-            "a VLP-16) [default].",
+            "a VLP-16).",
+            show_default=repr(LIVE_FULL.scenario),
         ),
     ] = None,
     ros2: Annotated[

@@ -28,18 +28,28 @@ def compare(
     out: RunDirOption = None,
     duration: Annotated[
         float | None,
-        typer.Option("--duration", "-d", min=0.01, help="Shorten every flight to these seconds."),
+        typer.Option(
+            "--duration",
+            "-d",
+            min=0.01,
+            help="Shorten every flight to these seconds.",
+            show_default="the suite's",
+        ),
     ] = None,
     methods: Annotated[
         str | None,
-        typer.Option("--methods", help="Comma-separated subset of the suite's methods."),
+        typer.Option(
+            "--methods",
+            help="Comma-separated subset of the suite's methods.",
+            show_default="all of them",
+        ),
     ] = None,
 ) -> None:
-    """Run every method of a suite (a seed's table, or acquisition) on the same seeded
-    scenarios, side by side.
+    """Run every method of a suite on the same seeded scenarios, side by side.
 
-    Writes table.csv (scenario,method,metric,mean,std,paper), table.md and, for
-    seed003, the seed's CSV logs of every run.
+    A suite is a seed's table, or acquisition.  Writes table.csv
+    (scenario,method,metric,mean,std,paper), table.md and, for seed003, the seed's CSV
+    logs of every run.
     """
 
     from dronetrack.experiments.compare.runner import run_suite

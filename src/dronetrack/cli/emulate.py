@@ -22,6 +22,7 @@ from dronetrack.cli.app import RunInterruptedError, app
 from dronetrack.cli.options import (
     FlightDurationOption,
     RosDomainOption,
+    ScenarioArgument,
     SeedOption,
     scenario_from_options,
 )
@@ -121,10 +122,7 @@ def _serve(rig: EmulatedRig, stop: threading.Event, began: str, wait_s: float) -
 
 @app.command()
 def emulate(
-    scenario: Annotated[
-        str | None,
-        typer.Argument(help="A scenario name or .toml file (default: 'default')."),
-    ] = None,
+    scenario: ScenarioArgument = None,
     seed: SeedOption = None,
     duration: FlightDurationOption = None,
     lidar_ip: Annotated[
@@ -139,7 +137,8 @@ def emulate(
         typer.Option(
             "--lidar-dest",
             help="VLP-16 only: where it sends its packets, IP[:PORT] (its Host and Data "
-            "Port settings; default 127.0.0.1:2368 from a loopback --lidar-ip).",
+            "Port settings).",
+            show_default="127.0.0.1:2368 from a loopback --lidar-ip",
         ),
     ] = None,
     serial_link: Annotated[
@@ -189,8 +188,8 @@ def emulate(
         bool,
         typer.Option(
             "--pointcloud2",
-            help="With --ros2: the points as sensor_msgs/PointCloud2 (livox_ros_driver2's "
-            "layout) instead of CustomMsg.",
+            help="With --ros2: the points as a PointCloud2 (sensor_msgs; in the layout of "
+            "livox_ros_driver2) instead of a CustomMsg.",
         ),
     ] = False,
     tf: Annotated[
@@ -202,8 +201,8 @@ def emulate(
         ),
     ] = True,
 ) -> None:
-    """Run a scenario's simulator in real time behind an emulated rig, for testing
-    'live' without hardware.
+    """Run a scenario's simulator in real time behind an emulated rig, to test 'live'
+    without hardware.
 
     The LiDAR is a Livox on UDP (SDK 1 for the Avia and Mid-40, SDK 2 for the
     Mid-360) or a VLP-16 sending to --lidar-dest; the turret, on a pseudo-terminal, is

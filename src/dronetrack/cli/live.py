@@ -16,6 +16,7 @@ import typer
 
 from dronetrack.cli.app import app, report_run, run_outputs
 from dronetrack.cli.options import (
+    SCENARIOS_OWN,
     ParticlesOption,
     PublishOption,
     RosDomainOption,
@@ -41,29 +42,25 @@ def live(
         str,
         typer.Option(
             "--lidar",
-            help="livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP (Mid-360), "
-            "velodyne://[IP:]PORT (VLP-16, e.g. velodyne://2368), ros2:///TOPIC (a ROS 2 "
-            "PointCloud2 or livox_ros_driver2 CustomMsg topic, over DDS; keys type=, "
-            "truth=/TOPIC, frame=), or file://RECORDING (any recording track reads, played "
-            "at wall-clock speed).",
+            metavar="<uri>",
+            help="The LiDAR: livox://, livox2://, velodyne://, ros2:// or file:// (the "
+            "LiDARs paragraph above).",
         ),
     ],
     turret: Annotated[
         str,
         typer.Option(
             "--turret",
-            help="dynamixel://DEVICE?baud=1000000&pan=1&tilt=2, ptu://DEVICE?baud=9600 or "
-            "ptu://HOST:PORT (a FLIR pan-tilt unit), ros2:///NAMESPACE (goals as "
-            "JointState on NAMESPACE/command, or type=interbotix_xs_msgs/msg/JointGroupCommand; "
-            "angles from NAMESPACE/joint_states), or none (a fixed sensor).",
+            metavar="<uri>",
+            help="The turret: dynamixel://, ptu://, ros2:// or none (the Turrets paragraph above).",
         ),
     ],
     scenario: Annotated[
         str | None,
         typer.Argument(
-            help="A scenario name or a scenario/site .toml giving the rig and the pipeline "
-            "(default: 'default', or a file:// recording's own); its scene and flight are "
-            "ignored."
+            help="A scenario name or a scenario/site .toml giving the rig and the pipeline; "
+            "its scene and flight are ignored.",
+            show_default="'default', or a file:// recording's own",
         ),
     ] = None,
     background: Annotated[
@@ -73,7 +70,10 @@ def live(
     scan_s: Annotated[
         float | None,
         typer.Option(
-            "--scan-s", min=0.0, help="Seconds of background scan (default: the scenario's)."
+            "--scan-s",
+            min=0.0,
+            help="Seconds of background scan.",
+            show_default=SCENARIOS_OWN,
         ),
     ] = None,
     duration: Annotated[
@@ -82,8 +82,8 @@ def live(
             "--duration",
             "-d",
             min=0.01,
-            help="Seconds of tracking after the background scan (default: until Ctrl-C, or "
-            "the end of a recording).",
+            help="Seconds of tracking after the background scan.",
+            show_default="until Ctrl-C, or the end of a recording",
         ),
     ] = None,
     truth: Annotated[
@@ -108,7 +108,8 @@ def live(
         str | None,
         typer.Option(
             "--host-ip",
-            help="This host's address the LiDAR sends to (default: the one routed to it).",
+            help="This host's address the LiDAR sends to.",
+            show_default="the one routed to it",
         ),
     ] = None,
     tracker: TrackerOption = None,
@@ -117,6 +118,18 @@ def live(
     publish: PublishOption = None,
 ) -> None:
     """Track live: scan the background with the turret, then detect, track and follow.
+
+    LiDARs (--lidar): livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP
+    (Mid-360), velodyne://[IP:]PORT (VLP-16, e.g. velodyne://2368), ros2:///TOPIC (a
+    ROS 2 PointCloud2 or livox_ros_driver2 CustomMsg topic, over DDS; keys type=,
+    truth=/TOPIC, frame=), or file://RECORDING (any recording track reads, played at
+    wall-clock speed).
+
+    Turrets (--turret): dynamixel://DEVICE?baud=1000000&pan=1&tilt=2 (Dynamixel servos;
+    the keys are optional, these values their defaults), ptu://DEVICE?baud=9600 or
+    ptu://HOST:PORT (a FLIR pan-tilt unit), ros2:///NAMESPACE (goals as JointState on
+    NAMESPACE/command, or type=interbotix_xs_msgs/msg/JointGroupCommand; angles from
+    NAMESPACE/joint_states), or none (a fixed sensor).
 
     Writes the same run folder as simulate (config.toml, frames.csv with each
     frame's latency_ms, metrics.json with the latency percentiles, frames dropped and

@@ -8,17 +8,19 @@ from __future__ import annotations
 
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, get_args
 
 import typer
 
 from dronetrack.config.pipeline import TrackerKind
+from dronetrack.config.rig import SENSOR_MODELS, TARGETS
 
 if TYPE_CHECKING:
     from dronetrack.config.run import ScenarioConfig
 
 __all__ = [
     "MAX_PARTICLES",
+    "SCENARIOS_OWN",
     "ConfigOption",
     "ControlMode",
     "DroneOption",
@@ -29,6 +31,7 @@ __all__ = [
     "RerunOption",
     "RosDomainOption",
     "RunDirOption",
+    "ScenarioArgument",
     "SeedOption",
     "SensorOption",
     "TrackerOption",
@@ -39,18 +42,51 @@ __all__ = [
     "scenario_from_options",
 ]
 
+SCENARIOS_OWN = "the scenario's"  # the default of an option that overrides a scenario
+
 # Options shared by several commands.
-SeedOption = Annotated[int | None, typer.Option("--seed", min=0, help="Random seed.")]
+ScenarioArgument = Annotated[
+    str | None,
+    typer.Argument(
+        help="A scenario name (see 'dronetrack scenarios') or a .toml file.",
+        show_default="'default'",
+    ),
+]
+SeedOption = Annotated[
+    int | None, typer.Option("--seed", min=0, help="Random seed.", show_default=SCENARIOS_OWN)
+]
 TrajectoryOption = Annotated[
-    Path | None, typer.Option("--trajectory", help="CSV with columns t,x,y,z.")
+    Path | None,
+    typer.Option(
+        "--trajectory",
+        help="The target's path: a CSV with columns t,x,y,z.",
+        show_default=SCENARIOS_OWN,
+    ),
 ]
 VisibilityOption = Annotated[
-    float | None, typer.Option("--visibility", help="Meteorological visibility, metres.")
+    float | None,
+    typer.Option(
+        "--visibility", help="Meteorological visibility, metres.", show_default=SCENARIOS_OWN
+    ),
 ]
-DroneOption = Annotated[str | None, typer.Option("--drone", help="Target model.")]
-SensorOption = Annotated[str | None, typer.Option("--sensor", help="Sensor model.")]
+DroneOption = Annotated[
+    str | None,
+    typer.Option(
+        "--drone", help=f"Target model: {', '.join(TARGETS)}.", show_default=SCENARIOS_OWN
+    ),
+]
+SensorOption = Annotated[
+    str | None,
+    typer.Option(
+        "--sensor",
+        help=f"Sensor model: {', '.join(SENSOR_MODELS)}, or file:PATH (a scan pattern: a "
+        "Livox CSV or an .npy of azimuths and elevations).",
+        show_default=SCENARIOS_OWN,
+    ),
+]
 RunDirOption = Annotated[
-    Path | None, typer.Option("--out", "-o", help="Output folder (default: runs/<timestamp>/).")
+    Path | None,
+    typer.Option("--out", "-o", help="Output folder.", show_default="runs/<timestamp>/"),
 ]
 FlightDurationOption = Annotated[
     float | None,
@@ -60,6 +96,7 @@ FlightDurationOption = Annotated[
         min=0.01,
         help="Seconds of flight, after the background scan (scan_s, 10 s by default): "
         "the run lasts scan + flight.",
+        show_default=SCENARIOS_OWN,
     ),
 ]
 FoxgloveOption = Annotated[
@@ -75,8 +112,8 @@ RosDomainOption = Annotated[
         "--ros-domain-id",
         min=0,
         max=232,
-        help="ROS 2 domain for everything this command does on ROS 2 (default: "
-        "ROS_DOMAIN_ID, else 0; extra: ros2).",
+        help="ROS 2 domain for everything this command does on ROS 2 (extra: ros2).",
+        show_default="ROS_DOMAIN_ID, else 0",
     ),
 ]
 PublishOption = Annotated[
@@ -109,14 +146,22 @@ MAX_PARTICLES = 2_000_000  # the configuration's upper bound ([pipeline.tracker]
 # The choices are config.pipeline.TrackerKind, the one list of tracker names.
 TrackerOption = Annotated[
     TrackerKind | None,
-    typer.Option("--tracker", help="The tracking method (see the README's method table)."),
+    typer.Option(
+        "--tracker",
+        metavar="<name>",
+        help=f"The tracking method: {', '.join(get_args(TrackerKind))} (see the README's "
+        "method table).",
+        show_default=SCENARIOS_OWN,
+    ),
 ]
 TurretOption = Annotated[
     ControlMode | None,
     typer.Option(
         "--turret",
-        help="Track the estimate, hold still, follow the true target, "
-        "or run one of seed 003's scan strategies.",
+        metavar="<mode>",
+        help="tracking (track the estimate), fixed (hold still), truth (follow the true "
+        "target), or one of seed 003's scan strategies: sweep, swing, slowdown, stop, adaptive.",
+        show_default=SCENARIOS_OWN,
     ),
 ]
 ParticlesOption = Annotated[
@@ -125,7 +170,8 @@ ParticlesOption = Annotated[
         "--particles",
         min=10,
         max=MAX_PARTICLES,
-        help=f"Particle count, 10 to {MAX_PARTICLES:,} (default: the tracker's).",
+        help=f"Particle count, 10 to {MAX_PARTICLES:,}.",
+        show_default="the tracker's",
     ),
 ]
 ConfigOption = Annotated[

@@ -33,6 +33,7 @@ from dronetrack.cli.options import (
     RerunOption,
     RosDomainOption,
     RunDirOption,
+    ScenarioArgument,
     SeedOption,
     SensorOption,
     TrackerOption,
@@ -48,7 +49,6 @@ from dronetrack.cli.output import (
     print_metrics,
     progress_bar,
 )
-from dronetrack.config.pipeline import TrackerKind
 from dronetrack.errors import ConfigError
 from dronetrack.sinks.run_folder import check_run_dir
 from dronetrack.sources.recording import RecordingInfo, TopicInfo
@@ -95,17 +95,23 @@ def track(
     ],
     lidar_topic: Annotated[
         str | None,
-        typer.Option("--lidar-topic", help="Point topic or LVX LiDAR (default: the only one)."),
+        typer.Option(
+            "--lidar-topic", help="Point topic or LVX LiDAR.", show_default="the only one"
+        ),
     ] = None,
     gt_topic: Annotated[
         str | None,
         typer.Option(
-            "--gt-topic", help="NavSatFix or PoseStamped ground truth (default: the only one)."
+            "--gt-topic",
+            help="NavSatFix or PoseStamped ground truth.",
+            show_default="the only one",
         ),
     ] = None,
     pose_frame: Annotated[
         str | None,
-        typer.Option("--pose-frame", help="The /tf frame to track in (default: the tree's root)."),
+        typer.Option(
+            "--pose-frame", help="The /tf frame to track in.", show_default="the tree's root"
+        ),
     ] = None,
     background: Annotated[
         Path | None, typer.Option("--background", help="Load this background model (.npz).")
@@ -116,13 +122,13 @@ def track(
             "--background-from", min=0.0, help="Build the background from the first S seconds."
         ),
     ] = None,
-    tracker: Annotated[
-        TrackerKind | None, typer.Option("--tracker", help="The tracking method.")
-    ] = None,
+    tracker: TrackerOption = None,
     config: Annotated[
         Path | None,
         typer.Option(
-            "--config", help="A scenario/config .toml (default: the recording's own, if any)."
+            "--config",
+            help="A scenario/config .toml.",
+            show_default="the recording's own, if any",
         ),
     ] = None,
     out: RunDirOption = None,
@@ -144,8 +150,8 @@ def track(
         typer.Option(
             "--period",
             min=1e-4,
-            help="Frame period in s; a bag's points are re-cut by their times to it "
-            "(default: from the stamps).",
+            help="Frame period in s; a bag's points are re-cut by their times to it.",
+            show_default="from the stamps",
         ),
     ] = None,
     timestamps: Annotated[
@@ -239,17 +245,20 @@ def info(
         typer.Argument(
             metavar="RECORDING|DEVICE",
             help="A recording (see `dronetrack track --help`), or a live device: livox://IP, "
-            "livox2://IP, velodyne://[IP:]PORT, dynamixel://DEVICE?baud=…&pan=…&tilt=…, "
-            "ptu://DEVICE?baud=…, ptu://HOST:PORT, or a ROS 2 domain (ros2://) or topic "
-            "(ros2:///TOPIC).",
+            "livox2://IP, velodyne://[IP:]PORT, dynamixel://DEVICE, ptu://DEVICE or "
+            "ptu://HOST:PORT (with the query keys `dronetrack live --help` lists), or a ROS 2 "
+            "domain (ros2://) or topic (ros2:///TOPIC).",
         ),
     ],
     ros_domain_id: RosDomainOption = None,
 ) -> None:
-    """List a recording's topics, message types, counts and duration; or what a live
-    device says of itself (a LiDAR's model, code or serial, firmware and a short
-    sample; the servos' model, firmware and present positions; a pan-tilt unit's
-    firmware, resolution, limits, speeds and positions)."""
+    """List a recording's topics, message types, counts and duration, or what a live
+    device says of itself.
+
+    A LiDAR: its model, code or serial, firmware and a short sample; a Dynamixel
+    turret: its servos' model, firmware and present positions; a pan-tilt unit: its
+    firmware, resolution, limits, speeds and positions.
+    """
     from rich.markup import escape
 
     if target.startswith(("livox://", "livox2://", "velodyne://")):
@@ -338,18 +347,22 @@ def record(
             "file, or a rosbag2 folder with a ros2 --format.",
         ),
     ],
-    scenario: Annotated[
-        str | None, typer.Argument(help="A scenario name or .toml file (default: 'default').")
-    ] = None,
+    scenario: ScenarioArgument = None,
     fmt: Annotated[
         RecordFormatName | None,
-        typer.Option("--format", help="The container (default: from the --out suffix, else ros1)."),
+        typer.Option(
+            "--format",
+            metavar="<container>",
+            help=f"The container: {', '.join(f.value for f in RecordFormatName)}.",
+            show_default="from the --out suffix, else ros1",
+        ),
     ] = None,
     livox_custom: Annotated[
         bool,
         typer.Option(
             "--livox-custom/--pointcloud2",
-            help="Points as livox_ros_driver(2)/CustomMsg or sensor_msgs/PointCloud2.",
+            help="Points as a Livox driver's CustomMsg (livox_ros_driver or "
+            "livox_ros_driver2) or as a PointCloud2 (sensor_msgs).",
         ),
     ] = True,
     compress: Annotated[

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import numpy as np
 import typer
 
+from dronetrack.cli.app import app, report_run, run_outputs
 from dronetrack.cli.options import (
+    SCENARIOS_OWN,
     ConfigOption,
     DroneOption,
     FlightDurationOption,
@@ -18,6 +20,7 @@ from dronetrack.cli.options import (
     RerunOption,
     RosDomainOption,
     RunDirOption,
+    ScenarioArgument,
     SeedOption,
     SensorOption,
     TrackerOption,
@@ -32,12 +35,8 @@ from dronetrack.cli.output import (
     err_console,
     progress_bar,
 )
-
-if TYPE_CHECKING:
-    pass
-
-
-from dronetrack.cli.app import app, report_run, run_outputs
+from dronetrack.config.rig import SENSOR_MODELS
+from dronetrack.config.spinning import DEFAULT_RPM
 
 __all__ = ["pattern", "render", "scenarios", "simulate"]
 
@@ -61,7 +60,8 @@ def pattern(
     sensor: Annotated[
         str,
         typer.Argument(
-            help="avia, mid40, mid360, vlp16, vlp16-side, or file:PATH (Livox CSV / .npy)"
+            help=f"{', '.join(SENSOR_MODELS)}, or file:PATH (a scan pattern: a Livox CSV or "
+            "an .npy of azimuths and elevations)."
         ),
     ],
     out: Annotated[Path, typer.Option("--out", "-o", help="CSV file to write.")],
@@ -81,7 +81,10 @@ def pattern(
     lines: Annotated[
         int | None, typer.Option("--lines", min=1, help="Line count of a file: pattern.")
     ] = None,
-    rpm: Annotated[float | None, typer.Option("--rpm", help="VLP-16 spin rate, 300-1200.")] = None,
+    rpm: Annotated[
+        float | None,
+        typer.Option("--rpm", help="VLP-16 spin rate, 300-1200.", show_default=f"{DEFAULT_RPM:g}"),
+    ] = None,
 ) -> None:
     """Write a sensor's scan directions (sensor frame: x forward, y left, z up) as CSV.
 
@@ -121,8 +124,9 @@ def render(
             "--duration",
             "-d",
             min=0.01,
-            help="Seconds of flight to render (default: the scenario's); unlike simulate, "
-            "no background scan comes first, so this is the whole rendering.",
+            help="Seconds of flight to render; unlike simulate, no background scan comes "
+            "first, so this is the whole rendering.",
+            show_default=SCENARIOS_OWN,
         ),
     ] = None,
     seed: SeedOption = None,
@@ -136,7 +140,9 @@ def render(
     noise: Annotated[
         bool | None,
         typer.Option(
-            "--noise/--no-noise", help="Sensor noise and false alarms (default: the scenario's)."
+            "--noise/--no-noise",
+            help="Sensor noise and false alarms.",
+            show_default=SCENARIOS_OWN,
         ),
     ] = None,
 ) -> None:
@@ -180,10 +186,7 @@ def render(
 
 @app.command()
 def simulate(
-    scenario: Annotated[
-        str | None,
-        typer.Argument(help="A scenario name or .toml file (default: 'default')."),
-    ] = None,
+    scenario: ScenarioArgument = None,
     tracker: TrackerOption = None,
     turret: TurretOption = None,
     particles: ParticlesOption = None,

@@ -26,7 +26,9 @@ def sweep(
     grid: Annotated[Path, typer.Argument(help="The grid file (TOML; see the README).")],
     workers: Annotated[
         int | None,
-        typer.Option("--workers", min=1, help="Local worker processes (default: the cores)."),
+        typer.Option(
+            "--workers", min=1, help="Local worker processes.", show_default="one per core"
+        ),
     ] = None,
     scheduler: Annotated[
         str | None,
@@ -109,8 +111,12 @@ def _base_config(spec: Any) -> Any:
 def sweep_report(
     folder: Annotated[Path, typer.Argument(help="A sweep's output folder (with results.jsonl).")],
 ) -> None:
-    """Seed 000's Fig. 3 (coverage against maximum tracking distance, coloured by the
-    distance from eq. (11)) and a table of the best combinations."""
+    """Report on a sweep: seed 000's Fig. 3 and a table of the best combinations.
+
+    The figure plots coverage against maximum tracking distance, coloured by the
+    distance from eq. (11).  Writes coverage_vs_distance.png, best.csv and report.md
+    in the sweep's folder, and prints report.md.
+    """
     from dronetrack.experiments.sweep.report import write_report
 
     _, paths = write_report(folder)

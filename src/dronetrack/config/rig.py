@@ -18,6 +18,7 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
 
 __all__ = [
+    "SENSOR_MODELS",
     "TARGETS",
     "TURRET_NAMES",
     "AxisSpec",
@@ -196,6 +197,11 @@ TARGETS: dict[str, TargetSpec] = {
     # the 0.6 × 0.45 m board a walker holds up in seed 003's walks
     "sign": TargetSpec("sign", 0.6, v_max=2.0, a_max=2.0),
 }
+
+
+# The sensors the simulator models, by the name a scenario's [sensor] model gives them
+# (``sim/sensors.py`` builds each); a model ``file:PATH`` replays a scan-pattern table.
+SENSOR_MODELS = ("avia", "mid40", "mid360", "vlp16", "vlp16-side")
 
 
 def target_spec(name: str) -> TargetSpec:

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from dronetrack.config.rig import SENSOR_MODELS
 from dronetrack.errors import SensorError
 from dronetrack.sim.mounted import RotatedPattern, side_mount
 from dronetrack.sim.patterns import (
@@ -147,6 +148,7 @@ _BUILDERS: dict[str, Callable[[], SensorModel]] = {
     "vlp16-side": _vlp16_side,
 }
 SENSOR_NAMES = (*_BUILDERS, "file:PATH")
+assert tuple(_BUILDERS) == SENSOR_MODELS, "a model for every sensor name"
 
 
 def make_sensor(
