@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from dronetrack.config.pipeline import crop_box, field_of_regard, scan_area
 from dronetrack.config.rig import TurretSpec, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig, dump_scenario
+from dronetrack.config.tomlfile import tidy_model
 from dronetrack.eval.log import TrackLog
 from dronetrack.formats.background import read_background_settings
 from dronetrack.geometry.transforms import FloatArray
@@ -69,7 +70,8 @@ def resolve_pipeline(cfg: ScenarioConfig) -> ScenarioConfig:
     pipeline = pipeline.model_copy(
         update={"tracker": tracker, "background": background, "crop": crop}
     )
-    return cfg.model_copy(update={"pipeline": pipeline})
+    # The numbers the run uses are those its config.toml holds, so it re-runs the same.
+    return tidy_model(cfg.model_copy(update={"pipeline": pipeline}))
 
 
 def detection_area(cfg: ScenarioConfig, points: FloatArray) -> NDArray[np.bool_] | None:

@@ -21,6 +21,7 @@ from dronetrack.config.run import (
     absolute_path,
     map_paths,
 )
+from dronetrack.config.tomlfile import tidy_model
 from dronetrack.sim.clutter import ClutterSpec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.flights import make_flight
@@ -89,7 +90,7 @@ def resolve_scenario(cfg: ScenarioConfig) -> ScenarioConfig:
     # Input files as absolute paths (the background's is written by the pipeline's
     # resolution, with the map's own settings).
     resolved = cfg.model_copy(update={"sensor": sensor_cfg, "turret": turret_cfg})
-    return map_paths(resolved, absolute_path, background=False)
+    return tidy_model(map_paths(resolved, absolute_path, background=False))
 
 
 def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> SimWorld:
