@@ -5,11 +5,10 @@ from __future__ import annotations
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 from dronetrack.cli.app import app
 from dronetrack.cli.options import RunDirOption
-from dronetrack.cli.output import progress_bar
+from dronetrack.cli.output import print_markdown, progress_bar
 from dronetrack.experiments.compare.suites import SUITES
 
 __all__ = ["compare"]
@@ -77,6 +76,6 @@ def compare(
     rows = aggregate(chosen, results)
     ran = tuple(dict.fromkeys(r.method for r in results))
     paths = write_tables(chosen, rows, out_dir, runs=runs, duration=duration, methods=ran)
-    Console().print((out_dir / "table.md").read_text(), markup=False, highlight=False)
+    print_markdown(out_dir / "table.md")
     for p in paths:
         typer.echo(str(p))

@@ -9,6 +9,7 @@ such as foxglove-sdk's) from warnings up are one ``warning: …`` line each ther
 from __future__ import annotations
 
 import logging
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -28,6 +29,7 @@ __all__ = [
     "console_logging",
     "err_console",
     "print_kernel_note",
+    "print_markdown",
     "print_metrics",
     "progress_bar",
     "progress_columns",
@@ -110,6 +112,15 @@ def print_kernel_note(kernels: KernelWarmUp) -> None:
             "before the run (not counted in its step times); later runs load them from "
             "numba's cache"
         )
+
+
+def print_markdown(path: Path) -> None:
+    """A Markdown file on standard output as it is written: no line is wrapped (a
+    table row stays one row), so a pipe or a redirect gets the file itself, and a
+    terminal wraps long lines on screen only."""
+    text = path.read_text()
+    sys.stdout.write(text if text.endswith("\n") else text + "\n")
+    sys.stdout.flush()
 
 
 def _reacquisitions(times: object) -> str:

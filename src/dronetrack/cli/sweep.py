@@ -11,11 +11,10 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from rich.console import Console
 
 from dronetrack.cli.app import app, stop_if_interrupted
 from dronetrack.cli.options import RunDirOption
-from dronetrack.cli.output import err_console, progress_bar
+from dronetrack.cli.output import err_console, print_markdown, progress_bar
 from dronetrack.errors import ConfigError
 
 __all__ = ["sweep", "sweep_report"]
@@ -46,18 +45,19 @@ def sweep(
 
     from dronetrack.experiments.sweep.grid import check_keys, expand, load_grid
     from dronetrack.experiments.sweep.runner import dask_executor, local_executor, run_sweep
-    from dronetrack.experiments.sweep.store import ResultStore
+    from dronetrack.experiments.sweep.store import RESULTS_FILE, ResultStore
     from dronetrack.sinks.run_folder import default_run_dir, prepare_run_dir
 
     if scheduler is not None and workers is not None:
         raise ConfigError("give --workers or --scheduler, not both")
     spec = load_grid(grid)
-    check_keys(spec, _base_config(spec))
+    check_keys(spec, _base_config(spec), grid)
     runs = expand(spec)
     out_dir = prepare_run_dir(out if out is not None else default_run_dir())
     if not (out_dir / "grid.toml").exists():
         shutil.copyfile(grid, out_dir / "grid.toml")
-    store = ResultStore(out_dir / "results.jsonl")
+    results = out_dir / RESULTS_FILE
+    store = ResultStore(results)
     close = None
     if scheduler is not None:
         make, close = dask_executor(scheduler)
@@ -72,7 +72,8 @@ def sweep(
             def report(done: int, total: int, row: dict[str, Any]) -> None:
                 bar.update(task, completed=done, total=total)
                 if "error" in row:
-                    bar.console.print(f"run {row['key']} failed: {row['error']}")
+                    failed = f"run {row['key']} failed: {row['error']}"
+                    bar.console.print(failed, markup=False, highlight=False, soft_wrap=True)
                 elif row and not err_console.is_terminal and (done % step == 0 or done == total):
                     # No live bar without a terminal (CI, nohup): a line now and then.
                     err_console.print(f"{done}/{total} runs done")
@@ -85,7 +86,6 @@ def sweep(
         f"{len(runs)} runs: {counts['done']} done now, {counts['skipped']} done before, "
         f"{counts['failed']} failed"
     )
-    results = out_dir / "results.jsonl"
     stop_if_interrupted(
         "unfinished" in counts,
         f"; {summary}, {counts['unfinished']} not run; results in {results} (run the same "
@@ -109,7 +109,12 @@ def _base_config(spec: Any) -> Any:
 
 @app.command("sweep-report")
 def sweep_report(
-    folder: Annotated[Path, typer.Argument(help="A sweep's output folder (with results.jsonl).")],
+    folder: Annotated[
+        Path,
+        typer.Argument(
+            metavar="FOLDER", help="A sweep's output folder, or the results.jsonl in it."
+        ),
+    ],
 ) -> None:
     """Report on a sweep: seed 000's Fig. 3 and a table of the best combinations.
 
@@ -120,6 +125,6 @@ def sweep_report(
     from dronetrack.experiments.sweep.report import write_report
 
     _, paths = write_report(folder)
-    Console().print((folder / "report.md").read_text(), markup=False, highlight=False)
+    print_markdown(next(p for p in paths if p.suffix == ".md"))
     for p in paths:
         typer.echo(str(p))

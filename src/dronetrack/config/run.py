@@ -344,8 +344,10 @@ def apply_overrides(
     tracker: str | None = None,
     particles: int | None = None,
     turret_mode: str | None = None,
+    source: str = "command line",
 ) -> ScenarioConfig:
-    """The scenario with command-line overrides applied (None leaves a value alone)."""
+    """The scenario with command-line overrides applied (None leaves a value alone); a
+    bad value is a ScenarioError naming ``source`` (where the values came from)."""
     data = cfg.model_dump()
     if tracker is not None:
         data["pipeline"]["tracker"]["kind"] = tracker
@@ -373,7 +375,7 @@ def apply_overrides(
         data["sensor"]["model"] = sensor
     if noise is not None:
         data["sensor"]["noise"] = noise
-    cfg = validate_scenario(data, "command line")
+    cfg = validate_scenario(data, source)
     if drone is not None or sensor is not None or visibility is not None:
         cfg = with_rig_reach(cfg)  # the reach belongs to the sensor, the drone and the air
     return cfg

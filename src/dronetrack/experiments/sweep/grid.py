@@ -145,7 +145,7 @@ def expand(spec: GridSpec) -> list[RunSpec]:
     ]
 
 
-def _set_dotted(data: dict[str, Any], key: str, value: Scalar) -> None:
+def _set_dotted(data: dict[str, Any], key: str, value: Scalar, source: str) -> None:
     for short, full in ALIASES.items():
         if key.startswith(short):
             key = full + key[len(short) :]
@@ -153,32 +153,52 @@ def _set_dotted(data: dict[str, Any], key: str, value: Scalar) -> None:
     node: Any = data
     for part in parts[:-1]:
         if not isinstance(node, dict) or part not in node or not isinstance(node[part], dict):
-            raise ConfigError(f"grid key {key!r}: no section {part!r} in the configuration")
+            raise ConfigError(f"{source}: no section {part!r} in the configuration")
         node = node[part]
     if parts[-1] not in node:
-        raise ConfigError(f"grid key {key!r}: unknown key {parts[-1]!r}")
+        raise ConfigError(f"{source}: unknown key {parts[-1]!r}")
     node[parts[-1]] = value
 
 
-def run_config(base: ScenarioConfig, run: RunSpec) -> ScenarioConfig:
-    """``base`` with the run's seed, duration and grid values applied and validated."""
+def run_config(base: ScenarioConfig, run: RunSpec, source: str | None = None) -> ScenarioConfig:
+    """``base`` with the run's seed, duration and grid values applied and validated; a
+    bad key or value is a ConfigError naming ``source`` (default: the grid point)."""
+    where = source or f"grid point {json.dumps(run.params, sort_keys=True)}"
     options: dict[str, Any] = {
         SIMULATE_OPTIONS[k]: (Path(str(v)) if k == "trajectory" else v)
         for k, v in run.params.items()
         if k in SIMULATE_OPTIONS
     }
-    cfg = apply_overrides(base, seed=run.seed, duration=run.duration, **options)
+    cfg = apply_overrides(base, seed=run.seed, duration=run.duration, **options, source=where)
     dotted = {k: v for k, v in run.params.items() if k not in SIMULATE_OPTIONS}
     if not dotted:
         return cfg
     data = cfg.model_dump()
     for key, value in dotted.items():
-        _set_dotted(data, key, value)
-    return validate_scenario(data, f"grid point {json.dumps(run.params, sort_keys=True)}")
+        _set_dotted(data, key, value, where)
+    return validate_scenario(data, where)
 
 
-def check_keys(spec: GridSpec, base: ScenarioConfig) -> None:
-    """Fail before any run starts if a grid key or value does not fit the configuration."""
+def _check_name(key: str, value: Scalar, where: str) -> None:
+    """A drone or sensor name the configuration's validation leaves to the run: an
+    unknown one fails here, once, rather than in every run."""
+    from dronetrack.config.rig import target_spec
+    from dronetrack.sim.sensors import make_sensor
+
+    try:
+        if key == "drone":
+            target_spec(str(value))
+        elif key == "sensor":
+            make_sensor(str(value))
+    except ConfigError as err:
+        raise ConfigError(f"{where}: {err}") from None
+
+
+def check_keys(spec: GridSpec, base: ScenarioConfig, grid: Path | str = "grid file") -> None:
+    """Fail before any run starts if a grid key or value does not fit the configuration:
+    a ConfigError naming the ``grid`` file, the key and the value."""
     for key, values in spec.grid.items():
         for value in values:
-            run_config(base, RunSpec(spec.source, spec.duration, {key: value}, spec.seed))
+            where = f"{grid}: [grid] {key} = {json.dumps(value)}"
+            run_config(base, RunSpec(spec.source, spec.duration, {key: value}, spec.seed), where)
+            _check_name(key, value, where)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from dronetrack.errors import ConfigError
 from dronetrack.experiments.sweep.figure import write_figure
-from dronetrack.experiments.sweep.store import read_results
+from dronetrack.experiments.sweep.store import RESULTS_FILE, read_results
 from dronetrack.experiments.sweep.summary import (
     BEST,
     COVERAGE,
@@ -22,18 +22,34 @@ from dronetrack.experiments.sweep.summary import (
     summarise,
 )
 
-__all__ = ["Combination", "summarise", "write_report"]
+__all__ = ["Combination", "results_path", "summarise", "write_report"]
 
 
 def _fmt(v: float, digits: int = 1) -> str:
     return "n/a" if not math.isfinite(v) else f"{v:.{digits}f}"
 
 
-def write_report(folder: Path) -> tuple[list[Combination], list[Path]]:
-    """Summarise ``folder/results.jsonl``; write the figure, ``best.csv`` and ``report.md``."""
-    rows = list(read_results(folder / "results.jsonl"))
+def results_path(path: Path) -> Path:
+    """The result lines ``path`` names: a sweep's folder (its results.jsonl) or the file
+    itself; ConfigError if there is none."""
+    if not path.exists():
+        raise ConfigError(f"sweep folder not found: {path}")
+    results = path if path.is_file() else path / RESULTS_FILE
+    if not results.is_file():
+        raise ConfigError(
+            f"{path}: no {RESULTS_FILE} in it (give a sweep's output folder or its {RESULTS_FILE})"
+        )
+    return results
+
+
+def write_report(path: Path) -> tuple[list[Combination], list[Path]]:
+    """Summarise a sweep's results (``path``: its folder or its results.jsonl); write the
+    figure, ``best.csv`` and ``report.md`` beside them."""
+    results = results_path(path)
+    folder = results.parent
+    rows = list(read_results(results))
     if not rows:
-        raise ConfigError(f"{folder}: no results.jsonl with results to report")
+        raise ConfigError(f"{results}: no results to report")
     combos = ranked(summarise(rows))
     ranks = rank_numbers(combos)
     fig = folder / "coverage_vs_distance.png"

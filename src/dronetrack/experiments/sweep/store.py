@@ -17,9 +17,11 @@ from typing import Any
 
 from dronetrack.sinks.run_folder import json_safe
 
-__all__ = ["ResultStore", "read_results"]
+__all__ = ["RESULTS_FILE", "ResultStore", "read_results"]
 
 log = logging.getLogger(__name__)
+
+RESULTS_FILE = "results.jsonl"  # its name in a sweep's folder
 
 
 def read_results(path: Path) -> Iterator[dict[str, Any]]:
