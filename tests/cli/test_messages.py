@@ -166,3 +166,19 @@ def test_a_period_from_stamps_is_written_and_used_as_typed(tmp_path: Path) -> No
     path.write_text(dump_scenario(cfg))
     again: ScenarioConfig = load_scenario_file(path, SCENARIOS)
     assert resolve_pipeline(again) == cfg
+
+
+def test_a_note_on_standard_error_is_one_line_in_a_pipe(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # standard error is a pipe here, 80 columns wide: the note is longer than that and
+    # must stay one line for a log file or a grep (a terminal wraps it on screen)
+    from dronetrack.cli.output import print_kernel_note
+    from dronetrack.jobs.kernels import KernelWarmUp
+
+    monkeypatch.setenv("COLUMNS", WIDTH)
+    print_kernel_note(KernelWarmUp(seconds=7.2, compiled=21))
+    err = capsys.readouterr().err
+    assert len(err.rstrip("\n")) > int(WIDTH)
+    assert err.count("\n") == 1
+    assert err.startswith("compiled 21 kernel signatures in 7.2 s")

@@ -37,7 +37,9 @@ __all__ = [
 
 COMPILING = "compiling kernels, first run only"
 
-err_console = Console(stderr=True)
+# No line of ours is wrapped at 80 columns in a pipe or a log file: a terminal wraps
+# on screen (soft_wrap).
+err_console = Console(stderr=True, soft_wrap=True)
 
 
 class _WarningLines(logging.Handler):
