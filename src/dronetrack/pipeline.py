@@ -46,7 +46,7 @@ from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.seams import Actuator, Sink, Source
-from dronetrack.track.base import CandidateStart, Tracker
+from dronetrack.track.base import CandidateStart, ObjectTracker, Tracker
 from dronetrack.track.clock import FilterClock
 from dronetrack.types import (
     Candidates,
@@ -55,6 +55,7 @@ from dronetrack.types import (
     Phase,
     StepResult,
     TrackEstimate,
+    Tracks,
     TurretCommand,
 )
 
@@ -75,11 +76,13 @@ class OutlierSettings:
 
 @dataclass(frozen=True, slots=True)
 class Acquisition:
-    """The detect stage of every tracking frame: clustering, then tentative tracks, and
-    the history of the tracker's lock on them (``detect.lock``)."""
+    """The detect stage of every tracking frame: clustering, then tentative tracks, the
+    history of the tracker's lock on them (``detect.lock``), and every confirmed
+    object's track (``track.multi``)."""
 
     detector: CandidateDetector
     tracks: TentativeTracks
+    objects: ObjectTracker | None = None
     lock: LockBook = field(init=False)
 
     def __post_init__(self) -> None:
@@ -93,6 +96,8 @@ class Acquisition:
     def reset(self) -> None:
         self.tracks.reset()
         self.lock.reset()
+        if self.objects is not None:
+            self.objects.reset()
 
 
 class Pipeline:
@@ -168,6 +173,7 @@ class Pipeline:
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
             if self.acquisition is not None:
                 self.acquisition.lock.update(estimate, confirmed)
+            tracks = self._tracks(frame.end, found, confirmed, estimate, frame.duration)
             command = (
                 self.controller.tracking(
                     t_cmd,
@@ -183,7 +189,7 @@ class Pipeline:
                 frame, "track", estimate, fg, points, command, start, flags, steps
             )
             if found is not None:
-                result = replace(result, detections=found, candidates=confirmed)
+                result = replace(result, detections=found, candidates=confirmed, tracks=tracks)
         for flag in flags:
             self.counts[flag] += 1
         if flags:
@@ -214,6 +220,25 @@ class Pipeline:
             if start is not None and len(start) > 0:
                 self.tracker.acquire(start)
         return found, confirmed
+
+    def _tracks(
+        self,
+        t: float,
+        found: Detections | None,
+        confirmed: Candidates | None,
+        estimate: TrackEstimate,
+        period: float,
+    ) -> Tracks | None:
+        """Every object's track after this frame's clusters (a new period's frames
+        only; the clusters stand for the middle of the frame's ``period``), the one the
+        tracker is locked on marked (``track.multi``)."""
+        if self.acquisition is None or found is None or confirmed is None:
+            return None
+        objects = self.acquisition.objects
+        if objects is None:
+            return None
+        objects.step(t, found, confirmed, t_meas=t - 0.5 * period)
+        return objects.snapshot(estimate)
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
         """The candidates within the lost target's reach (``detect.lock``)."""

@@ -18,6 +18,7 @@ from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray, interpolate_poses, transform_at_times
 
 __all__ = [
+    "TRACK_CLASSES",
     "Candidates",
     "Detections",
     "Frame",
@@ -25,6 +26,7 @@ __all__ = [
     "Sample",
     "StepResult",
     "TrackEstimate",
+    "Tracks",
     "Truth",
     "TurretCommand",
     "TurretState",
@@ -201,6 +203,90 @@ class Candidates:
         )
 
 
+# The classes a track can have (``classify``), in the order of their codes.
+TRACK_CLASSES = ("unknown", "drone", "bird", "static")
+
+
+@dataclass(frozen=True, slots=True)
+class Tracks:
+    """Every object's track after a frame, K of them (``track.multi``).
+
+    ids: (K,) a track's identity, an integer from 1 that stays with it for its life.
+    positions, velocities: (K, 3) its state [m], [m/s], world frame.
+    covariances: (K, 6, 6) of [p, v].
+    born: (K,) when it began [s].
+    updated: (K,) whether this frame's clusters updated it (else it coasts).
+    hovered: (K,) whether it moved slower than a bird can fly for a while
+        (``detect.tentative``): one-way.
+    locked: (K,) the one the turret's tracker holds (at most one).
+    classes: (K,) index into ``TRACK_CLASSES``; p_drone: (K,) its probability of being
+        a drone (``classify``); left out: unknown, 0.5.
+    """
+
+    ids: NDArray[np.int64]
+    positions: FloatArray
+    velocities: FloatArray
+    covariances: FloatArray
+    born: FloatArray
+    updated: NDArray[np.bool_]
+    hovered: NDArray[np.bool_]
+    locked: NDArray[np.bool_]
+    classes: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    p_drone: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        k = len(self.ids)
+        if len(self.classes) == 0 and k:
+            object.__setattr__(self, "classes", np.zeros(k, dtype=np.int64))
+        if len(self.p_drone) == 0 and k:
+            object.__setattr__(self, "p_drone", np.full(k, 0.5))
+        for name, shape, dtype in (
+            ("ids", (k,), np.int64),
+            ("positions", (k, 3), np.float64),
+            ("velocities", (k, 3), np.float64),
+            ("covariances", (k, 6, 6), np.float64),
+            ("born", (k,), np.float64),
+            ("updated", (k,), np.bool_),
+            ("hovered", (k,), np.bool_),
+            ("locked", (k,), np.bool_),
+            ("classes", (k,), np.int64),
+            ("p_drone", (k,), np.float64),
+        ):
+            object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
+
+    @classmethod
+    def empty(cls) -> Tracks:
+        """No tracks."""
+        ints, flags = np.empty(0, dtype=np.int64), np.empty(0, dtype=bool)
+        return cls(
+            ints,
+            np.empty((0, 3)),
+            np.empty((0, 3)),
+            np.empty((0, 6, 6)),
+            np.empty(0),
+            flags,
+            flags,
+            flags,
+        )
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @property
+    def position_sigma(self) -> FloatArray:
+        """√ of each track's largest position variance (K,) [m]."""
+        if len(self) == 0:
+            return np.empty(0)
+        diag = np.diagonal(self.covariances[:, :3, :3], axis1=1, axis2=2)
+        sigma: FloatArray = np.sqrt(np.max(diag, axis=1))
+        return sigma
+
+    @property
+    def class_names(self) -> list[str]:
+        """Each track's class by name."""
+        return [TRACK_CLASSES[c] for c in self.classes]
+
+
 @dataclass(frozen=True, slots=True)
 class TrackEstimate:
     """A tracker's belief after a frame."""
@@ -294,3 +380,6 @@ class StepResult:
     # A live frame's time from its last point's arrival to its turret command being
     # sent [ms] (``pipeline.run``); NaN for sources that are not live.
     latency_ms: float = math.nan
+    # Every object's track (``track.multi``; None when acquisition is off, and while
+    # scanning)
+    tracks: Tracks | None = None

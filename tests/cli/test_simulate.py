@@ -11,6 +11,8 @@ import pytest
 
 from dronetrack.cli.main import run
 from dronetrack.eval.log import FRAME_COLUMNS
+from dronetrack.eval.tracks import TRACK_COLUMNS
+from dronetrack.types import TRACK_CLASSES
 
 METRIC_KEYS = {
     "coverage_pct",
@@ -63,6 +65,20 @@ def test_outputs_and_exact_reproduction(
         assert (first / name).stat().st_size > 0
     header = (first / "frames.csv").read_text().splitlines()[0].split(",")
     assert tuple(header[: len(FRAME_COLUMNS)]) == FRAME_COLUMNS
+    header = (first / "tracks.csv").read_text().splitlines()[0].split(",")
+    assert tuple(header[: len(TRACK_COLUMNS)]) == TRACK_COLUMNS
+    tracks = _rows(first / "tracks.csv")
+    assert tracks  # the hovering Crazyflie is a track
+    frame_times = {r["t"] for r in _rows(first / "frames.csv")}
+    for r in tracks:
+        assert r["t"] in frame_times
+        assert int(r["id"]) >= 1
+        assert r["class"] in TRACK_CLASSES
+        assert 0.0 <= float(r["p_drone"]) <= 1.0
+        assert r["locked"] in ("0", "1")
+    # at most one locked track a frame
+    locked = [r["t"] for r in tracks if r["locked"] == "1"]
+    assert len(locked) == len(set(locked))
     metrics = json.loads((first / "metrics.json").read_text())
     assert set(metrics) >= METRIC_KEYS
     assert metrics["frames"] == 40
@@ -73,6 +89,7 @@ def test_outputs_and_exact_reproduction(
     # Re-running the written configuration gives the same run (compute time aside).
     second = tmp_path / "second"
     assert run(["simulate", "--config", str(first / "config.toml"), "--out", str(second)]) == 0
+    assert _rows(second / "tracks.csv") == tracks
     a, b = _rows(first / "frames.csv"), _rows(second / "frames.csv")
     assert len(a) == len(b) == 40
     for ra, rb in zip(a, b, strict=True):

@@ -291,6 +291,22 @@ class LatencyConfig(StrictModel):
     processing_s: float = Field(0.012, ge=0)  # seed 000: 1.45 ms callback + 10.85 ms filter
 
 
+class TracksConfig(StrictModel):
+    """Every confirmed object a track (track/multi.py): a constant-velocity Kalman filter
+    each, associated with the frame's clusters by a Mahalanobis and a speed gate and an
+    optimal assignment, born on a confirmed candidate no track explains, ended
+    ``coast_s`` after its last update.  Runs with the acquisition."""
+
+    # σ_a, the white-acceleration process noise [m/s²]; default: the tracker's a_max.
+    # Measured on `default` seed 0 (a_max 15 m/s²): the drone's own track correct
+    # within 1 m in 98.1 % of its visible frames at σ_a = 15, 95.9 % at 10, 82.9 % at 5.
+    sigma_acc_m_s2: float | None = Field(None, gt=0)
+    sigma_meas_m: float = Field(0.2, gt=0)  # σ₀: floor of a centroid's noise
+    gate_probability: float = Field(0.9999, gt=0, lt=1)  # χ²₃ quantile of the gate
+    coast_s: float = Field(2.0, gt=0)  # a track lives this long without an update
+    max_tracks: int = Field(64, ge=1)
+
+
 class PipelineConfig(StrictModel):
     field_of_regard: FieldOfRegardConfig | None = None
     crop: CropConfig = CropConfig()
@@ -298,6 +314,7 @@ class PipelineConfig(StrictModel):
     outliers: OutlierConfig = OutlierConfig()
     tracker: TrackerConfig = TrackerConfig()
     acquisition: AcquisitionConfig = AcquisitionConfig()
+    tracks: TracksConfig = TracksConfig()
     controller: ControllerConfig = ControllerConfig()
     latency: LatencyConfig = LatencyConfig()
     evaluation: EvaluationConfig = EvaluationConfig()

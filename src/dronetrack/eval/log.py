@@ -18,6 +18,7 @@ from dronetrack.eval.metrics import (
     scored_tracking,
     timing,
 )
+from dronetrack.eval.tracks import TracksLog
 from dronetrack.geometry.transforms import FloatArray
 
 __all__ = ["EXTRA_COLUMNS", "FRAME_COLUMNS", "TrackLog"]
@@ -107,11 +108,12 @@ class TrackLog:
     read-only view of the rows appended so far.
     """
 
-    __slots__ = ("_n", "_rows")
+    __slots__ = ("_n", "_rows", "tracks")
 
     def __init__(self) -> None:
         self._rows = np.zeros(_INITIAL_ROWS, dtype=_ROW)
         self._n = 0
+        self.tracks = TracksLog()  # every object's track, frame by frame (tracks.csv)
 
     def append(
         self,

@@ -25,6 +25,7 @@ from dronetrack.config.pipeline import (
     PipelineConfig,
     TrackerConfig,
     TrackerKind,
+    TracksConfig,
     crop_box,
     field_of_regard,
     scan_area,
@@ -45,6 +46,7 @@ from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.track.base import SelfStart, Tracker
 from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
+from dronetrack.track.multi import MultiTargetTracker, TrackSettings
 from dronetrack.track.particle import (
     MotionModel,
     NoiseParameters,
@@ -261,14 +263,22 @@ def build_pipeline(
         outliers=outliers,
         latency_s=cfg.latency.sensor_s + cfg.latency.processing_s,
         hull=HullCrop(cfg.crop.hull_m) if cfg.crop.hull_m is not None else None,
-        acquisition=build_acquisition(cfg.acquisition, cfg.tracker.v_max),
+        acquisition=build_acquisition(
+            cfg.acquisition, cfg.tracker.v_max, cfg.tracks, cfg.tracker.a_max
+        ),
         field=field_of_regard(cfg, mount.base),
         ranges=RangeImage(np.asarray(mount.base)) if scanning and bg_cfg.near_track else None,
     )
 
 
-def build_acquisition(cfg: AcquisitionConfig, v_max: float) -> Acquisition | None:
-    """The detect stage's clustering and tentative tracks, None when acquisition is off."""
+def build_acquisition(
+    cfg: AcquisitionConfig,
+    v_max: float,
+    tracks: TracksConfig | None = None,
+    a_max: float = 15.0,
+) -> Acquisition | None:
+    """The detect stage's clustering and tentative tracks, and every object's track; None
+    when acquisition is off."""
     if not cfg.enabled:
         return None
     detector = CandidateDetector(
@@ -286,7 +296,17 @@ def build_acquisition(cfg: AcquisitionConfig, v_max: float) -> Acquisition | Non
         hover_frames=cfg.hover_frames,
         cue_points=cfg.cue_points,
     )
-    return Acquisition(detector, TentativeTracks(settings))
+    tracks = tracks if tracks is not None else TracksConfig()
+    objects = TrackSettings(
+        sigma_acc=tracks.sigma_acc_m_s2 if tracks.sigma_acc_m_s2 is not None else a_max,
+        sigma_meas=tracks.sigma_meas_m,
+        gate_probability=tracks.gate_probability,
+        v_max=v_max,
+        gate_m=cfg.gate_m,
+        coast_s=tracks.coast_s,
+        max_tracks=tracks.max_tracks,
+    )
+    return Acquisition(detector, TentativeTracks(settings), MultiTargetTracker(objects))
 
 
 def _kwargs(**values: Any) -> dict[str, Any]:

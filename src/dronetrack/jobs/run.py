@@ -24,7 +24,12 @@ from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_pipeline, noise_parameters, resolve_tracker
 from dronetrack.jobs.kernels import KernelWarmUp
 from dronetrack.pipeline import Pipeline
-from dronetrack.sinks.run_folder import FramesCsvWriter, check_run_dir, prepare_run_dir
+from dronetrack.sinks.run_folder import (
+    FramesCsvWriter,
+    TracksCsvWriter,
+    check_run_dir,
+    prepare_run_dir,
+)
 
 __all__ = [
     "NO_WARM_UP",
@@ -157,26 +162,33 @@ class RunResult:
 
 class RunFolder:
     """A run's output folder, written as the run goes: ``frames.csv`` row by row from
-    the first tracking frame (flushed, so an interrupted or crashed run keeps its
-    frames), then at the end config.toml, metrics.json, the plots and the scanned
-    background.  The folder is checked at once and created at the first row, so a
-    run refused before it tracks anything leaves nothing behind.
+    the first tracking frame, and tracks.csv with it (flushed, so an interrupted or
+    crashed run keeps its frames), then at the end config.toml, metrics.json, the
+    plots and the scanned background.  The folder is checked at once and created at
+    the first row, so a run refused before it tracks anything leaves nothing behind.
 
-    ``log_sink`` is the ``on_row`` of the run's ``TrackLogSink``: it streams frames.csv.
+    ``log_sink`` is the ``on_row`` of the run's ``TrackLogSink``: it streams frames.csv
+    and tracks.csv.
     """
 
     def __init__(self, out_dir: Path) -> None:
         self.out_dir = check_run_dir(out_dir)
         self._frames: FramesCsvWriter | None = None
+        self._tracks: TracksCsvWriter | None = None
 
     def log_sink(self, log: TrackLog) -> None:
-        if self._frames is None:
-            self._frames = FramesCsvWriter(prepare_run_dir(self.out_dir) / "frames.csv")
+        if self._frames is None or self._tracks is None:
+            folder = prepare_run_dir(self.out_dir)
+            self._frames = FramesCsvWriter(folder / "frames.csv")
+            self._tracks = TracksCsvWriter(folder / "tracks.csv")
         self._frames.write(log)
+        self._tracks.write(log.tracks)
 
     def close(self) -> None:
         if self._frames is not None:
             self._frames.close()
+        if self._tracks is not None:
+            self._tracks.close()
 
     def finish(self, run: RunResult, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Write the rest of the run (see ``write_run``); return its metrics."""

@@ -1,4 +1,4 @@
-"""Run folders: config.toml, frames.csv, metrics.json and plots."""
+"""Run folders: config.toml, frames.csv, tracks.csv, metrics.json and plots."""
 
 from __future__ import annotations
 
@@ -13,10 +13,13 @@ import numpy as np
 
 from dronetrack.errors import ConfigError
 from dronetrack.eval.log import EXTRA_COLUMNS, FRAME_COLUMNS, TrackLog
+from dronetrack.eval.tracks import TRACK_COLUMNS, TracksLog
+from dronetrack.types import TRACK_CLASSES
 
 __all__ = [
     "FRAMES_CSV_COLUMNS",
     "FramesCsvWriter",
+    "TracksCsvWriter",
     "check_run_dir",
     "default_run_dir",
     "frame_row",
@@ -86,6 +89,42 @@ class FramesCsvWriter:
         for i in range(self.rows, len(log)):
             self._csv.writerow(frame_row(log, i))
         self.rows = len(log)
+        self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+class TracksCsvWriter:
+    """tracks.csv written as the run goes (``TRACK_COLUMNS``: one row per track per
+    tracking frame), flushed after each frame's rows."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._fh = path.open("w", newline="")
+        self._csv = csv.writer(self._fh)
+        self._csv.writerow(TRACK_COLUMNS)
+        self._fh.flush()
+        self.rows = 0
+
+    def write(self, tracks: TracksLog) -> None:
+        """Append the rows of ``tracks`` not written yet."""
+        if len(tracks) == self.rows:
+            return
+        for r in tracks.rows[self.rows :]:
+            p, v = r["position"], r["velocity"]
+            self._csv.writerow(
+                [
+                    _number(float(r["t"])),
+                    str(int(r["id"])),
+                    TRACK_CLASSES[int(r["cls"])],
+                    _number(float(r["p_drone"])),
+                    *(_number(float(a)) for a in (*p, *v)),
+                    _number(float(r["pos_sigma"])),
+                    str(int(r["locked"])),
+                ]
+            )
+        self.rows = len(tracks)
         self._fh.flush()
 
     def close(self) -> None:

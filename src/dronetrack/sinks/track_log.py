@@ -65,6 +65,8 @@ def log_result(log: TrackLog, sample: Sample, result: StepResult) -> None:
     else:
         p, t = pointing_angles(frame.poses[-1])
         pan, tilt = float(p), float(t)
+    if result.tracks is not None:
+        log.tracks.append(frame.end, result.tracks)
     var = est.variance
     log.append(
         t=frame.end,

@@ -6,9 +6,9 @@ from __future__ import annotations
 from typing import Protocol, runtime_checkable
 
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.types import Candidates, TrackEstimate
+from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
 
-__all__ = ["CandidateStart", "PositionStart", "SelfStart", "Tracker"]
+__all__ = ["CandidateStart", "ObjectTracker", "PositionStart", "SelfStart", "Tracker"]
 
 
 class Tracker(Protocol):
@@ -57,3 +57,23 @@ class SelfStart(Protocol):
     start it, so that a lone false return cannot."""
 
     self_start: bool
+
+
+class ObjectTracker(Protocol):
+    """Every confirmed object's track (``track.multi``), beside the one tracker the
+    turret follows."""
+
+    def step(
+        self, t: float, found: Detections, confirmed: Candidates, t_meas: float | None = None
+    ) -> Tracks:
+        """Take the clusters ``found`` of the frame ending at ``t`` (describing the time
+        ``t_meas``) and the detect stage's confirmed candidates; the tracks after it."""
+        ...
+
+    def snapshot(self, estimate: TrackEstimate | None = None) -> Tracks:
+        """The tracks as they stand, the one at a locked ``estimate`` marked locked."""
+        ...
+
+    def reset(self) -> None:
+        """Forget every track."""
+        ...

@@ -1,0 +1,246 @@
+"""Every object a track (``track.multi``): the constant-velocity filter bank, its gates
+and assignment, births on confirmed candidates, deaths after coasting."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.stats import chi2
+
+from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
+from dronetrack.errors import ConfigError
+from dronetrack.track.kalman import cv_transition, kf_predict
+from dronetrack.track.multi import (
+    MultiTargetTracker,
+    TrackSettings,
+    associate,
+    cv_predict,
+    cv_process_noise,
+    gate_costs,
+    locked_track,
+)
+from dronetrack.types import Candidates, Detections, TrackEstimate
+
+T = 0.1  # frame period [s]
+
+
+def _found(centroids: np.ndarray, sigma: float = 0.1) -> Detections:
+    """Clusters at ``centroids`` (D, 3), each with an isotropic point spread σ."""
+    k = len(centroids)
+    cov = np.tile(sigma**2 * np.eye(3), (k, 1, 1))
+    return Detections(
+        np.asarray(centroids, dtype=np.float64).reshape(k, 3),
+        np.full(k, 5),
+        np.tile([0.4, 0.3, 0.2], (k, 1)),
+        cov,
+        np.zeros(k),
+    )
+
+
+class _Layer:
+    """The detect stage's tentative tracks feeding the track layer, as the pipeline runs
+    them (clusters at the frame's middle, the state at its end)."""
+
+    def __init__(self, **track_settings: float) -> None:
+        self.tentative = TentativeTracks(ConfirmationSettings(v_max=15.0, hits=2, frames=4))
+        self.tracks = MultiTargetTracker(TrackSettings(**track_settings))  # type: ignore[arg-type]
+
+    def step(self, t: float, centroids: np.ndarray) -> None:
+        found = _found(centroids)
+        confirmed = self.tentative.update(t, found)
+        self.tracks.step(t, found, confirmed, t_meas=t - 0.5 * T)
+
+
+def test_process_noise_is_the_white_acceleration_model() -> None:
+    dt, sa = 0.2, 3.0
+    Q = cv_process_noise(np.array([dt]), sa)[0]
+    q = sa**2
+    for i in range(3):
+        assert Q[i, i] == pytest.approx(q * dt**4 / 4)
+        assert Q[i, i + 3] == Q[i + 3, i] == pytest.approx(q * dt**3 / 2)
+        assert Q[i + 3, i + 3] == pytest.approx(q * dt**2)
+    assert Q[0, 1] == Q[0, 4] == 0.0
+
+
+def test_the_bank_predicts_each_track_as_one_kalman_filter_would() -> None:
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(4, 6))
+    A = rng.normal(size=(4, 6, 6))
+    P = A @ np.transpose(A, (0, 2, 1)) + np.eye(6)
+    dt = np.array([0.0, 0.1, 0.35, 2.0])
+    xb, Pb = cv_predict(x, P, dt, 4.0)
+    for k in range(4):
+        xk, Pk = kf_predict(
+            x[k], P[k], cv_transition(dt[k]), cv_process_noise(dt[k : k + 1], 4.0)[0]
+        )
+        np.testing.assert_allclose(xb[k], xk, atol=1e-12)
+        np.testing.assert_allclose(Pb[k], Pk, atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    st.lists(st.floats(0.0, 5.0), min_size=1, max_size=5),
+    st.floats(0.1, 30.0),
+    st.integers(0, 2**32 - 1),
+)
+def test_predicted_covariances_stay_symmetric_and_positive(
+    dts: list[float], sa: float, seed: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    k = len(dts)
+    A = rng.normal(size=(k, 6, 6))
+    P = A @ np.transpose(A, (0, 2, 1)) + 1e-3 * np.eye(6)
+    _, Pb = cv_predict(rng.normal(size=(k, 6)), P, np.array(dts), sa)
+    np.testing.assert_allclose(Pb, np.transpose(Pb, (0, 2, 1)), atol=1e-9)
+    assert np.all(np.linalg.eigvalsh(Pb) > 0)
+
+
+def test_gate_costs_are_the_pairs_log_likelihood_inside_both_gates() -> None:
+    x = np.array([[0.0, 0, 0, 10, 0, 0]])
+    P = np.eye(6)[None] * 0.25  # σ 0.5 m per axis
+    R = np.tile(0.25 * np.eye(3), (3, 1, 1))
+    gate = chi2.ppf(0.99, 3)
+    z = np.array([[0.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
+    cost = gate_costs(x, P, np.zeros((1, 3)), np.array([10.0]), z, R, gate)
+    S = 0.5 * np.eye(3)
+    # J = d² + ln|S|: at the prediction d² = 0; one metre off d² = 1 / 0.5 = 2
+    assert cost[0, 0] == pytest.approx(np.log(np.linalg.det(S)))
+    assert cost[0, 1] == pytest.approx(2.0 + np.log(np.linalg.det(S)))
+    assert cost[0, 2] >= 1e12  # d² = 50 > χ²₃(0.99)
+    # the speed gate: a cluster 1 m off is out of a 0.5 m reach, whatever d²
+    tight = gate_costs(x, P, np.zeros((1, 3)), np.array([0.5]), z, R, gate)
+    assert tight[0, 0] < 1e12 <= tight[0, 1]
+
+
+def test_the_assignment_keeps_feasible_pairs_only() -> None:
+    cost = np.array([[1.0, 1e12], [1e12, 1e12]])
+    rows, cols = associate(cost)
+    assert rows.tolist() == [0]
+    assert cols.tolist() == [0]
+    assert [len(a) for a in associate(np.empty((0, 3)))] == [0, 0]
+
+
+def test_a_track_is_born_on_a_confirmed_candidate_and_dies_after_coasting() -> None:
+    layer = _Layer(coast_s=1.0)
+    p = np.array([[30.0, 5.0, 10.0]])
+    for k in range(3):
+        layer.step(k * T, p)
+    assert layer.tracks.ids.tolist() == [1]  # born on the second frame (2 of 4)
+    assert layer.tracks.born[0] == pytest.approx(T - 0.5 * T)
+    for k in range(3, 3 + 10):  # the object is gone: it coasts 1 s, then ends
+        layer.step(k * T, np.empty((0, 3)))
+    assert len(layer.tracks) == 1
+    layer.step(13 * T, np.empty((0, 3)))
+    assert len(layer.tracks) == 0
+    for k in range(14, 17):  # it comes back: a new identity, never a reused one
+        layer.step(k * T, p)
+    assert layer.tracks.ids.tolist() == [2]
+
+
+def test_a_lone_return_never_makes_a_track() -> None:
+    layer = _Layer()
+    rng = np.random.default_rng(0)
+    for k in range(30):  # one false return a frame, anywhere within 100 m
+        layer.step(k * T, rng.uniform(-100, 100, size=(1, 3)))
+    assert len(layer.tracks) == 0
+
+
+def _crossing(t: float) -> np.ndarray:
+    """Two drones at 10 m/s on paths crossing at 60° at (40, 0, 20) at t = 2 s."""
+    c = np.array([40.0, 0.0, 20.0])
+    a = np.radians(30.0)
+    u = np.array([np.cos(a), np.sin(a), 0.0])
+    w = np.array([np.cos(a), -np.sin(a), 0.0])
+    return np.stack([c + 10.0 * (t - 2.0) * u, c + 10.0 * (t - 2.0) * w])
+
+
+def test_two_crossing_drones_keep_their_identities() -> None:
+    rng = np.random.default_rng(7)
+    layer = _Layer(sigma_acc=15.0)
+    owners: set[tuple[int, int]] = set()
+    for k in range(41):
+        t = k * T
+        truth = _crossing(t - 0.5 * T)
+        if np.linalg.norm(truth[0] - truth[1]) < 1.0:  # one cluster (DBSCAN ε = 1 m)
+            truth = truth.mean(axis=0, keepdims=True)
+        layer.step(t, truth + rng.normal(scale=0.1, size=truth.shape))
+        gt = _crossing(t)
+        if k >= 3 and np.linalg.norm(gt[0] - gt[1]) > 2.0:
+            d = np.linalg.norm(layer.tracks.x[:, None, :3] - gt[None, :, :], axis=2)
+            assert d.min(axis=0).max() < 1.0  # each drone has a track within 1 m
+            owners.add(
+                (
+                    int(layer.tracks.ids[np.argmin(d[:, 0])]),
+                    int(layer.tracks.ids[np.argmin(d[:, 1])]),
+                )
+            )
+    assert len(layer.tracks) == 2
+    assert owners == {(1, 2)}  # the same identities before and after the crossing
+
+
+def test_twenty_objects_among_fifty_clusters_a_frame_keep_twenty_tracks() -> None:
+    rng = np.random.default_rng(11)
+    start = rng.uniform([-80, -80, 5], [80, 80, 60], size=(20, 3))
+    v = rng.uniform(-12, 12, size=(20, 3)) * np.array([1, 1, 0.2])
+    layer = _Layer(sigma_acc=15.0)
+    for k in range(40):
+        t = k * T
+        objects = start + v * (t - 0.5 * T) + rng.normal(scale=0.1, size=(20, 3))
+        clutter = rng.uniform([-100, -100, 0], [100, 100, 80], size=(30, 3))
+        layer.step(t, np.concatenate([objects, clutter]))
+    truth = start + v * (39 * T)
+    d = np.linalg.norm(layer.tracks.x[:, None, :3] - truth[None], axis=2)
+    near = d.min(axis=0)
+    assert np.all(near < 1.0)  # every object has its track
+    # each object's track is the one born on it: 20 identities, none of them clutter's
+    owners = layer.tracks.ids[np.argmin(d, axis=0)]
+    assert len(set(owners.tolist())) == 20
+    # clutter's chance pairs make short-lived tracks only: over seeds 0-29 none got more
+    # than 4 updates, where every object's got one a frame since its birth
+    objects = np.isin(layer.tracks.ids, owners)
+    assert layer.tracks.updates[objects].min() >= 35
+    assert layer.tracks.updates[~objects].max(initial=0) <= 5
+
+
+def test_the_locked_track_is_the_one_at_a_locked_estimate() -> None:
+    positions = np.array([[0.0, 0, 0], [10.0, 0, 0]])
+
+    def estimate(p: list[float], tracked: bool) -> TrackEstimate:
+        return TrackEstimate(1.0, np.array(p), np.zeros(3), tracked, 0.2)
+
+    assert locked_track(positions, estimate([9.5, 0, 0], True)).tolist() == [False, True]
+    assert not locked_track(positions, estimate([9.5, 0, 0], False)).any()
+    assert not locked_track(positions, estimate([5.0, 0, 0], True)).any()  # 5 m from both
+
+
+def test_the_snapshot_reports_states_covariances_and_defaults() -> None:
+    layer = _Layer()
+    for k in range(3):
+        layer.step(k * T, np.array([[20.0, 0.0, 5.0]]))
+    snap = layer.tracks.snapshot()
+    assert len(snap) == 1
+    assert snap.class_names == ["unknown"]
+    assert snap.p_drone.tolist() == [0.5]
+    assert snap.position_sigma[0] == pytest.approx(
+        np.sqrt(np.max(np.diag(snap.covariances[0])[:3]))
+    )
+    with pytest.raises(ValueError, match="read-only"):
+        snap.positions[0, 0] = 1.0
+
+
+def test_bad_settings_are_refused() -> None:
+    with pytest.raises(ConfigError, match="sigma_acc"):
+        TrackSettings(sigma_acc=0.0)
+    with pytest.raises(ConfigError, match="gate_probability"):
+        TrackSettings(gate_probability=1.0)
+    with pytest.raises(ConfigError, match="max_tracks"):
+        TrackSettings(max_tracks=0)
+
+
+def test_empty_inputs_leave_no_track() -> None:
+    tracks = MultiTargetTracker()
+    snap = tracks.step(0.1, Detections.empty(), Candidates.empty())
+    assert len(snap) == 0
+    assert snap.covariances.shape == (0, 6, 6)
