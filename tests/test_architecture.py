@@ -31,6 +31,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("preprocess",),
     ("detect",),
     ("track",),
+    ("classify",),
     ("control",),
     ("eval",),
     ("pipeline",),

@@ -32,6 +32,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from dronetrack.classify.classifier import TrackClassifier
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.detect.lock import LockBook
@@ -117,6 +118,7 @@ class Pipeline:
         acquisition: Acquisition | None = None,
         field: FieldOfRegard | None = None,
         ranges: RangeImage | None = None,
+        classifier: TrackClassifier | None = None,
     ) -> None:
         self.tracker = tracker
         self.controller = controller
@@ -131,6 +133,7 @@ class Pipeline:
         self.counts: Counter[str] = Counter()
         self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
         self.acquisition = acquisition
+        self.classifier = classifier  # each track's class (``classify``)
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
 
@@ -173,7 +176,7 @@ class Pipeline:
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
             if self.acquisition is not None:
                 self.acquisition.lock.update(estimate, confirmed)
-            tracks = self._tracks(frame.end, found, confirmed, estimate, frame.duration)
+            tracks = self._tracks(frame, fg.world, found, confirmed, estimate)
             command = (
                 self.controller.tracking(
                     t_cmd,
@@ -223,22 +226,30 @@ class Pipeline:
 
     def _tracks(
         self,
-        t: float,
+        frame: Frame,
+        world: FloatArray,
         found: Detections | None,
         confirmed: Candidates | None,
         estimate: TrackEstimate,
-        period: float,
     ) -> Tracks | None:
-        """Every object's track after this frame's clusters (a new period's frames
-        only; the clusters stand for the middle of the frame's ``period``), the one the
-        tracker is locked on marked (``track.multi``)."""
+        """Every object's track after this frame's clusters (a new period's frames only;
+        the clusters stand for the middle of the frame's period), the one the tracker
+        is locked on marked (``track.multi``), each with its class (``classify``);
+        ``world`` is every return of the frame."""
         if self.acquisition is None or found is None or confirmed is None:
             return None
         objects = self.acquisition.objects
         if objects is None:
             return None
-        objects.step(t, found, confirmed, t_meas=t - 0.5 * period)
-        return objects.snapshot(estimate)
+        t = frame.end
+        objects.step(t, found, confirmed, t_meas=t - 0.5 * frame.duration)
+        tracks = objects.snapshot(estimate)
+        if self.classifier is None:
+            return tracks
+        bg = self.background
+        test = bg.is_background if bg is not None and bg.ready else None
+        sensor = frame.poses[-1, :3, 3]
+        return self.classifier.step(t, tracks, found, world, sensor, test)
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
         """The candidates within the lost target's reach (``detect.lock``)."""

@@ -107,6 +107,7 @@ class Detections:
     extents: (K, 3) lengths along the principal axes, the axis of largest variance first [m].
     covariances: (K, 3, 3) population covariance (1/n) Σᵢ (pᵢ − p̄)(pᵢ − p̄)ᵀ [m²].
     planarity: (K,) (λ₂ − λ₃) / λ₁ of the covariance eigenvalues λ₁ ≥ λ₂ ≥ λ₃ (0 if λ₁ = 0).
+    lows: (K,) the lowest point's height z of each [m]; left out: the centroid's.
 
     Candidates are in the detector's order (DBSCAN's labels); the arrays are read-only.
     The detector does not choose among them: the tracker does, with ``largest()`` or its
@@ -118,15 +119,19 @@ class Detections:
     extents: FloatArray
     covariances: FloatArray
     planarity: FloatArray
+    lows: FloatArray | None = None
 
     def __post_init__(self) -> None:
         k = len(self.centroids)
+        if self.lows is None:
+            object.__setattr__(self, "lows", np.asarray(self.centroids)[:, 2])
         for name, shape, dtype in (
             ("centroids", (k, 3), np.float64),
             ("counts", (k,), np.int64),
             ("extents", (k, 3), np.float64),
             ("covariances", (k, 3, 3), np.float64),
             ("planarity", (k,), np.float64),
+            ("lows", (k,), np.float64),
         ):
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 
@@ -221,6 +226,8 @@ class Tracks:
     locked: (K,) the one the turret's tracker holds (at most one).
     classes: (K,) index into ``TRACK_CLASSES``; p_drone: (K,) its probability of being
         a drone (``classify``); left out: unknown, 0.5.
+    clusters: (K,) the index of the frame's cluster (``Detections``) that updated it,
+        −1 when none did; left out: none.
     """
 
     ids: NDArray[np.int64]
@@ -233,9 +240,12 @@ class Tracks:
     locked: NDArray[np.bool_]
     classes: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     p_drone: FloatArray = field(default_factory=lambda: np.zeros(0))
+    clusters: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def __post_init__(self) -> None:
         k = len(self.ids)
+        if len(self.clusters) == 0 and k:
+            object.__setattr__(self, "clusters", np.full(k, -1, dtype=np.int64))
         if len(self.classes) == 0 and k:
             object.__setattr__(self, "classes", np.zeros(k, dtype=np.int64))
         if len(self.p_drone) == 0 and k:
@@ -251,6 +261,7 @@ class Tracks:
             ("locked", (k,), np.bool_),
             ("classes", (k,), np.int64),
             ("p_drone", (k,), np.float64),
+            ("clusters", (k,), np.int64),
         ):
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 

@@ -303,7 +303,7 @@ class TracksConfig(StrictModel):
     sigma_acc_m_s2: float | None = Field(None, gt=0)
     sigma_meas_m: float = Field(0.2, gt=0)  # σ₀: floor of a centroid's noise
     gate_probability: float = Field(0.9999, gt=0, lt=1)  # χ²₃ quantile of the gate
-    coast_s: float = Field(2.0, gt=0)  # a track lives this long without an update
+    coast_s: float = Field(5.0, gt=0)  # a track lives this long without an update
     max_tracks: int = Field(64, ge=1)
 
 

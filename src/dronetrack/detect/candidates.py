@@ -79,7 +79,12 @@ class CandidateDetector:
         if not ok.any():
             return Detections.empty()
         return Detections(
-            st.centroids[ok], st.counts[ok], st.extents[ok], st.covariances[ok], st.planarity[ok]
+            st.centroids[ok],
+            st.counts[ok],
+            st.extents[ok],
+            st.covariances[ok],
+            st.planarity[ok],
+            st.lows[ok],
         )
 
 

@@ -143,13 +143,15 @@ def _features(pts: FloatArray) -> Cluster:
 @dataclass(frozen=True, slots=True)
 class ClusterStatistics:
     """The statistics of K clusters at once, as ``Cluster`` holds one's: centroids (K, 3),
-    covariances (K, 3, 3), extents (K, 3), planarity (K,), counts (K,)."""
+    covariances (K, 3, 3), extents (K, 3), planarity (K,), counts (K,), and the lowest
+    point's z (K,)."""
 
     centroids: FloatArray
     covariances: FloatArray
     extents: FloatArray
     planarity: FloatArray
     counts: IntArray
+    lows: FloatArray
 
 
 @nb.njit(cache=True)
@@ -208,7 +210,9 @@ def cluster_statistics(points: FloatArray, labels: IntArray) -> ClusterStatistic
     k = int(lab.max()) + 1 if len(lab) else 0
     if k == 0:
         z = np.empty((0, 3))
-        return ClusterStatistics(z, np.empty((0, 3, 3)), z, np.empty(0), np.empty(0, np.int64))
+        return ClusterStatistics(
+            z, np.empty((0, 3, 3)), z, np.empty(0), np.empty(0, np.int64), np.empty(0)
+        )
     n, centroids, cov = _moments(pts, lab, k)
     eigval, eigvec = np.linalg.eigh(cov)  # ascending, per cluster
     lam = np.clip(eigval[:, ::-1], 0.0, None)  # λ₁ ≥ λ₂ ≥ λ₃
@@ -216,7 +220,9 @@ def cluster_statistics(points: FloatArray, labels: IntArray) -> ClusterStatistic
     extents = _extents(pts, lab, centroids, axes)
     with np.errstate(invalid="ignore", divide="ignore"):
         planarity = np.where(lam[:, 0] > 0, (lam[:, 1] - lam[:, 2]) / lam[:, 0], 0.0)
-    return ClusterStatistics(centroids, cov, extents, planarity, n)
+    lows = np.full(k, np.inf)
+    np.minimum.at(lows, lab, pts[:, 2])
+    return ClusterStatistics(centroids, cov, extents, planarity, n, lows)
 
 
 def cluster_features(points: FloatArray, labels: IntArray) -> list[Cluster]:

@@ -18,6 +18,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
+from dronetrack.classify.classifier import TrackClassifier
 from dronetrack.config.pipeline import (
     AcquisitionConfig,
     ControllerConfig,
@@ -62,6 +63,7 @@ __all__ = [
     "ControllerBuilder",
     "TrackerBuilder",
     "build_acquisition",
+    "build_classifier",
     "build_pipeline",
     "build_tracker",
     "noise_parameters",
@@ -268,6 +270,20 @@ def build_pipeline(
         ),
         field=field_of_regard(cfg, mount.base),
         ranges=RangeImage(np.asarray(mount.base)) if scanning and bg_cfg.near_track else None,
+        classifier=build_classifier(cfg, crop[0][2]),
+    )
+
+
+def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | None:
+    """Each track's class (``classify``), with the acquisition; ``floor_z`` is the crop
+    box's floor [m]."""
+    if not cfg.acquisition.enabled:
+        return None
+    return TrackClassifier(
+        reach_m=cfg.evaluation.reach_m,
+        floor_z=floor_z,
+        hover_speed=cfg.acquisition.hover_speed_m_s,
+        hover_frames=cfg.acquisition.hover_frames,
     )
 
 

@@ -23,7 +23,13 @@ both gates:
     d² ≤ γ                       (Mahalanobis gate, γ = χ²₃ quantile)
     |c − p| ≤ v_max Δt_u + g      (speed gate from the track's last update)
 
-A matched track is updated (Joseph form, ``track.kalman``).  A track is **born** on
+A track unseen for longer than ``stale_s`` (0.3 s: the detect stage's N − M + 1 = 3
+frames) is matched only with a confirmed candidate's cluster, or a cluster within
+``stale_gate_m`` (5 m) of its prediction: its gate has grown with
+its covariance (σ ≈ 6 m after 1.5 s at σ_a = 15 m/s²), and a lone false return in it
+would otherwise carry it off (``default`` seed 0: a duplicate of the drone's track
+jumped 24 m to a stray return and wandered 60 m away for 4 s, holding the drone's
+hover).  A matched track is updated (Joseph form, ``track.kalman``).  A track is **born** on
 a confirmed candidate of the detect stage (M-of-N, ``detect.tentative``) whose
 cluster no track took; it starts at the candidate's centroid with the tentative
 track's velocity.  A track **dies** ``coast_s`` after its last update.  Identities are
@@ -74,8 +80,10 @@ class TrackSettings:
 
     sigma_acc: σ_a; sigma_meas: σ₀; gate_probability: the χ²₃ quantile of the
     Mahalanobis gate; v_max, gate_m: the speed gate (as the detect stage's);
-    coast_s: the longest a track lives without an update; birth_sigma_v: the velocity's
-    σ at birth; max_tracks: the most tracks kept (the longest unseen die first).
+    coast_s: the longest a track lives without an update; stale_s: after this long
+    without one, only a confirmed candidate's cluster updates it; birth_sigma_v: the
+    velocity's σ at birth; max_tracks: the most tracks kept (the longest unseen die
+    first).
     """
 
     sigma_acc: float = 5.0
@@ -83,12 +91,14 @@ class TrackSettings:
     gate_probability: float = 0.9999
     v_max: float = 15.0
     gate_m: float = 1.0
-    coast_s: float = 2.0
+    coast_s: float = 5.0
+    stale_s: float = 0.3
+    stale_gate_m: float = 5.0
     birth_sigma_v: float = 5.0
     max_tracks: int = 64
 
     def __post_init__(self) -> None:
-        for name in ("sigma_acc", "sigma_meas", "v_max", "coast_s", "birth_sigma_v"):
+        for name in ("sigma_acc", "sigma_meas", "v_max", "coast_s", "stale_s", "birth_sigma_v"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"tracks: {name} must be positive, got {getattr(self, name)}")
         if not 0.0 < self.gate_probability < 1.0:
@@ -240,6 +250,16 @@ class MultiTargetTracker:
         R = measurement_noise(found, s.sigma_meas)
         reach = s.v_max * np.maximum(t_z - self.t_update, 0.0) + s.gate_m
         cost = gate_costs(self.x, self.P, self.p_update, reach, found.centroids, R, self._gate)
+        # a track unseen for longer than stale_s takes a confirmed candidate's cluster only
+        stale = t_z - self.t_update > s.stale_s
+        confirmed_cluster = np.zeros(len(found), dtype=bool)
+        of = _cluster_of(confirmed, found)
+        confirmed_cluster[of[of >= 0]] = True
+        near = (
+            np.linalg.norm(self.x[:, None, :3] - found.centroids[None, :, :], axis=2)
+            <= s.stale_gate_m
+        )
+        cost[stale[:, None] & ~confirmed_cluster[None, :] & ~near] = _INFEASIBLE
         rows, cols = associate(cost)
         for k, j in zip(rows, cols, strict=True):
             up = kf_update(self.x[k], self.P[k], found.centroids[j], _H, R[j])
@@ -342,4 +362,5 @@ class MultiTargetTracker:
             updated=self.updated.copy(),
             hovered=self.hovered.copy(),
             locked=np.zeros(k, dtype=bool) if locked is None else locked,
+            clusters=np.where(self.updated, self.cluster, -1),
         )

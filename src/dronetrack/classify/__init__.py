@@ -1,0 +1,2 @@
+"""What each track is: a drone, a bird, a static object or unknown, from the track's
+life (``features``), by measured rules (``rules``)."""

@@ -1,0 +1,241 @@
+"""What a track's life says of it: per-frame observations of each track, summed over
+its life into features that tell a drone from a bird and from the static world.
+
+Each frame, for each track a cluster updated (``track.multi``), with c the cluster's
+centroid, z_lo its lowest point, e its largest extent and r its range from the sensor:
+
+- *grounded*: its bottom lies on the ground, or on the crop box's floor, which cuts
+  off what stands on the ground:  z_lo ≤ max(g(c) + h_g, z_floor + h_f)
+  (g from ``preprocess.ground``; h_g 0.5 m: a person's or a car's bottom is the
+  ground, a drone in flight is metres above it);
+- *joined*: the background map holds a cell just beside or below the cluster
+  (probes at c ± (e/2 + m) along x and y, and at z_lo − m): a tree's crown or a
+  building's edge that the map lacks part of, rather than something in the open air;
+- *beyond reach*: r > 1.5 × the reach of the drone model the site guards (the reach
+  is where a drone on the axis still returns points in 80 % of frames; at 1.15 ×
+  it is 26 %, and beyond 1.5 × none was seen: what returns there is larger or
+  brighter than a drone);
+- its speed |v| (the track's filter), and how far its clusters' centroids have moved
+  from the first one (the measurements, not the filter's state: a filter that follows
+  a far object's jittering centroid gains a velocity and carries the state away).
+
+Over a track's life these give its age, how far it ever moved from its first
+position (d_max), the shares of its observations grounded, joined or beyond reach,
+its largest extent, and whether it *hovered*: |v| < v_hover for ``hover_frames``
+updates in a row while in the air, which no bird can (stall speed ≈ 5 m/s for the
+smallest), or its candidate hovered (``detect.tentative``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import Detections, Tracks
+
+__all__ = ["LifeFeatures", "Observations", "TrackLives", "observe"]
+
+BackgroundTest = Callable[[FloatArray], NDArray[np.bool_]]
+BEYOND_REACH = 1.5  # a drone returns no point beyond this many times its reach
+
+
+@dataclass(frozen=True, slots=True)
+class Observations:
+    """One frame's observations of K tracks (``observe``); NaN or False where a track
+    had no cluster this frame (``updated`` False)."""
+
+    updated: NDArray[np.bool_]
+    centroid: FloatArray  # (K, 3) the cluster's [m]
+    range_m: FloatArray  # from the sensor [m]
+    speed: FloatArray
+    grounded: NDArray[np.bool_]
+    joined: NDArray[np.bool_]
+    beyond_reach: NDArray[np.bool_]
+    extent: FloatArray
+
+
+def observe(
+    tracks: Tracks,
+    found: Detections,
+    sensor: FloatArray,
+    ground: FloatArray,
+    *,
+    floor_z: float = -np.inf,
+    ground_margin: float = 0.5,
+    floor_margin: float = 0.3,
+    probe_margin: float = 0.5,
+    reach_m: float | None = None,
+    is_background: BackgroundTest | None = None,
+) -> Observations:
+    """This frame's observations of each track (see the module docstring); ``ground``
+    (K,) is g under each track (NaN: unknown), ``sensor`` (3,) the sensor's position."""
+    k = len(tracks)
+    j = tracks.clusters
+    updated = tracks.updated & (j >= 0)
+    idx = np.flatnonzero(updated)
+    c = found.centroids[j[idx]]
+    assert found.lows is not None  # Detections fills it
+    low = found.lows[j[idx]]
+    ext = found.extents[j[idx], 0]
+    grounded = np.zeros(k, dtype=bool)
+    # z_lo ≤ max(g + h_g, z_floor + h_f)
+    lift = np.where(np.isfinite(ground[idx]), ground[idx] + ground_margin, -np.inf)
+    grounded[idx] = low <= np.maximum(lift, floor_z + floor_margin)
+    rng = np.full(k, np.nan)
+    rng[idx] = np.linalg.norm(c - sensor, axis=1)
+    beyond = np.zeros(k, dtype=bool)
+    if reach_m is not None:
+        beyond[idx] = rng[idx] > BEYOND_REACH * reach_m
+    joined = np.zeros(k, dtype=bool)
+    if is_background is not None and len(idx):
+        joined[idx] = _touches_background(c, low, ext, probe_margin, is_background)
+    extent = np.full(k, np.nan)
+    extent[idx] = ext
+    centroid = np.full((k, 3), np.nan)
+    centroid[idx] = c
+    speed = np.linalg.norm(tracks.velocities, axis=1)
+    return Observations(updated, centroid, rng, speed, grounded, joined, beyond, extent)
+
+
+def _touches_background(
+    c: FloatArray, low: FloatArray, extent: FloatArray, margin: float, test: BackgroundTest
+) -> NDArray[np.bool_]:
+    """(K,) whether a background cell lies beside a cluster (±(e/2 + m) along x and y
+    from its centroid) or below it (m under its lowest point)."""
+    h = 0.5 * extent + margin
+    offsets = np.zeros((len(c), 5, 3))
+    offsets[:, 0, 0], offsets[:, 1, 0] = h, -h
+    offsets[:, 2, 1], offsets[:, 3, 1] = h, -h
+    probes = c[:, None, :] + offsets
+    probes[:, 4, 2] = low - margin
+    hit = test(probes.reshape(-1, 3)).reshape(len(c), 5)
+    return np.asarray(hit.any(axis=1), dtype=bool)
+
+
+@dataclass(frozen=True, slots=True)
+class LifeFeatures:
+    """Each track's life so far (K,), in the order of the ``Tracks`` they were asked for."""
+
+    age: FloatArray  # since its first observation [s]
+    observed: NDArray[np.int64]  # frames a cluster updated it
+    moved: FloatArray  # d_max: the farthest it has been from its first position [m]
+    range_m: FloatArray  # the farthest it was seen from the sensor [m]
+    grounded: FloatArray  # share of its observations grounded
+    joined: FloatArray
+    beyond_reach: FloatArray
+    extent: FloatArray  # the largest extent seen [m]
+    hovered: NDArray[np.bool_]
+    min_speed: FloatArray  # its lowest speed over its observed frames after the first [m/s]
+
+
+class TrackLives:
+    """Every track's life, kept by its identity (``update`` once a frame)."""
+
+    def __init__(self, hover_speed: float = 4.0, hover_frames: int = 3) -> None:
+        self.hover_speed = hover_speed
+        self.hover_frames = hover_frames
+        self._row: dict[int, int] = {}
+        n = 0
+        self.first_t = np.empty(n)
+        self.last_t = np.empty(n)
+        self.first_p = np.empty((n, 3))
+        self.moved = np.empty(n)
+        self.observed = np.empty(n, dtype=np.int64)
+        self.grounded = np.empty(n, dtype=np.int64)
+        self.joined = np.empty(n, dtype=np.int64)
+        self.beyond = np.empty(n, dtype=np.int64)
+        self.extent = np.empty(n)
+        self.range_m = np.empty(n)
+        self.slow_run = np.empty(n, dtype=np.int64)
+        self.hovered = np.empty(n, dtype=bool)
+        self.min_speed = np.empty(n)
+
+    def __len__(self) -> int:
+        return len(self._row)
+
+    def update(self, t: float, tracks: Tracks, obs: Observations) -> LifeFeatures:
+        """Take the frame ending at ``t``: forget tracks that ended, start new ones, add
+        each updated track's observation; the features of ``tracks``."""
+        self._forget(set(tracks.ids.tolist()))
+        rows = np.array([self._row_of(int(i), t) for i in tracks.ids], dtype=np.intp)
+        u = obs.updated
+        r = rows[u]
+        first = self.observed[r] == 0
+        self.first_p[r[first]] = obs.centroid[u][first]
+        self.last_t[r] = t
+        self.observed[r] += 1
+        self.moved[r] = np.maximum(
+            self.moved[r], np.linalg.norm(obs.centroid[u] - self.first_p[r], axis=1)
+        )
+        self.grounded[r] += obs.grounded[u]
+        self.joined[r] += obs.joined[u]
+        self.beyond[r] += obs.beyond_reach[u]
+        self.extent[r] = np.fmax(self.extent[r], obs.extent[u])
+        self.range_m[r] = np.fmax(self.range_m[r], obs.range_m[u])
+        later = self.observed[r] > 1  # a track's first velocity is the birth's guess
+        self.min_speed[r[later]] = np.minimum(self.min_speed[r[later]], obs.speed[u][later])
+        # hovered: |v| < v_hover for K updates in a row, in the air
+        slow = (obs.speed[u] < self.hover_speed) & ~obs.grounded[u] & later
+        self.slow_run[r] = np.where(slow, self.slow_run[r] + 1, 0)
+        self.hovered[r] |= self.slow_run[r] >= self.hover_frames
+        self.hovered[rows] |= tracks.hovered
+        n = np.maximum(self.observed[rows], 1)
+        return LifeFeatures(
+            age=t - self.first_t[rows],
+            observed=self.observed[rows].copy(),
+            moved=self.moved[rows].copy(),
+            range_m=self.range_m[rows].copy(),
+            grounded=self.grounded[rows] / n,
+            joined=self.joined[rows] / n,
+            beyond_reach=self.beyond[rows] / n,
+            extent=self.extent[rows].copy(),
+            hovered=self.hovered[rows].copy(),
+            min_speed=self.min_speed[rows].copy(),
+        )
+
+    def _row_of(self, ident: int, t: float) -> int:
+        row = self._row.get(ident)
+        if row is not None:
+            return row
+        row = len(self.first_t)
+        self._row[ident] = row
+        self.first_t = np.append(self.first_t, t)
+        self.last_t = np.append(self.last_t, t)
+        self.first_p = np.concatenate([self.first_p, np.full((1, 3), np.nan)])
+        self.moved = np.append(self.moved, 0.0)
+        for name in ("observed", "grounded", "joined", "beyond", "slow_run"):
+            setattr(self, name, np.append(getattr(self, name), 0))
+        self.extent = np.append(self.extent, np.nan)
+        self.range_m = np.append(self.range_m, np.nan)
+        self.hovered = np.append(self.hovered, False)
+        self.min_speed = np.append(self.min_speed, np.inf)
+        return row
+
+    def _forget(self, alive: set[int]) -> None:
+        """Drop the lives of tracks that ended (their rows are compacted)."""
+        gone = [i for i in self._row if i not in alive]
+        if not gone:
+            return
+        keep_ids = [i for i in self._row if i in alive]
+        keep = np.array([self._row[i] for i in keep_ids], dtype=np.intp)
+        for name in (
+            "first_t",
+            "last_t",
+            "first_p",
+            "moved",
+            "observed",
+            "grounded",
+            "joined",
+            "beyond",
+            "extent",
+            "range_m",
+            "slow_run",
+            "hovered",
+            "min_speed",
+        ):
+            setattr(self, name, getattr(self, name)[keep])
+        self._row = {i: n for n, i in enumerate(keep_ids)}

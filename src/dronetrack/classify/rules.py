@@ -1,0 +1,127 @@
+"""A class and p_drone for each track, from its life (``classify.features``), by rules
+whose every constant is a physical bound or a measured figure.
+
+p_drone is a logistic of summed evidence (log-odds, from an even prior):
+
+    ln(p / (1 − p)) = Σ_i w_i · [feature i holds]
+
+    hovered in the air            +4    no bird can fly below its stall speed
+    grounded (≥ half its frames)  −4    its bottom is the ground or the crop floor
+    joined (≥ half its frames)    −3    a map cell beside or below it: part of a structure
+    beyond reach (≥ half)         −6    a drone returns nothing there
+    larger than a drone           −4    extent > ``max_extent_m``
+    moving, never hovered, ≥ 2 s  −2    a bird's flight (a drone that flew fast all along
+                                        stays possible)
+
+Classes, in this order:
+
+- **static**: its clusters have not moved more than max(``still_m``, its extent,
+  ``still_rad`` × its range) from the first, over ``static_after_s`` and
+  ``min_observed`` clusters, and something says it is not in the open air (grounded,
+  joined, beyond reach or too large).  A small object holding still in the open air
+  is a hovering drone, not a static one.
+- **drone**: p_drone ≥ ``drone_p``;
+- **bird**: p_drone ≤ ``bird_p``, in the air, never slower than ``v_stall``, over
+  ``min_observed`` clusters;
+- **unknown**: the rest (a person walking, a drone in fast flight seen too briefly).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dronetrack.classify.features import LifeFeatures
+from dronetrack.errors import ConfigError
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import TRACK_CLASSES
+
+__all__ = ["ClassRules", "classify"]
+
+UNKNOWN, DRONE, BIRD, STATIC = (
+    TRACK_CLASSES.index(c) for c in ("unknown", "drone", "bird", "static")
+)
+
+W_HOVERED = 4.0
+W_GROUNDED = -4.0
+W_JOINED = -3.0
+W_BEYOND_REACH = -6.0
+W_TOO_LARGE = -4.0
+W_BIRD_FLIGHT = -2.0
+
+
+@dataclass(frozen=True, slots=True)
+class ClassRules:
+    """The rules' bounds (SI units; see the module docstring).
+
+    max_extent_m: the largest extent a drone's cluster has (a Phantom 4's 0.35 m
+    diagonal plus the beam's footprint and the points' spread); still_m, still_rad: how
+    far a static object's clusters wander (the pattern samples it in other places),
+    at least still_m and still_rad × its range (0.01 rad: twice the Avia's 0.28°
+    beam; 2 m at 200 m);
+    static_after_s: how long it must hold still; bird_after_s: how long a moving track
+    that never hovered is watched before it counts as a bird's flight; min_observed:
+    the clusters a track needs before it is called static or a bird; v_stall: the
+    slowest a bird flies [m/s]; drone_p, bird_p: the classes' thresholds on p_drone.
+    """
+
+    max_extent_m: float = 2.0
+    still_m: float = 1.0
+    still_rad: float = 0.01
+    static_after_s: float = 1.0
+    bird_after_s: float = 2.0
+    min_observed: int = 5
+    v_stall: float = 4.0
+    drone_p: float = 0.8
+    bird_p: float = 0.2
+
+    def __post_init__(self) -> None:
+        for name in ("max_extent_m", "still_m", "v_stall"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"classify: {name} must be positive, got {getattr(self, name)}")
+        for name in ("static_after_s", "bird_after_s"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"classify: {name} must be ≥ 0, got {getattr(self, name)}")
+        if not 0.0 <= self.bird_p < self.drone_p <= 1.0:
+            raise ConfigError(
+                f"classify: need 0 ≤ bird_p < drone_p ≤ 1, got {self.bird_p}, {self.drone_p}"
+            )
+
+
+def classify(
+    life: LifeFeatures, rules: ClassRules | None = None
+) -> tuple[NDArray[np.int64], FloatArray]:
+    """Each track's class (index into ``TRACK_CLASSES``) and p_drone (K,)."""
+    rules = rules if rules is not None else ClassRules()
+    grounded = life.grounded >= 0.5
+    joined = life.joined >= 0.5
+    beyond = life.beyond_reach >= 0.5
+    large = np.nan_to_num(life.extent, nan=0.0) > rules.max_extent_m
+    # d_max ≤ max(still_m, extent, θ_still r): a far object's few returns land anywhere
+    # on it and its beam footprint
+    wander = np.maximum(
+        np.nan_to_num(life.extent, nan=0.0), rules.still_rad * np.nan_to_num(life.range_m, nan=0.0)
+    )
+    still = life.moved <= np.maximum(rules.still_m, wander)
+    seen = life.observed >= rules.min_observed
+    flying = ~still & ~life.hovered & (life.age >= rules.bird_after_s) & seen
+    logit = (
+        W_HOVERED * (life.hovered & ~grounded)
+        + W_GROUNDED * grounded
+        + W_JOINED * joined
+        + W_BEYOND_REACH * beyond
+        + W_TOO_LARGE * large
+        + W_BIRD_FLIGHT * flying
+    )
+    p = 1.0 / (1.0 + np.exp(-logit))
+    classes = np.full(len(p), UNKNOWN, dtype=np.int64)
+    classes[p >= rules.drone_p] = DRONE
+    bird = (p <= rules.bird_p) & ~grounded & (life.min_speed >= rules.v_stall) & ~still & seen
+    classes[bird] = BIRD
+    static = (
+        still & seen & (life.age >= rules.static_after_s) & (grounded | joined | beyond | large)
+    )
+    classes[static] = STATIC
+    return classes, p
