@@ -365,3 +365,61 @@ def test_a_lock_on_a_bird_gives_way_to_a_drone_that_hovers(drone_speed: float, m
     else:
         assert all(on_bird[15:])
         assert not any(on_drone)
+
+
+def _ground(g: np.random.Generator) -> np.ndarray:
+    """Returns from flat ground at z = 0 around the field (below the crop's 1 m floor)."""
+    xy = g.uniform([5.0, -60.0], [120.0, 60.0], size=(300, 2))
+    return np.column_stack([xy, g.normal(0.0, 0.02, 300)])
+
+
+def test_a_lock_on_a_static_object_is_given_up_for_the_drone() -> None:
+    """An object the background does not hold stands on the ground 40 m out (a crate or
+    a bush, 1.6 × 1 × 1.2 m, its bottom cut by the crop's 1 m floor) and is alone in
+    view: the tracker locks on it.  Once its track is classed static (still for 1 s,
+    grounded) the lock is given up and the object is never offered again; a drone that
+    then hovers 30 m up, 50 m away, is locked on and held.  Without the track layer's
+    classes the lock stays on the crate."""
+    car = (40.0, 10.0, 1.6)
+    drone = (50.0, -20.0, 30.0)
+
+    def run(classes: bool) -> tuple[list[bool], list[bool], list[str]]:
+        g = np.random.default_rng(9)
+        pipe = _pipeline_with(True)
+        if not classes:
+            pipe.classifier = None
+        on_car, on_drone, car_class = [], [], []
+        for k in range(60):
+            t = 0.1 * k
+            car_pts = np.array(car) + g.uniform([-0.8, -0.5, -0.6], [0.8, 0.5, 0.6], (12, 3))
+            pts = [car_pts, _ground(g)]
+            if t >= 3.0:
+                pts.append(_drone(g, drone))
+            r = pipe.step(_frame(t, np.vstack(pts)))
+            assert r.estimate is not None
+            est = r.estimate
+            on_car.append(est.tracked and np.linalg.norm(est.position - car) < 2.5)
+            on_drone.append(est.tracked and np.linalg.norm(est.position - drone) < 1.0)
+            near = (
+                [
+                    r.tracks.class_names[k]
+                    for k in range(len(r.tracks))
+                    if r.tracks is not None and np.linalg.norm(r.tracks.positions[k] - car) < 2.5
+                ]
+                if r.tracks is not None
+                else []
+            )
+            car_class.append(near[0] if near else "")
+        return on_car, on_drone, car_class
+
+    on_car, on_drone, car_class = run(True)
+    assert any(on_car[:10])  # the car alone in view is locked first
+    static_from = car_class.index("static")
+    assert static_from <= 10 + 20  # classed static within 2 s of its track's birth
+    assert not any(on_car[static_from + 1 :])  # held no frame longer
+    first = next(k for k in range(30, 60) if on_drone[k])
+    assert first <= 30 + 6
+    assert all(on_drone[first:])
+    on_car_alone, on_drone_alone, _ = run(False)
+    assert all(on_car_alone[10:])
+    assert not any(on_drone_alone)

@@ -33,9 +33,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.classify.classifier import TrackClassifier
+from dronetrack.control.choose import STATIC, held_track, not_static
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
-from dronetrack.detect.lock import LockBook
+from dronetrack.detect.lock import SAME_TARGET_M, LockBook
 from dronetrack.detect.tentative import TentativeTracks, reach
 from dronetrack.errors import InputError
 from dronetrack.geometry.field import FieldOfRegard
@@ -168,21 +169,22 @@ class Pipeline:
                 self.tracker.reset()
                 if self.acquisition is not None:
                     self.acquisition.reset()
-            found, confirmed = self._detect(frame.end, points, steps)
+            found, confirmed, offered, tracks = self._detect(frame, fg, points, steps)
             estimate = self.tracker.step(frame.end, points, steps)
             if not np.all(np.isfinite(estimate.position)):
                 flags.append("nonfinite_estimate")
                 self.tracker.reset()
                 estimate = self.tracker.step(frame.end, np.empty((0, 3)), 0)
             if self.acquisition is not None:
-                self.acquisition.lock.update(estimate, confirmed)
-            tracks = self._tracks(frame, fg.world, found, confirmed, estimate)
+                self.acquisition.lock.update(estimate, offered)
+            if tracks is not None:
+                tracks = tracks.with_locked(estimate, SAME_TARGET_M)
             command = (
                 self.controller.tracking(
                     t_cmd,
                     estimate,
                     points,
-                    self._reachable(frame.end, confirmed),
+                    self._reachable(frame.end, offered),
                     self._cues(frame.end),
                 )
                 if steps > 0
@@ -200,56 +202,63 @@ class Pipeline:
         return result
 
     def _detect(
-        self, t: float, points: FloatArray, steps: int
-    ) -> tuple[Detections | None, Candidates | None]:
-        """Cluster the foreground and confirm candidates (a new period's frames only);
-        while the tracker is not locked, offer it the confirmed ones within reach of the
-        last fix; while it is locked on what never hovered, restart it on a confirmed
-        candidate that did (``detect.lock``)."""
+        self, frame: Frame, fg: Foreground, points: FloatArray, steps: int
+    ) -> tuple[Detections | None, Candidates | None, Candidates | None, Tracks | None]:
+        """Cluster the foreground and confirm candidates (a new period's frames only),
+        update every object's track and its class, and offer the tracker the confirmed
+        candidates whose track is not static (``control.choose``): a lock on a static
+        track is given up; while the tracker is not locked it gets the offered ones
+        within reach of the last fix; while it is locked on what never hovered, it is
+        restarted on an offered candidate that did (``detect.lock``).  Returns the
+        clusters, the confirmed candidates, those offered and the tracks."""
         if self.acquisition is None or steps == 0:
-            return None, None
+            return None, None, None, None
+        t = frame.end
         found, confirmed = self.acquisition.step(t, points)
+        tracks = self._tracks(frame, fg, found, confirmed)
+        offered = confirmed if tracks is None else not_static(confirmed, found, tracks)
         if not isinstance(self.tracker, CandidateStart):
-            return found, confirmed
+            return found, confirmed, offered, tracks
         lock = self.acquisition.lock
-        other = lock.switch(confirmed)
+        if tracks is not None and lock.locked and lock.estimate is not None:
+            held = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
+            if held >= 0 and tracks.classes[held] == STATIC:
+                log.info("frame ending %.3f s: the locked target is static; lock given up", t)
+                self.tracker.reset()
+                lock.reset()
+        other = lock.switch(offered)
         if other is not None:
             log.info("frame ending %.3f s: lock moved to a target that hovered", t)
             self.tracker.reset()
             lock.reset()
             self.tracker.acquire(other)
         elif not lock.locked:
-            start = lock.reachable(t, confirmed)
+            start = lock.reachable(t, offered)
             if start is not None and len(start) > 0:
                 self.tracker.acquire(start)
-        return found, confirmed
+        return found, confirmed, offered, tracks
 
     def _tracks(
-        self,
-        frame: Frame,
-        world: FloatArray,
-        found: Detections | None,
-        confirmed: Candidates | None,
-        estimate: TrackEstimate,
+        self, frame: Frame, fg: Foreground, found: Detections, confirmed: Candidates
     ) -> Tracks | None:
-        """Every object's track after this frame's clusters (a new period's frames only;
-        the clusters stand for the middle of the frame's period), the one the tracker
-        is locked on marked (``track.multi``), each with its class (``classify``);
-        ``world`` is every return of the frame."""
-        if self.acquisition is None or found is None or confirmed is None:
-            return None
-        objects = self.acquisition.objects
+        """Every object's track after this frame's clusters (which stand for the middle
+        of the frame's period; ``track.multi``), each with its class (``classify``).
+        The ground is learnt from the returns that are not foreground (the background
+        map's, and those the crop drops: the floor cuts the ground off), so a drone
+        seen against the sky never becomes the ground under itself."""
+        objects = self.acquisition.objects if self.acquisition is not None else None
         if objects is None:
             return None
         t = frame.end
-        objects.step(t, found, confirmed, t_meas=t - 0.5 * frame.duration)
-        tracks = objects.snapshot(estimate)
+        tracks = objects.step(t, found, confirmed, t_meas=t - 0.5 * frame.duration)
         if self.classifier is None:
             return tracks
         bg = self.background
         test = bg.is_background if bg is not None and bg.ready else None
         sensor = frame.poses[-1, :3, 3]
-        return self.classifier.step(t, tracks, found, world, sensor, test)
+        rest = np.ones(len(fg.world), dtype=bool)
+        rest[fg.index] = False
+        return self.classifier.step(t, tracks, found, fg.world[rest], sensor, test)
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
         """The candidates within the lost target's reach (``detect.lock``)."""

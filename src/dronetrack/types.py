@@ -8,7 +8,7 @@ are radians.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal, Protocol
 
 import numpy as np
@@ -291,6 +291,16 @@ class Tracks:
         diag = np.diagonal(self.covariances[:, :3, :3], axis1=1, axis2=2)
         sigma: FloatArray = np.sqrt(np.max(diag, axis=1))
         return sigma
+
+    def with_locked(self, estimate: TrackEstimate, within: float) -> Tracks:
+        """These tracks with ``locked`` marking the one nearest a locked ``estimate``
+        within ``within`` [m] (none when the estimate is not locked)."""
+        locked = np.zeros(len(self), dtype=bool)
+        if estimate.tracked and len(self):
+            gap = np.linalg.norm(self.positions - estimate.position, axis=1)
+            k = int(np.argmin(gap))
+            locked[k] = bool(gap[k] <= within)
+        return replace(self, locked=locked)
 
     @property
     def class_names(self) -> list[str]:

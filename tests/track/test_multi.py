@@ -19,7 +19,6 @@ from dronetrack.track.multi import (
     cv_predict,
     cv_process_noise,
     gate_costs,
-    locked_track,
 )
 from dronetrack.types import Candidates, Detections, TrackEstimate
 
@@ -205,14 +204,18 @@ def test_twenty_objects_among_fifty_clusters_a_frame_keep_twenty_tracks() -> Non
 
 
 def test_the_locked_track_is_the_one_at_a_locked_estimate() -> None:
-    positions = np.array([[0.0, 0, 0], [10.0, 0, 0]])
+    layer = _Layer()
+    for k in range(3):
+        layer.step(k * T, np.array([[0.0, 0, 5], [10.0, 0, 5]]))
 
     def estimate(p: list[float], tracked: bool) -> TrackEstimate:
         return TrackEstimate(1.0, np.array(p), np.zeros(3), tracked, 0.2)
 
-    assert locked_track(positions, estimate([9.5, 0, 0], True)).tolist() == [False, True]
-    assert not locked_track(positions, estimate([9.5, 0, 0], False)).any()
-    assert not locked_track(positions, estimate([5.0, 0, 0], True)).any()  # 5 m from both
+    order = np.argsort(layer.tracks.x[:, 0])
+    locked = layer.tracks.snapshot(estimate([9.5, 0, 5], True)).locked[order]
+    assert locked.tolist() == [False, True]
+    assert not layer.tracks.snapshot(estimate([9.5, 0, 5], False)).locked.any()
+    assert not layer.tracks.snapshot(estimate([5.0, 0, 5], True)).locked.any()  # 5 m off
 
 
 def test_the_snapshot_reports_states_covariances_and_defaults() -> None:

@@ -56,8 +56,9 @@ class TrackClassifier:
         is_background: BackgroundTest | None = None,
     ) -> Tracks:
         """``tracks`` after the frame ending at ``t`` with their classes and p_drone;
-        ``world`` (N, 3) every return of the frame, ``sensor`` (3,) the sensor's
-        position, ``is_background`` the background map's test (None: no map yet)."""
+        ``world`` (N, 3) the frame's returns that are no target (the ground is learnt
+        from them), ``sensor`` (3,) the sensor's position, ``is_background`` the
+        background map's test (None: no map yet)."""
         self.ground.insert(world)
         obs = observe(
             tracks,

@@ -52,6 +52,7 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
+from dronetrack.detect.lock import SAME_TARGET_M
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.kalman import kf_update, position_selector
@@ -64,13 +65,9 @@ __all__ = [
     "cv_predict",
     "cv_process_noise",
     "gate_costs",
-    "locked_track",
 ]
 
 _H = position_selector(6)
-# A track this close [m] to a locked estimate is the one locked (as ``detect.lock``'s
-# candidate of the locked target: the cloud's mean lies within the cluster's half-size).
-LOCKED_WITHIN_M = 2.0
 _INFEASIBLE = 1e12  # an assignment cost no pair inside the gates can reach
 
 
@@ -175,20 +172,6 @@ def associate(cost: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     rows, cols = linear_sum_assignment(cost)
     keep = cost[rows, cols] < _INFEASIBLE
     return rows[keep], cols[keep]
-
-
-def locked_track(
-    positions: FloatArray, estimate: TrackEstimate, within: float = LOCKED_WITHIN_M
-) -> NDArray[np.bool_]:
-    """(K,) the track nearest a locked ``estimate`` within ``within`` [m]; none when
-    the estimate is not locked."""
-    locked = np.zeros(len(positions), dtype=bool)
-    if not estimate.tracked or len(positions) == 0:
-        return locked
-    gap = np.linalg.norm(positions - estimate.position, axis=1)
-    k = int(np.argmin(gap))
-    locked[k] = bool(gap[k] <= within)
-    return locked
 
 
 def measurement_noise(found: Detections, sigma_meas: float) -> FloatArray:
@@ -349,11 +332,10 @@ class MultiTargetTracker:
             setattr(self, name, getattr(self, name)[keep])
 
     def snapshot(self, estimate: TrackEstimate | None = None) -> Tracks:
-        """The tracks as they stand, the one at a locked ``estimate`` of the turret's
-        tracker marked locked (``locked_track``)."""
+        """The tracks as they stand, the one nearest a locked ``estimate`` of the turret's
+        tracker (within ``detect.lock``'s SAME_TARGET_M) marked locked."""
         k = len(self)
-        locked = None if estimate is None else locked_track(self.x[:, :3], estimate)
-        return Tracks(
+        tracks = Tracks(
             ids=self.ids.copy(),
             positions=self.x[:, :3].copy(),
             velocities=self.x[:, 3:].copy(),
@@ -361,6 +343,7 @@ class MultiTargetTracker:
             born=self.born.copy(),
             updated=self.updated.copy(),
             hovered=self.hovered.copy(),
-            locked=np.zeros(k, dtype=bool) if locked is None else locked,
+            locked=np.zeros(k, dtype=bool),
             clusters=np.where(self.updated, self.cluster, -1),
         )
+        return tracks if estimate is None else tracks.with_locked(estimate, SAME_TARGET_M)
