@@ -256,9 +256,7 @@ class Pipeline:
         bg = self.background
         test = bg.is_background if bg is not None and bg.ready else None
         sensor = frame.poses[-1, :3, 3]
-        rest = np.ones(len(fg.world), dtype=bool)
-        rest[fg.index] = False
-        return self.classifier.step(t, tracks, found, fg.world[rest], sensor, test)
+        return self.classifier.step(t, tracks, found, fg.world, fg.index, sensor, test)
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
         """The candidates within the lost target's reach (``detect.lock``)."""

@@ -90,10 +90,20 @@ class Frame:
 
 
 def _frozen(a: NDArray[Any], dtype: type[np.generic], shape: tuple[int, ...]) -> NDArray[Any]:
-    """A read-only copy of ``a`` as ``dtype``; InputError unless its shape is ``shape``."""
+    """A read-only copy of ``a`` as ``dtype`` (``a`` itself when it is one already, as a
+    field handed on by ``dataclasses.replace`` is); InputError unless its shape is
+    ``shape``."""
+    if (
+        isinstance(a, np.ndarray)
+        and not a.flags.writeable
+        and a.dtype == dtype
+        and a.shape == shape
+        and a.base is None
+    ):
+        return a
     out = np.array(a, dtype=dtype)
     if out.shape != shape:
-        raise InputError(f"detections: expected shape {shape}, got {out.shape}")
+        raise InputError(f"expected shape {shape}, got {out.shape}")
     out.flags.writeable = False
     return out
 

@@ -11,13 +11,14 @@ from scipy.stats import chi2
 
 from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
 from dronetrack.errors import ConfigError
-from dronetrack.track.kalman import cv_transition, kf_predict
+from dronetrack.track.kalman import cv_transition, kf_predict, kf_update, position_selector
 from dronetrack.track.multi import (
     MultiTargetTracker,
     TrackSettings,
     associate,
     cv_predict,
     cv_process_noise,
+    cv_update,
     gate_costs,
 )
 from dronetrack.types import Candidates, Detections, TrackEstimate
@@ -76,6 +77,21 @@ def test_the_bank_predicts_each_track_as_one_kalman_filter_would() -> None:
         )
         np.testing.assert_allclose(xb[k], xk, atol=1e-12)
         np.testing.assert_allclose(Pb[k], Pk, atol=1e-9)
+
+
+def test_the_bank_updates_each_track_as_one_kalman_filter_would() -> None:
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(5, 6))
+    A = rng.normal(size=(5, 6, 6))
+    P = A @ np.transpose(A, (0, 2, 1)) + np.eye(6)
+    z = rng.normal(size=(5, 3))
+    B = rng.normal(size=(5, 3, 3))
+    R = B @ np.transpose(B, (0, 2, 1)) + 0.1 * np.eye(3)
+    xb, Pb = cv_update(x, P, z, R)
+    for k in range(5):
+        up = kf_update(x[k], P[k], z[k], position_selector(6), R[k])
+        np.testing.assert_allclose(xb[k], up.x, atol=1e-10)
+        np.testing.assert_allclose(Pb[k], up.P, atol=1e-9)
 
 
 @settings(max_examples=30, deadline=None)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dronetrack.classify.features import BackgroundTest, TrackLives, observe
 from dronetrack.classify.rules import ClassRules, classify
@@ -33,18 +34,21 @@ class TrackClassifier:
         hover_speed: float = 4.0,
         hover_frames: int = 3,
         ground_cell_m: float = 5.0,
+        ground_every: int = 5,
     ) -> None:
         self.rules = rules if rules is not None else ClassRules()
         self.reach_m = reach_m
         self.floor_z = floor_z
         self.hover = (hover_speed, hover_frames)
         self.ground_cell_m = ground_cell_m
+        self.ground_every = ground_every
         self.reset()
 
     def reset(self) -> None:
         """Forget the ground and every track's life."""
         self.ground = GroundGrid(self.ground_cell_m)
         self.lives = TrackLives(*self.hover)
+        self._frames = 0
 
     def step(
         self,
@@ -52,14 +56,23 @@ class TrackClassifier:
         tracks: Tracks,
         found: Detections,
         world: FloatArray,
+        foreground: NDArray[np.int64],
         sensor: FloatArray,
         is_background: BackgroundTest | None = None,
     ) -> Tracks:
-        """``tracks`` after the frame ending at ``t`` with their classes and p_drone;
-        ``world`` (N, 3) the frame's returns that are no target (the ground is learnt
-        from them), ``sensor`` (3,) the sensor's position, ``is_background`` the
-        background map's test (None: no map yet)."""
-        self.ground.insert(world)
+        """``tracks`` after the frame ending at ``t`` with their classes and p_drone.
+
+        ``world`` (N, 3) is every return of the frame and ``foreground`` the rows of it
+        that are foreground: the ground is learnt from the others, every
+        ``ground_every`` frames (it changes slowly; a sample of a frame costs 0.2 ms);
+        ``sensor`` (3,) is the sensor's position, ``is_background`` the background
+        map's test (None: no map yet)."""
+        if self._frames % self.ground_every == 0:
+            sample = np.arange(0, len(world), self.ground.stride)
+            fg = np.zeros(len(world), dtype=bool)
+            fg[foreground] = True
+            self.ground.insert(world[sample[~fg[sample]]], stride=1)
+        self._frames += 1
         obs = observe(
             tracks,
             found,

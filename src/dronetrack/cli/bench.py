@@ -78,6 +78,10 @@ def bench_table(results: dict[str, Any], path: Path) -> Table:
 
     for n, row in results["pf_step_ms"].items():
         add(f"pipeline, {int(n):,} particles", row, f"pf_step_ms.{n}.median")
+    multi = results["multi_step_ms"]
+    add(f"pipeline, {multi['tracks']} tracks", multi, "")
+    cells = _target_cells(targets, "multi_step_ms.p99")
+    table.add_row(f"  {multi['clusters']} clusters: p99", f"{multi['p99']:.2f}", "", "", "", *cells)
     table.add_section()
     for kind, row in results["tracker_step_ms"].items():
         add(f"tracker, {kind}", row, "")

@@ -29,6 +29,7 @@ __all__ = ["GroundGrid", "cell_keys"]
 _BITS = 31
 _OFFSET = 1 << (_BITS - 1)
 IntArray = NDArray[np.int64]
+_DX, _DY = (a.ravel() for a in np.meshgrid([-1, 0, 1], [-1, 0, 1], indexing="ij"))
 
 
 def cell_keys(ix: IntArray, iy: IntArray) -> IntArray:
@@ -58,9 +59,10 @@ class GroundGrid:
             raise InputError("ground grid: a point lies beyond the grid's reach")
         return idx[:, 0], idx[:, 1]
 
-    def insert(self, points: FloatArray) -> None:
-        """Take a frame's world points (N, 3): g ← min(g, z) per cell."""
-        pts = points[:: self.stride]
+    def insert(self, points: FloatArray, stride: int | None = None) -> None:
+        """Take a frame's world points (N, 3): g ← min(g, z) per cell, over every
+        ``stride``-th point (default: the grid's)."""
+        pts = points[:: self.stride if stride is None else stride]
         pts = pts[finite_mask(pts)]
         if len(pts) == 0:
             return
@@ -82,15 +84,13 @@ class GroundGrid:
         """The ground's height under each point (K, 2) [m]: the lowest g over its cell and
         the 8 around it; NaN where none of them was seen."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        out = np.full(len(xy), np.inf)
         if len(xy) == 0 or len(self.keys) == 0:
             return np.full(len(xy), np.nan)
         ix, iy = self._index(xy)
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                keys = cell_keys(ix + dx, iy + dy)
-                at = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
-                hit = self.keys[at] == keys
-                out[hit] = np.minimum(out[hit], self.low[at[hit]])
+        # the 3 × 3 cells around each point, (K, 9), looked up at once
+        keys = cell_keys(ix[:, None] + _DX, iy[:, None] + _DY)
+        at = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
+        low = np.where(self.keys[at] == keys, self.low[at], np.inf)
+        out: FloatArray = low.min(axis=1)
         out[~np.isfinite(out)] = np.nan
         return out

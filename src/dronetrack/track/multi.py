@@ -55,7 +55,6 @@ from scipy.stats import chi2
 from dronetrack.detect.lock import SAME_TARGET_M
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.track.kalman import kf_update, position_selector
 from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
 
 __all__ = [
@@ -64,10 +63,10 @@ __all__ = [
     "associate",
     "cv_predict",
     "cv_process_noise",
+    "cv_update",
     "gate_costs",
 ]
 
-_H = position_selector(6)
 _INFEASIBLE = 1e12  # an assignment cost no pair inside the gates can reach
 
 
@@ -129,13 +128,42 @@ def cv_process_noise(dt: FloatArray, sigma_a: float) -> FloatArray:
 def cv_predict(
     x: FloatArray, P: FloatArray, dt: FloatArray, sigma_a: float
 ) -> tuple[FloatArray, FloatArray]:
-    """Every track's (x⁻, P⁻) after its own Δt (K,): x⁻ = F x, P⁻ = F P Fᵀ + Q."""
+    """Every track's (x⁻, P⁻) after its own Δt (K,): x⁻ = F x, P⁻ = F P Fᵀ + Q, by
+    blocks (F = [[I, Δt I], [0, I]], P = [[A, B], [Bᵀ, C]]):
+
+        p⁻ = p + Δt v,   v⁻ = v
+        A⁻ = A + Δt (B + Bᵀ) + Δt² C + Q_pp,   B⁻ = B + Δt C + Q_pv,   C⁻ = C + Q_vv
+    """
     dt = np.asarray(dt, dtype=np.float64)
-    F = np.broadcast_to(np.eye(6), (len(dt), 6, 6)).copy()
-    F[:, :3, 3:] = dt[:, None, None] * np.eye(3)
-    x_pred = np.einsum("kij,kj->ki", F, x)
-    P_pred = F @ P @ np.transpose(F, (0, 2, 1)) + cv_process_noise(dt, sigma_a)
+    d = dt[:, None, None]
+    x_pred = x.copy()
+    x_pred[:, :3] += dt[:, None] * x[:, 3:]
+    A, B, C = P[:, :3, :3], P[:, :3, 3:], P[:, 3:, 3:]
+    Q = cv_process_noise(dt, sigma_a)
+    P_pred = np.empty_like(P)
+    B_new = B + d * C + Q[:, :3, 3:]
+    P_pred[:, :3, :3] = A + d * (B + np.transpose(B, (0, 2, 1))) + d * d * C + Q[:, :3, :3]
+    P_pred[:, :3, 3:] = B_new
+    P_pred[:, 3:, :3] = np.transpose(B_new, (0, 2, 1))
+    P_pred[:, 3:, 3:] = C + Q[:, 3:, 3:]
     return x_pred, 0.5 * (P_pred + np.transpose(P_pred, (0, 2, 1)))
+
+
+def cv_update(
+    x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The position update of K tracks at once (H = [I 0]; Joseph form, as
+    ``track.kalman.kf_update``): S = P_pp + R,  K = P Hᵀ S⁻¹,  x⁺ = x + K (z − p),
+    P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ."""
+    PHt = P[:, :, :3]  # P Hᵀ (K, 6, 3)
+    S = P[:, :3, :3] + R
+    # K = P Hᵀ S⁻¹  ⇔  S Kᵀ = (P Hᵀ)ᵀ  (S symmetric)
+    gain = np.transpose(np.linalg.solve(S, np.transpose(PHt, (0, 2, 1))), (0, 2, 1))
+    x_post = x + np.einsum("kij,kj->ki", gain, z - x[:, :3])
+    I_KH = np.broadcast_to(np.eye(6), P.shape).copy()
+    I_KH[:, :, :3] -= gain
+    P_post = I_KH @ P @ np.transpose(I_KH, (0, 2, 1)) + gain @ R @ np.transpose(gain, (0, 2, 1))
+    return x_post, 0.5 * (P_post + np.transpose(P_post, (0, 2, 1)))
 
 
 def gate_costs(
@@ -235,8 +263,8 @@ class MultiTargetTracker:
         cost = gate_costs(self.x, self.P, self.p_update, reach, found.centroids, R, self._gate)
         # a track unseen for longer than stale_s takes a confirmed candidate's cluster only
         stale = t_z - self.t_update > s.stale_s
+        of = _cluster_of(confirmed, found)  # each candidate's cluster
         confirmed_cluster = np.zeros(len(found), dtype=bool)
-        of = _cluster_of(confirmed, found)
         confirmed_cluster[of[of >= 0]] = True
         near = (
             np.linalg.norm(self.x[:, None, :3] - found.centroids[None, :, :], axis=2)
@@ -244,9 +272,10 @@ class MultiTargetTracker:
         )
         cost[stale[:, None] & ~confirmed_cluster[None, :] & ~near] = _INFEASIBLE
         rows, cols = associate(cost)
-        for k, j in zip(rows, cols, strict=True):
-            up = kf_update(self.x[k], self.P[k], found.centroids[j], _H, R[j])
-            self.x[k], self.P[k] = up.x, up.P
+        if len(rows):
+            self.x[rows], self.P[rows] = cv_update(
+                self.x[rows], self.P[rows], found.centroids[cols], R[cols]
+            )
         self.updated = np.zeros(len(self), dtype=bool)
         self.updated[rows] = True
         self.cluster = np.full(len(self), -1, dtype=np.intp)
@@ -254,11 +283,11 @@ class MultiTargetTracker:
         self.t_update[rows] = t_z
         self.p_update[rows] = self.x[rows, :3]
         self.updates[rows] += 1
-        self._note_hover(confirmed, found)
+        self._note_hover(confirmed, of)
         self._drop(t_z - self.t_update <= s.coast_s)
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True
-        self._births(t_z, confirmed, found, taken)
+        self._births(t_z, confirmed, found, of, taken)
         self._predict(t)
         return self.snapshot()
 
@@ -268,21 +297,25 @@ class MultiTargetTracker:
         self.x, self.P = cv_predict(self.x, self.P, dt, self.settings.sigma_acc)
         self.t = np.maximum(self.t, t)
 
-    def _note_hover(self, confirmed: Candidates, found: Detections) -> None:
-        """A track whose cluster is a candidate that hovered has hovered (one-way)."""
+    def _note_hover(self, confirmed: Candidates, of: NDArray[np.intp]) -> None:
+        """A track whose cluster is a candidate that hovered has hovered (one-way);
+        ``of``: each candidate's cluster."""
         if len(confirmed) == 0 or len(self) == 0:
             return
-        of = _cluster_of(confirmed, found)
         hovered_clusters = set(of[confirmed.hovered & (of >= 0)].tolist())
         for k in np.flatnonzero(self.updated):
             if int(self.cluster[k]) in hovered_clusters:
                 self.hovered[k] = True
 
     def _births(
-        self, t: float, confirmed: Candidates, found: Detections, taken: NDArray[np.bool_]
+        self,
+        t: float,
+        confirmed: Candidates,
+        found: Detections,
+        of: NDArray[np.intp],
+        taken: NDArray[np.bool_],
     ) -> None:
         s = self.settings
-        of = _cluster_of(confirmed, found)
         new = np.flatnonzero((of >= 0) & ~taken[np.maximum(of, 0)])
         if len(new) == 0:
             return
