@@ -56,10 +56,12 @@ SeedOption = Annotated[
     int | None, typer.Option("--seed", min=0, help="Random seed.", show_default=SCENARIOS_OWN)
 ]
 TrajectoryOption = Annotated[
-    Path | None,
+    list[Path] | None,
     typer.Option(
         "--trajectory",
-        help="The target's path: a CSV with columns t,x,y,z.",
+        metavar="<path>",
+        help="The target's path: a CSV with columns t,x,y,z.  Repeat it to add drones: "
+        "each further file is another drone of the scenario's model, from the start.",
         show_default=SCENARIOS_OWN,
     ),
 ]

@@ -1,5 +1,9 @@
 """Scenarios: a scene, a target and its trajectory, a sensor on a turret, and the weather.
 
+The target (``[drone]`` and ``[trajectory]``) is the drone the run is scored on;
+``[[targets]]`` entries add further drones, each with its own model, path and
+start time.
+
 The turret stands on the ground at the world origin, or, with an ``[observer]``
 section, rides on a drone flying its own trajectory (seed 002's relative
 tracking); its base is then an offset in the drone's body frame.
@@ -13,7 +17,7 @@ override any key.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, ClassVar, Literal, Self
 
@@ -33,6 +37,7 @@ __all__ = [
     "ScenarioConfig",
     "SceneConfig",
     "SensorConfig",
+    "TargetConfig",
     "TrajectoryConfig",
     "TurretConfig",
     "WeatherConfig",
@@ -132,6 +137,30 @@ class TrajectoryConfig(FlightSource):
     """The target's path."""
 
 
+class TargetConfig(StrictModel):
+    """A further drone (a ``[[targets]]`` entry): its model, its path, and when it enters.
+
+    The path is a named ``flight`` or a CSV ``file`` (columns t,x,y,z), one of them.
+    The drone is not in the world before ``start_s``, counted as ``duration_s`` is
+    (from the end of the background scan in ``simulate``); it then waits ``hold_s``
+    at the path's first point and flies it.  A file's first row is placed there, as
+    ``[trajectory] file`` is placed at its ``hold_s``.
+    """
+
+    model: str = "phantom4"
+    flight: str | None = None
+    file: str | None = None
+    start_s: float = Field(0.0, ge=0, le=MAX_DURATION_S, allow_inf_nan=False)
+    hold_s: float = Field(0.0, ge=0, le=MAX_DURATION_S, allow_inf_nan=False)
+    reflectivity_scale: float = Field(1.0, gt=0, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _one_path(self) -> Self:
+        if (self.flight is None) == (self.file is None):
+            raise ValueError("give a target either a flight (a named one) or a file, one of them")
+        return self
+
+
 DEFAULT_OBSERVER_FLIGHT = "observer-hover"
 
 
@@ -206,8 +235,20 @@ class ScenarioConfig(StrictModel):
     turret: TurretConfig = TurretConfig()
     weather: WeatherConfig = WeatherConfig()
     observer: ObserverConfig | None = None  # None: the turret stands on the ground
+    # Further drones besides the target ([[targets]]); the run is scored on the target.
+    targets: tuple[TargetConfig, ...] = ()
     # How the run is processed by ``dronetrack simulate``; the simulator ignores it.
     pipeline: PipelineConfig = PipelineConfig()
+
+    @model_validator(mode="after")
+    def _targets_start_in_the_run(self) -> Self:
+        for i, target in enumerate(self.targets):
+            if target.start_s >= self.duration_s:
+                raise ValueError(
+                    f"targets.{i}.start_s = {target.start_s:g} s is not before the run ends "
+                    f"(duration_s = {self.duration_s:g} s): the drone would never be seen"
+                )
+        return self
 
 
 def format_validation_error(err: ValidationError, source: str) -> str:
@@ -216,6 +257,9 @@ def format_validation_error(err: ValidationError, source: str) -> str:
     key = ".".join(str(p) for p in first["loc"]) or "(top level)"
     if first["type"] == "extra_forbidden":
         msg = f"{source}: unknown key '{key}'"
+    elif not first["loc"] and first["type"] == "value_error":
+        # A check across sections names its keys itself.
+        msg = f"{source}: {first['msg'].removeprefix('Value error, ')}"
     else:
         msg = f"{source}: {key}: {first['msg']}"
     more = len(err.errors()) - 1
@@ -313,8 +357,8 @@ def absolute_path(path: str) -> str:
 def map_paths(
     cfg: ScenarioConfig, fix: Callable[[str], str], background: bool = True
 ) -> ScenarioConfig:
-    """The scenario with ``fix`` applied to every file it names: the trajectory and
-    observer CSVs, a ``file:`` scan pattern and (with ``background``) a saved background."""
+    """The scenario with ``fix`` applied to every file it names: the trajectory, target
+    and observer CSVs, a ``file:`` scan pattern and (with ``background``) a saved background."""
     traj, sensor, observer = cfg.trajectory, cfg.sensor, cfg.observer
     if traj.file is not None:
         traj = traj.model_copy(update={"file": fix(traj.file)})
@@ -322,12 +366,21 @@ def map_paths(
         observer = observer.model_copy(update={"file": fix(observer.file)})
     if sensor.model.lower().startswith("file:"):
         sensor = sensor.model_copy(update={"model": f"file:{fix(sensor.model[5:])}"})
+    targets = tuple(
+        t if t.file is None else t.model_copy(update={"file": fix(t.file)}) for t in cfg.targets
+    )
     pipeline = cfg.pipeline
     if background and pipeline.background.file is not None:
         stored = pipeline.background.model_copy(update={"file": fix(pipeline.background.file)})
         pipeline = pipeline.model_copy(update={"background": stored})
     return cfg.model_copy(
-        update={"trajectory": traj, "sensor": sensor, "pipeline": pipeline, "observer": observer}
+        update={
+            "trajectory": traj,
+            "sensor": sensor,
+            "pipeline": pipeline,
+            "observer": observer,
+            "targets": targets,
+        }
     )
 
 
@@ -336,7 +389,7 @@ def apply_overrides(
     *,
     seed: int | None = None,
     duration: float | None = None,
-    trajectory: Path | None = None,
+    trajectory: Path | Sequence[Path] | None = None,
     visibility: float | None = None,
     drone: str | None = None,
     sensor: str | None = None,
@@ -347,7 +400,12 @@ def apply_overrides(
     source: str = "command line",
 ) -> ScenarioConfig:
     """The scenario with command-line overrides applied (None leaves a value alone); a
-    bad value is a ScenarioError naming ``source`` (where the values came from)."""
+    bad value is a ScenarioError naming ``source`` (where the values came from).
+
+    ``trajectory`` may name several CSV files: the first replaces the target's path,
+    each further one adds a drone of the scenario's model (after ``drone``) on it,
+    entering at the start, after any ``[[targets]]`` the scenario has."""
+    paths = [trajectory] if isinstance(trajectory, Path) else list(trajectory or ())
     data = cfg.model_dump()
     if tracker is not None:
         data["pipeline"]["tracker"]["kind"] = tracker
@@ -359,10 +417,10 @@ def apply_overrides(
         data["seed"] = seed
     if duration is not None:
         data["duration_s"] = duration
-    if trajectory is not None:
+    if paths:
         data["trajectory"] = {
             "name": None,
-            "file": str(trajectory),
+            "file": str(paths[0]),
             "hold_s": cfg.trajectory.hold_s,
         }
     if visibility is not None:
@@ -375,6 +433,8 @@ def apply_overrides(
         data["sensor"]["model"] = sensor
     if noise is not None:
         data["sensor"]["noise"] = noise
+    model = data["drone"]["model"]
+    data["targets"] = [*data["targets"], *({"model": model, "file": str(p)} for p in paths[1:])]
     cfg = validate_scenario(data, source)
     if drone is not None or sensor is not None or visibility is not None:
         cfg = with_rig_reach(cfg)  # the reach belongs to the sensor, the drone and the air
@@ -382,5 +442,9 @@ def apply_overrides(
 
 
 def dump_scenario(config: ScenarioConfig) -> str:
-    """The scenario as TOML (keys left unset are omitted)."""
-    return tomli_w.dumps(config.model_dump(exclude_none=True))
+    """The scenario as TOML (keys left unset are omitted, and so is ``targets`` when
+    there are none); further drones are ``[[targets]]`` tables."""
+    data = config.model_dump(exclude_none=True)
+    if not data["targets"]:
+        del data["targets"]
+    return tomli_w.dumps(data)

@@ -25,6 +25,7 @@ from dronetrack.config.run import (
     ScenarioConfig,
     SceneConfig,
     SensorConfig,
+    TargetConfig,
     TrajectoryConfig,
     TurretConfig,
     WeatherConfig,
@@ -274,6 +275,15 @@ def _acquisition(
     )
 
 
+def _several(name: str, flights: list[str], description: str, duration: float) -> ScenarioConfig:
+    """Several Phantom 4s in the acquisition rig's field of regard: the first flight is
+    the target's (the one the run is scored on), the others ``[[targets]]`` entering as
+    the background scan ends."""
+    base = _acquisition(name, flights[0], description, duration)
+    others = tuple(TargetConfig(model="phantom4", flight=f) for f in flights[1:])
+    return base.model_copy(update={"targets": others})
+
+
 _LIST = [
     DEFAULT,
     _acquisition(
@@ -300,6 +310,21 @@ _LIST = [
         "acquisition: hides behind a barn at 60 m, reappears 25° further round, climbing",
         50.0,
         scene="outdoor-barn",
+    ),
+    _several(
+        "outdoor-two-drones",
+        ["crossing-left", "crossing-right"],
+        "two Phantom 4s from 170 m out at bearings 60° apart (±30°), in to 110 m, across "
+        "each other's path once (67 m out, 10 m apart in height) and away; scored on the "
+        "first",
+        35.0,
+    ),
+    _several(
+        "outdoor-swarm",
+        ["swarm-1", "swarm-2", "swarm-3", "swarm-4"],
+        "four Phantom 4s 12-24 m apart flying together: in from 170 m out at 15° to 60 m, "
+        "across to −45° and away; scored on the first",
+        40.0,
     ),
     _cluttered(
         DEFAULT,

@@ -98,6 +98,23 @@ FRAME_COLUMNS = (
 )
 
 
+def _objects(truths: list[FrameTruth]) -> dict[str, Any]:
+    """Every drone and bird (``types.ObjectTruth``): per point ``object_index``, per
+    object ``object_ids`` and ``object_kinds``, per frame and object ``object_positions``,
+    ``object_velocities`` (NaN while absent) and ``object_present``."""
+    objects = [tr.objects for tr in truths if tr.objects is not None]
+    if not objects or len(objects) != len(truths):
+        return {}
+    return {
+        "object_index": np.concatenate([o.object_index for o in objects]),
+        "object_ids": objects[0].ids,
+        "object_kinds": objects[0].kinds,
+        "object_positions": np.stack([o.positions for o in objects]),
+        "object_velocities": np.stack([o.velocities for o in objects]),
+        "object_present": np.stack([o.present for o in objects]),
+    }
+
+
 def write_rendering(rendering: Rendering, out_dir: Path) -> list[Path]:
     """Write frames.npz, frames.csv, scenario.toml and preview.png; return the paths."""
     from dronetrack.sim.preview import plot_preview
@@ -116,6 +133,7 @@ def write_rendering(rendering: Rendering, out_dir: Path) -> list[Path]:
     np.savez_compressed(
         npz,
         **clutter,
+        **_objects(truths),
         x=np.concatenate([f.points[:, 0] for f in frames]),
         y=np.concatenate([f.points[:, 1] for f in frames]),
         z=np.concatenate([f.points[:, 2] for f in frames]),

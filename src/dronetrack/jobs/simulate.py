@@ -168,13 +168,16 @@ def run_lockstep(
 
 def flight_config(cfg: ScenarioConfig) -> ScenarioConfig:
     """The scenario whose flight starts after the background scan: the target waits on
-    the ground for ``scan_s`` more."""
+    the ground for ``scan_s`` more, and the other drones ([[targets]]) enter ``scan_s``
+    later (their ``start_s`` counts from the scan's end, as ``duration_s`` does)."""
     scan_s = scan_duration(cfg.pipeline)
+    targets = tuple(t.model_copy(update={"start_s": t.start_s + scan_s}) for t in cfg.targets)
     return cfg.model_copy(
         update={
             "trajectory": cfg.trajectory.model_copy(
                 update={"hold_s": cfg.trajectory.hold_s + scan_s}
-            )
+            ),
+            "targets": targets,
         }
     )
 

@@ -18,16 +18,19 @@ from dronetrack.config.run import (
     ObserverConfig,
     ScenarioConfig,
     SensorConfig,
+    TargetConfig,
     absolute_path,
     map_paths,
 )
 from dronetrack.config.tomlfile import tidy_model
+from dronetrack.errors import ConfigError, ScenarioError
 from dronetrack.sim.clutter import ClutterSpec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.flights import make_flight
 from dronetrack.sim.physics import extinction_coefficient
 from dronetrack.sim.scene import make_scene
 from dronetrack.sim.sensors import SensorModel, make_sensor
+from dronetrack.sim.targets import SimTarget
 from dronetrack.sim.trajectories import Trajectory, load_csv_trajectory
 from dronetrack.sim.world import Observer, SimWorld
 
@@ -61,6 +64,24 @@ def _flight(source: FlightSource, duration: float, rng: np.random.Generator) -> 
         return load_csv_trajectory(Path(source.file).expanduser(), t0=source.hold_s)
     assert source.name is not None
     return make_flight(source.name, source.hold_s, duration, rng)
+
+
+def _target(i: int, cfg: TargetConfig, duration: float, rng: np.random.Generator) -> SimTarget:
+    """Target entry ``i``: in the world from ``start_s``, flying its path from
+    ``start_s + hold_s`` (a file's first row there); a bad entry is a ScenarioError
+    naming it."""
+    take_off = cfg.start_s + cfg.hold_s
+    try:
+        drone = make_drone(cfg.model, cfg.reflectivity_scale)
+        path: Trajectory
+        if cfg.file is not None:
+            path = load_csv_trajectory(Path(cfg.file).expanduser(), t0=take_off)
+        else:
+            assert cfg.flight is not None
+            path = make_flight(cfg.flight, take_off, duration, rng)
+    except ConfigError as err:
+        raise ScenarioError(f"targets.{i}: {err}") from None
+    return SimTarget(drone, path, cfg.start_s)
 
 
 def _observer(cfg: ObserverConfig, duration: float, rng: np.random.Generator) -> Observer:
@@ -98,7 +119,11 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
 
     The observer's flight (if any) is built after the target's, so the target flies
     the same path with or without one.  The birds' crossing times count from the
-    target's take-off, ``trajectory.hold_s``.
+    target's take-off, ``trajectory.hold_s``.  The ``[[targets]]`` drones' flights and
+    detections draw from a stream of their own, spawned after the world's, so the
+    target, the observer and the clutter are the same with or without them; their
+    ``start_s`` is a time on the world's clock here (``jobs.simulate.flight_config``
+    moves it past the background scan).
     """
     rng = np.random.default_rng(cfg.seed) if rng is None else rng
     sensor = _sensor(cfg.sensor)
@@ -107,7 +132,7 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
     drone = make_drone(cfg.drone.model, cfg.drone.reflectivity_scale)
     trajectory = _flight(cfg.trajectory, cfg.duration_s, rng)
     observer = None if cfg.observer is None else _observer(cfg.observer, cfg.duration_s, rng)
-    return SimWorld(
+    world = SimWorld(
         sensor=sensor,
         scene=scene,
         drone=drone,
@@ -125,3 +150,8 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
         if cfg.scene.clutter is None
         else ClutterSpec.from_config(cfg.scene.clutter, cfg.trajectory.hold_s),
     )
+    if cfg.targets:
+        stream = rng.spawn(1)[0]  # after the world's own (odometry drift, clutter)
+        others = [_target(i, t, cfg.duration_s, stream) for i, t in enumerate(cfg.targets)]
+        world.add_targets(others, stream)
+    return world

@@ -33,15 +33,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from dronetrack.errors import TrajectoryError
-from dronetrack.geometry.transforms import FloatArray
+from dronetrack.sim.group_flights import SWARM_OFFSETS, crossing, swarm_member
 from dronetrack.sim.trajectories import (
     PiecewiseAcceleration,
+    Superposed,
     Trajectory,
     Waypoint,
     fly_waypoints,
+    polar,
     random_manoeuvres,
 )
 
@@ -133,37 +134,6 @@ def _aggressive(hold: float, duration: float, rng: np.random.Generator) -> Traje
     )
 
 
-@dataclass(frozen=True, slots=True)
-class _Superposed:
-    """A path plus a motion about zero:  p(t) = p_path(t) + p_wobble(t), and so for v and a.
-
-    Speeds and accelerations add at most: |v| ≤ |v_path| + |v_wobble|.
-    """
-
-    path: Trajectory
-    wobble: Trajectory
-
-    @property
-    def start(self) -> float:
-        return min(self.path.start, self.wobble.start)
-
-    @property
-    def end(self) -> float:
-        return max(self.path.end, self.wobble.end)
-
-    def position(self, t: ArrayLike) -> FloatArray:
-        p: FloatArray = self.path.position(t) + self.wobble.position(t)
-        return p
-
-    def velocity(self, t: ArrayLike) -> FloatArray:
-        v: FloatArray = self.path.velocity(t) + self.wobble.velocity(t)
-        return v
-
-    def acceleration(self, t: ArrayLike) -> FloatArray:
-        a: FloatArray = self.path.acceleration(t) + self.wobble.acceleration(t)
-        return a
-
-
 # Seed 002's target: a loop out to 55 m and back at 12 m altitude, flown at 5 m/s
 # (2.5 m/s² at the corners), with random manoeuvres (≤ 4 m/s, ≤ 4 m/s²) inside a
 # ±4 × 4 × 1.5 m box about it: at most 9 m/s and 6.5 m/s² in all.
@@ -183,7 +153,7 @@ def _relative_out_and_back(hold: float, duration: float, rng: np.random.Generato
         half_extent=(4.0, 4.0, 1.5),
         t0=hold,
     )
-    return _Superposed(path, wobble)
+    return Superposed(path, wobble)
 
 
 # The observer flights: at 10 m altitude, 5 m behind the turret-site origin, where a
@@ -241,21 +211,15 @@ def _observer_orbit(hold: float, duration: float, rng: np.random.Generator) -> T
     )
 
 
-def _polar(r: float, bearing_deg: float, z: float) -> tuple[float, float, float]:
-    """The point ``r`` metres out at ``bearing_deg`` (counter-clockwise from +x), height z."""
-    b = math.radians(bearing_deg)
-    return (r * math.cos(b), r * math.sin(b), z)
-
-
 def _incoming(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
     # Hovers 170 m out (beyond the Avia's reach for a Phantom 4) 25° off the home bearing
     # during the scan, flies in at 15 m/s (entering the reach about 110 m out), then
     # crosses to the other side at 8 m/s.
     route = [
-        Waypoint(_polar(25.0, 25.0, 12.0), 15.0, 5.0, 3.0),
-        Waypoint(_polar(40.0, -20.0, 15.0), 8.0, 4.0),
+        Waypoint(polar(25.0, 25.0, 12.0), 15.0, 5.0, 3.0),
+        Waypoint(polar(40.0, -20.0, 15.0), 8.0, 4.0),
     ]
-    return fly_waypoints(_polar(170.0, 25.0, 25.0), route, hold=hold)
+    return fly_waypoints(polar(170.0, 25.0, 25.0), route, hold=hold)
 
 
 def _enter(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
@@ -263,16 +227,16 @@ def _enter(hold: float, duration: float, rng: np.random.Generator) -> Trajectory
     # its background scan, then flies in at 15 m/s: it enters the field at 90° within
     # the Avia's reach, sweeps round to the home bearing and on past it.
     route = _route(
-        [_polar(70.0, 60.0, 20.0), _polar(60.0, 0.0, 15.0), _polar(50.0, -60.0, 20.0)], 15.0, 5.0
+        [polar(70.0, 60.0, 20.0), polar(60.0, 0.0, 15.0), polar(50.0, -60.0, 20.0)], 15.0, 5.0
     )
-    return fly_waypoints(_polar(70.0, 130.0, 20.0), route, hold=hold)
+    return fly_waypoints(polar(70.0, 130.0, 20.0), route, hold=hold)
 
 
 def _escape(hold: float, duration: float, rng: np.random.Generator) -> Trajectory:
     # Takes off 30 m out, flies away at 12 m/s to 200 m (beyond reach), moves 40° round
     # out there and comes back in on that bearing.
     route = _route(
-        [_polar(200.0, 0.0, 20.0), _polar(200.0, 40.0, 20.0), _polar(30.0, 40.0, 15.0)], 12.0, 4.0
+        [polar(200.0, 0.0, 20.0), polar(200.0, 40.0, 20.0), polar(30.0, 40.0, 15.0)], 12.0, 4.0
     )
     return _takeoff_and_fly((30.0, 0.0, 20.0), route, hold, 0.15, 3.0, 2.0, 1.0)
 
@@ -372,6 +336,25 @@ FLIGHTS: dict[str, Flight] = {
         "outdoor-barn: behind the barn at 8 m altitude, waits, reappears past its far end",
         _hide,
     ),
+    "crossing-left": Flight(
+        "from 170 m out at 30°, 25 m up, in at 12 m/s to 110 m, across at 8 m/s to 60 m at "
+        "−30° and away to 150 m; seeded manoeuvres (≤ 2 m/s) about it",
+        crossing(1.0, 25.0),
+    ),
+    "crossing-right": Flight(
+        "crossing-left mirrored and 10 m lower: from −30° across to 30°; flown together, the "
+        "two cross once, 67 m out on the home bearing",
+        crossing(-1.0, 15.0),
+    ),
+    **{
+        f"swarm-{k + 1}": Flight(
+            f"swarm member {k + 1} of 4: from 170 m out at 15° in at 10 m/s to 60 m, across "
+            f"to −45° and away, ({offset[0]:g}, {offset[1]:g}, {offset[2]:g}) m off the swarm's "
+            "route; seeded manoeuvres about it",
+            swarm_member(offset),
+        )
+        for k, offset in enumerate(SWARM_OFFSETS)
+    },
     "indoor-horizontal": Flight(
         "seed 000 indoor: 1.2 m left-right at 3 m, 3 s legs, 2 s waits, 3 times",
         _indoor([(3.0, 0.6, 1.2), (3.0, -0.6, 1.2)], 0.6, 3),

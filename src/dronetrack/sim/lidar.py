@@ -5,76 +5,76 @@ Per pulse, in order:
 1. the pulse's direction and origin in the world, from the sensor pose at its
    firing time (the turret moves during a frame);
 2. the static scene along the central ray (a beam-filling echo, F = 1);
-3. the target: pulses whose footprint can touch it are split into K sub-rays
+3. the drones: pulses whose footprint can touch one are split into K sub-rays
    spread over the elliptical footprint (full divergence θ_h × θ_v; K grows
    with the footprint's area, about one ray per 2 × 2 cm, from 4 to 32), cast
-   against the target's shapes at its position at the firing time.  The echo's
-   beam-averaged reflectivity is Σ ρ_k cos θ_k / K over the sub-rays that hit it
-   before the scene does, and its range the mean of their ranges; the scene
-   behind keeps the unfilled fraction of the beam;
-4. first return: the nearer echo is detected with probability P_d
-   (``physics.detection_probability``), else the farther one is tried;
+   against the drone's shapes at its position at the firing time
+   (``sim/echoes.py``).  The echo's beam-averaged reflectivity is Σ ρ_k cos θ_k / K
+   over the sub-rays that hit it before the scene does, and its range the mean of
+   their ranges.  A drone that has not entered the world yet meets no pulse;
+4. first return (``sim/returns.py``): the echoes of a pulse are tried nearest
+   first, each dimmed by the share of the beam nearer objects fill and detected
+   with probability P_d (``physics.detection_probability``); the first detected
+   one is the return, else the scene behind, which keeps the unfilled fraction of
+   the beam;
 5. noise: range σ_R and angular σ per axis; false alarms at a rate per pulse.
 
 With clutter (``sim/clutter.py``) the scene is cast as the wind has moved its
-crowns at the frame's middle time, birds are cast like the target (sub-rays over
-the footprint, each bird where it is at the pulse's firing time) and take their
-place among the echoes by range, and the clutter's random false alarms are added.
-Where a bird and the target share a pulse, the nearer one hides its fill fraction
-of the farther one's footprint.
+crowns at the frame's middle time, birds are cast like the drones (each bird where
+it is at the pulse's firing time; of several birds on one pulse the nearest stands
+for them) and take their place among the echoes by range, and the clutter's random
+false alarms are added.
+
+Random draws: the world's stream gives three uniforms per pulse (the target's
+detection, the scene's, a false alarm) and the noise of every return, whatever is
+hit; the birds' detections draw from the clutter's stream and the other drones'
+from a stream of their own, so a world without them draws exactly what it did
+before they existed.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.geometry.transforms import FloatArray, apply_interpolated_poses
-from dronetrack.sim.birds import Flock
 from dronetrack.sim.clutter import CLUTTER_BIRD, CLUTTER_NONE, CLUTTER_SWAY, Clutter
 from dronetrack.sim.cubemap import CubeMapIndex, build_cube_map
-from dronetrack.sim.drones import DroneModel, attitude_from_acceleration
-from dronetrack.sim.patterns import Pulses
+from dronetrack.sim.drones import DroneModel
+from dronetrack.sim.echoes import FrameRays, bird_echoes, drone_echo
 from dronetrack.sim.physics import detection_probability, signal_ratio
 from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.raycast import cast_rays
 from dronetrack.sim.returns import (
     FROM_BIRD,
+    FROM_DRONE,
     FROM_SCENE,
     FROM_TARGET,
     Scan,
     TargetEcho,
-    beam_axes,
     first_returns,
-    mutual_occlusion,
     noisy_points,
+    pulse_echoes,
     with_false_alarms,
 )
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.sensors import SensorModel
+from dronetrack.sim.targets import SimTarget
 from dronetrack.sim.trajectories import Trajectory
 
-__all__ = ["LidarSimulator", "Scan", "footprint_samples"]
+__all__ = ["LidarSimulator", "Scan"]
 
 LIVOX_DIFFUSE_MAX = 150.0  # Livox reflectivity byte for 100 % diffuse
 INDEX_SLACK_M = 0.5  # how far ray origins may wander before the scene is indexed again
-SUBRAY_SPACING_M = 0.02  # footprint sampling: the thinnest target parts (arms, legs) are 1-4 cm
-
-_NO_BIRDS = np.empty(0)
-
-
-def footprint_samples(k: int) -> FloatArray:
-    """K points spread evenly over the unit disc (a sunflower / Vogel spiral), (K, 2)."""
-    i = np.arange(k) + 0.5
-    r = np.sqrt(i / k)
-    phi = i * np.pi * (3.0 - np.sqrt(5.0))  # golden angle
-    return np.column_stack([r * np.cos(phi), r * np.sin(phi)])
 
 
 class LidarSimulator:
-    """Casts a sensor's pulses into a scene with one moving target."""
+    """Casts a sensor's pulses into a scene with moving targets: the target (``drone``
+    on ``trajectory``, there from the start) and ``others``, each from its entry on.
+    The others' detections draw from ``others_rng`` (needed when there are others)."""
 
     def __init__(
         self,
@@ -84,6 +84,8 @@ class LidarSimulator:
         trajectory: Trajectory,
         extinction: float,
         clutter: Clutter | None = None,
+        others: Sequence[SimTarget] = (),
+        others_rng: np.random.Generator | None = None,
     ) -> None:
         self.sensor = sensor
         self.scene = scene
@@ -91,21 +93,15 @@ class LidarSimulator:
         self.trajectory = trajectory
         self.extinction = extinction
         self.clutter = clutter
+        self.targets = (SimTarget(drone, trajectory), *others)
+        if others and others_rng is None:
+            raise ValueError("other drones need a random stream of their own")
+        self._others_rng = others_rng
         self._scene_rho = np.append(scene.prims.reflectivity, 0.0)  # index -1 → no echo
         self._index: CubeMapIndex | None = None
         # With swaying crowns the index allows for how far the wind moves each primitive.
         self._margin = None if clutter is None else clutter.sway_margin()
         self._sways = None if clutter is None else clutter.sway_mask(len(scene.prims))
-
-    def _subray_count(self, range_m: float) -> int:
-        """Sub-rays per pulse at this range: about one per (SUBRAY_SPACING_M)² of footprint.
-
-        The elliptical footprint (π/4)(θ_h R)(θ_v R) is sampled finely enough to
-        resolve the target's thinnest parts, between 4 and ``beam_samples`` rays.
-        """
-        s = self.sensor
-        area = 0.25 * np.pi * (s.divergence_h * range_m) * (s.divergence_v * range_m)
-        return int(np.clip(np.ceil(area / SUBRAY_SPACING_M**2), 4, s.beam_samples))
 
     def _signal(self, reflectivity: FloatArray, range_m: FloatArray) -> FloatArray:
         s = self.sensor
@@ -115,199 +111,7 @@ class LidarSimulator:
 
     def target_attitude(self, t: float) -> FloatArray:
         """world_R_body of the target at time t."""
-        acc = self.trajectory.acceleration(t)[0]
-        yaw = 0.0
-        if self.drone.faces_sensor:
-            p = self.trajectory.position(t)[0]
-            yaw = float(np.arctan2(-p[1], -p[0]))
-        return attitude_from_acceleration(acc, yaw)
-
-    def _target_echo(
-        self,
-        pulses: Pulses,
-        pose_t: FloatArray,
-        poses: FloatArray,
-        orig: FloatArray,
-        D: FloatArray,
-        o_mean: FloatArray,
-        slack: float,
-        scene_range: FloatArray,
-    ) -> TargetEcho:
-        sensor = self.sensor
-        t0, t1 = float(pulses.t[0]), float(pulses.t[-1])
-        tm = 0.5 * (t0 + t1)
-        ends = self.trajectory.position(np.array([t0, tm, t1]))
-        center = ends[1]
-        # A sphere that holds the target over the whole frame, plus a margin for curvature.
-        radius = self.drone.radius + np.max(np.linalg.norm(ends - center, axis=1)) * 1.2 + 0.05
-        v = center - o_mean
-        dist = float(np.linalg.norm(v))
-        half_beam = 0.5 * max(sensor.divergence_h, sensor.divergence_v)
-        if dist <= radius + slack:
-            idx = np.arange(len(D))
-        else:
-            cone = np.arcsin(min(1.0, (radius + slack) / dist)) + half_beam
-            idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
-        if len(idx) == 0:
-            empty = np.empty(0)
-            return TargetEcho(idx, empty, empty, empty, empty)
-        # Rays in the target's body frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
-        Rb = self.target_attitude(tm)
-        o_b = (orig[idx] - self.trajectory.position(pulses.t[idx])) @ Rb
-        d_b = D[idx] @ Rb
-        # Keep the pulses whose footprint can reach the target where it is at their own
-        # firing time: the central ray passes within r + |o_b| θ/2 of the body origin,
-        # |o_b × d_b| ≤ r + |o_b| θ/2, in front of the sensor (−o_b · d_b > 0).
-        miss = np.linalg.norm(np.cross(o_b, d_b), axis=1)
-        near = (miss <= self.drone.radius + half_beam * np.linalg.norm(o_b, axis=1)) & (
-            np.einsum("ij,ij->i", o_b, d_b) < 0
-        )
-        idx, o_b, d_b = idx[near], o_b[near], d_b[near]
-        if len(idx) == 0:
-            empty = np.empty(0)
-            return TargetEcho(idx, empty, empty, empty, empty)
-        return self._footprint_echo(
-            self.drone.body,
-            pulses,
-            idx,
-            o_b,
-            d_b,
-            Rb,
-            pose_t,
-            poses,
-            float(np.linalg.norm(v)),
-            scene_range,
-        )
-
-    def _footprint_echo(
-        self,
-        body: Primitives,
-        pulses: Pulses,
-        idx: NDArray[np.int64],
-        o_b: FloatArray,
-        d_b: FloatArray,
-        Rb: FloatArray,
-        pose_t: FloatArray,
-        poses: FloatArray,
-        range_m: float,
-        scene_range: FloatArray,
-    ) -> TargetEcho:
-        """Echoes of the pulses ``idx`` from ``body``, whose frame the rays (o_b, d_b) are in
-        (turned from the world by Rb), over the pulses' footprints at about ``range_m``."""
-        sensor = self.sensor
-        h_s, v_s = beam_axes(pulses.dirs[idx])
-        t_idx = pulses.t[idx]
-        axes_w, _ = apply_interpolated_poses(
-            pose_t, poses, np.concatenate([t_idx, t_idx]), np.concatenate([h_s, v_s])
-        )
-        h_b, v_b = np.split(axes_w @ Rb, 2)
-        # Sub-ray k: d + u_k (θ_h/2) h + v_k (θ_v/2) v
-        samples = footprint_samples(self._subray_count(range_m))
-        u = samples[:, 0] * 0.5 * sensor.divergence_h
-        w = samples[:, 1] * 0.5 * sensor.divergence_v
-        sub = (
-            d_b[:, None, :]
-            + u[None, :, None] * h_b[:, None, :]
-            + w[None, :, None] * v_b[:, None, :]
-        )
-        sub /= np.linalg.norm(sub, axis=2, keepdims=True)
-        k = len(samples)
-        t_k, hit_k, cos_k = cast_rays(body, np.repeat(o_b, k, axis=0), sub.reshape(-1, 3))
-        t_k = t_k.reshape(-1, k)
-        hit_k = hit_k.reshape(-1, k)
-        on = (hit_k >= 0) & (t_k < scene_range[idx][:, None])
-        rho_k = np.where(on, body.reflectivity[np.maximum(hit_k, 0)], 0.0)
-        count = on.sum(axis=1)
-        per_hit = 1.0 / np.maximum(count, 1)
-        mean_range = np.where(count > 0, np.where(on, t_k, 0.0).sum(axis=1) * per_hit, np.inf)
-        return TargetEcho(
-            index=idx,
-            reflectivity=(rho_k * cos_k.reshape(-1, k)).sum(axis=1) / k,
-            fill=count / k,
-            range_m=mean_range,
-            surface=rho_k.sum(axis=1) * per_hit,
-        )
-
-    def _bird_echoes(
-        self,
-        flock: Flock,
-        pulses: Pulses,
-        pose_t: FloatArray,
-        poses: FloatArray,
-        orig: FloatArray,
-        D: FloatArray,
-        o_mean: FloatArray,
-        slack: float,
-        scene_range: FloatArray,
-    ) -> TargetEcho:
-        """The birds' echoes, as the target's (``_target_echo``): the nearest bird echo of
-        each pulse that meets a bird."""
-        sensor = self.sensor
-        n = len(D)
-        t0, t1 = float(pulses.t[0]), float(pulses.t[-1])
-        tm = 0.5 * (t0 + t1)
-        ends = np.stack([flock.positions(t0), flock.positions(tm), flock.positions(t1)], axis=1)
-        half_beam = 0.5 * max(sensor.divergence_h, sensor.divergence_v)
-        best = np.full(n, np.inf)
-        reflectivity, fill, surface = np.zeros(n), np.zeros(n), np.zeros(n)
-        # Every ray of the frame lies within `spread` of `axis`, about the rays' mean
-        # direction (a spinning head's rays all around: no axis), so a bird outside that
-        # cone is skipped at once.
-        axis = np.ones(len(D[::16])) @ D[::16]
-        spread = np.pi
-        if np.linalg.norm(axis) > 1e-3:
-            axis = axis / np.linalg.norm(axis)
-            spread = float(np.arccos(np.clip((D @ axis).min(), -1.0, 1.0)))
-        for b in range(len(flock)):
-            center = ends[b, 1]
-            # A sphere that holds the bird over the whole frame (its path is straight
-            # between 50 ms steps), plus a margin.
-            radius = flock.radius[b] + np.max(np.linalg.norm(ends[b] - center, axis=1)) * 1.2
-            radius += 0.05
-            v = center - o_mean
-            dist = float(np.linalg.norm(v))
-            if dist - radius - slack > sensor.max_range_m:
-                continue
-            if dist <= radius + slack:
-                idx = np.arange(n)
-            else:
-                cone = np.arcsin(min(1.0, (radius + slack) / dist)) + half_beam
-                off_axis = np.arccos(np.clip(np.dot(v / dist, axis), -1.0, 1.0))
-                if spread < np.pi and off_axis > spread + cone:
-                    continue
-                idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
-            if len(idx) == 0:
-                continue
-            # Rays in the bird's frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
-            Rb = flock.attitude(b, tm)
-            o_b = (orig[idx] - flock.path(b, pulses.t[idx])) @ Rb
-            d_b = D[idx] @ Rb
-            miss = np.linalg.norm(np.cross(o_b, d_b), axis=1)
-            near = (miss <= flock.radius[b] + half_beam * np.linalg.norm(o_b, axis=1)) & (
-                np.einsum("ij,ij->i", o_b, d_b) < 0
-            )
-            if not near.any():
-                continue
-            echo = self._footprint_echo(
-                flock.bodies[b],
-                pulses,
-                idx[near],
-                o_b[near],
-                d_b[near],
-                Rb,
-                pose_t,
-                poses,
-                dist,
-                scene_range,
-            )
-            closer = echo.range_m < best[echo.index]
-            at = echo.index[closer]
-            best[at] = echo.range_m[closer]
-            reflectivity[at] = echo.reflectivity[closer]
-            fill[at] = echo.fill[closer]
-            surface[at] = echo.surface[closer]
-        hit = np.flatnonzero(np.isfinite(best))
-        return TargetEcho(hit, reflectivity[hit], fill[hit], best[hit], surface[hit])
+        return self.targets[0].attitude(t)
 
     def _cast_scene(
         self, prims: Primitives, orig: FloatArray, D: FloatArray, o_mean: FloatArray, slack: float
@@ -331,6 +135,42 @@ class LidarSimulator:
             self._index = index
         return cast_rays(prims, orig, D, self.sensor.max_range_m, index)
 
+    def _empty_scan(self) -> Scan:
+        return Scan(
+            np.empty((0, 3)),
+            np.empty(0),
+            np.empty(0, np.uint8),
+            np.empty(0, np.float32),
+            np.empty(0, bool),
+            0,
+            None if self.clutter is None else np.empty(0, np.int8),
+            np.empty(0, np.int64),
+        )
+
+    def _echoes(
+        self, rays: FrameRays
+    ) -> tuple[list[TargetEcho], list[int], list[FloatArray | None]]:
+        """The frame's object echoes by channel: the target, the birds (the nearest bird
+        of each pulse), the other drones; the source code of each channel, and the
+        uniform draws of those not on the world's stream (None: the target's, drawn
+        later with the pulse's own)."""
+        channels = [drone_echo(rays, self.targets[0], 0)]
+        sources = [FROM_TARGET]
+        draws: list[FloatArray | None] = [None]
+        clutter = self.clutter
+        if clutter is not None and clutter.flock is not None:
+            birds = bird_echoes(rays, clutter.flock, len(self.targets))
+            channels.append(birds)
+            sources.append(FROM_BIRD)
+            draws.append(clutter.rng.random(len(birds.index)))
+        for k, target in enumerate(self.targets[1:], start=1):
+            assert self._others_rng is not None
+            echo = drone_echo(rays, target, k)
+            channels.append(echo)
+            sources.append(FROM_DRONE)
+            draws.append(self._others_rng.random(len(echo.index)))
+        return channels, sources, draws
+
     def scan(
         self,
         t_start: float,
@@ -344,15 +184,7 @@ class LidarSimulator:
         pulses = sensor.pattern.pulses(t_start, t_end)
         n = len(pulses)
         if n == 0:
-            return Scan(
-                np.empty((0, 3)),
-                np.empty(0),
-                np.empty(0, np.uint8),
-                np.empty(0, np.float32),
-                np.empty(0, bool),
-                0,
-                None if self.clutter is None else np.empty(0, np.int8),
-            )
+            return self._empty_scan()
         D, orig = apply_interpolated_poses(pose_t, poses, pulses.t, pulses.dirs, pulses.origins)
         # Every ray starts within `slack` of `o_mean`: the sensor origin's path during
         # the frame, plus the beam origins' offsets from it.
@@ -364,31 +196,23 @@ class LidarSimulator:
         if clutter is not None:
             prims = clutter.scene_at(prims, 0.5 * (t_start + t_end))
         t_s, hit_s, cos_s = self._cast_scene(prims, orig, D, o_mean, slack)
-        echo = self._target_echo(pulses, pose_t, poses, orig, D, o_mean, slack, t_s)
-        target_reflectivity = echo.reflectivity
+        rays = FrameRays(sensor, pulses, pose_t, poses, orig, D, o_mean, slack, t_s)
+        channels, sources, draws = self._echoes(rays)
+        # The scene keeps the share of the beam no object fills, 1 − Σ F.
         fill = np.ones(n)
-        fill[echo.index] -= echo.fill
-        u_bird = pd_bird = bird_range = bird_rho = _NO_BIRDS
-        if clutter is not None and clutter.flock is not None:
-            birds = self._bird_echoes(
-                clutter.flock, pulses, pose_t, poses, orig, D, o_mean, slack, t_s
+        for c in channels:
+            fill[c.index] -= c.fill
+        fill = np.maximum(fill, 0.0)
+        echoes = pulse_echoes(channels)
+        # Each object's echo is dimmed by the nearer ones on its pulse: ρ' = ρ Π (1 − F).
+        pd = [
+            detection_probability(
+                self._signal(c.reflectivity * transmitted, c.range_m), sensor.pd_width_db
             )
-            target_reflectivity, bird_reflectivity = mutual_occlusion(n, echo, birds)
-            fill[birds.index] -= birds.fill
-            fill = np.maximum(fill, 0.0)
-            pd_bird, bird_range, bird_rho = np.zeros(n), np.full(n, np.inf), np.zeros(n)
-            pd_bird[birds.index] = detection_probability(
-                self._signal(bird_reflectivity, birds.range_m), sensor.pd_width_db
+            for c, transmitted in zip(
+                channels, echoes.per_channel(echoes.transmission), strict=True
             )
-            bird_range[birds.index] = birds.range_m
-            bird_rho[birds.index] = birds.surface
-            # u = 1 never detects; the birds' draws come from the clutter's stream.
-            u_bird = np.ones(n)
-            u_bird[birds.index] = clutter.rng.random(len(birds.index))
-        pd_target = np.zeros(n)
-        pd_target[echo.index] = detection_probability(
-            self._signal(target_reflectivity, echo.range_m), sensor.pd_width_db
-        )
+        ]
         scene_hit = np.flatnonzero(hit_s >= 0)
         pd_scene = np.zeros(n)
         pd_scene[scene_hit] = detection_probability(
@@ -401,25 +225,24 @@ class LidarSimulator:
 
         # The same uniform draws every frame whatever is hit, so a run depends on its seed only.
         u = rng.random((n, 3))
-        target_range = np.full(n, np.inf)
-        target_range[echo.index] = echo.range_m
-        target_rho = np.zeros(n)
-        target_rho[echo.index] = echo.surface
-        keep, r, rho, source = first_returns(
+        uniforms = [u[c.index, 0] if d is None else d for c, d in zip(channels, draws, strict=True)]
+        keep, r, rho, source, owner = first_returns(
             u,
-            pd_target,
+            echoes.pulse,
+            echoes.range_m,
+            echoes.sort([c.surface for c in channels]),
+            echoes.sort(pd),
+            echoes.sort(uniforms),
+            echoes.sort(
+                [np.full(len(c.index), s, np.int8) for c, s in zip(channels, sources, strict=True)]
+            ),
+            echoes.sort([c.owner for c in channels]),
             pd_scene,
             t_s,
-            target_range,
-            target_rho,
             self._scene_rho[hit_s],
             sensor.min_range_m,
             sensor.max_range_m,
             sensor.false_alarm_rate,
-            u_bird,
-            pd_bird,
-            bird_range,
-            bird_rho,
         )
 
         noise = rng.standard_normal((len(keep), 3))
@@ -438,6 +261,7 @@ class LidarSimulator:
             intensity=np.clip(LIVOX_DIFFUSE_MAX * rho, 0.0, LIVOX_DIFFUSE_MAX).astype(np.float32),
             hit_target=source == FROM_TARGET,
             n_pulses=n,
+            object_index=owner,
         )
         if clutter is None:
             return scan

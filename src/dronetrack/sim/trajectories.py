@@ -14,6 +14,7 @@ its last position at rest.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,10 +31,12 @@ from dronetrack.geometry.transforms import FloatArray
 __all__ = [
     "PiecewiseAcceleration",
     "SplineTrajectory",
+    "Superposed",
     "Trajectory",
     "Waypoint",
     "fly_waypoints",
     "load_csv_trajectory",
+    "polar",
     "random_manoeuvres",
 ]
 
@@ -255,6 +258,43 @@ class SplineTrajectory:
 
     def acceleration(self, t: ArrayLike) -> FloatArray:
         return self._held(t, np.asarray(self.spline(self._clamped(t), 2), dtype=np.float64))
+
+
+@dataclass(frozen=True, slots=True)
+class Superposed:
+    """A path plus a motion about zero:  p(t) = p_path(t) + p_wobble(t), and so for v and a.
+
+    Speeds and accelerations add at most: |v| ≤ |v_path| + |v_wobble|.
+    """
+
+    path: Trajectory
+    wobble: Trajectory
+
+    @property
+    def start(self) -> float:
+        return min(self.path.start, self.wobble.start)
+
+    @property
+    def end(self) -> float:
+        return max(self.path.end, self.wobble.end)
+
+    def position(self, t: ArrayLike) -> FloatArray:
+        p: FloatArray = self.path.position(t) + self.wobble.position(t)
+        return p
+
+    def velocity(self, t: ArrayLike) -> FloatArray:
+        v: FloatArray = self.path.velocity(t) + self.wobble.velocity(t)
+        return v
+
+    def acceleration(self, t: ArrayLike) -> FloatArray:
+        a: FloatArray = self.path.acceleration(t) + self.wobble.acceleration(t)
+        return a
+
+
+def polar(r: float, bearing_deg: float, z: float) -> tuple[float, float, float]:
+    """The point ``r`` metres out at ``bearing_deg`` (counter-clockwise from +x), height z."""
+    b = math.radians(bearing_deg)
+    return (r * math.cos(b), r * math.sin(b), z)
 
 
 MAX_CSV_SPEED = 100.0  # [m/s] faster than any multirotor; more means wrong units

@@ -36,9 +36,10 @@ from dronetrack.sim.drones import DroneModel
 from dronetrack.sim.lidar import LidarSimulator
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.sensors import SensorModel
+from dronetrack.sim.targets import SimTarget
 from dronetrack.sim.trajectories import Trajectory
 from dronetrack.sim.turret import TurretPlant
-from dronetrack.types import Frame, TurretCommand, TurretState
+from dronetrack.types import Frame, ObjectTruth, TurretCommand, TurretState
 
 __all__ = ["FrameTruth", "Observer", "OdometryDrift", "SimWorld"]
 
@@ -163,6 +164,8 @@ class FrameTruth:
     # bird's position at the frame end [m], (B, 3).
     clutter: NDArray[np.int8] | None = None
     bird_positions: FloatArray | None = None
+    # Every drone (the target first) and bird, and the object each point came from.
+    objects: ObjectTruth | None = None
 
     @property
     def n_target_points(self) -> int:
@@ -182,7 +185,10 @@ class FrameTruth:
 
 
 class SimWorld:
-    """Scene + target + sensor on a turret, stepped one integration period at a time.
+    """Scene + targets + sensor on a turret, stepped one integration period at a time.
+
+    The target (``drone`` on ``trajectory``) is there from the start; ``add_targets``
+    adds other drones, each entering at its own time.
 
     With an ``observer`` the turret rides on it (``mount.base`` in its body frame)
     and ``odometry_sigma`` [m/√s] makes the reported poses drift from the true
@@ -226,6 +232,54 @@ class SimWorld:
         if clutter is not None:
             self.clutter = Clutter(clutter, scene, rng.spawn(1)[0], t0, self._line_of_sight)
         self.lidar = LidarSimulator(sensor, scene, drone, trajectory, extinction, self.clutter)
+
+    @property
+    def targets(self) -> tuple[SimTarget, ...]:
+        """Every drone of the world: the target, then the others in the order added."""
+        return self.lidar.targets
+
+    def add_targets(self, others: list[SimTarget], rng: np.random.Generator) -> None:
+        """Add drones besides the target, before the first frame; their detections draw
+        from ``rng`` (a stream of their own, so the world's draws stay as they are)."""
+        if self._frames:
+            raise InputError("drones are added to a world before its first frame")
+        lidar = self.lidar
+        self.lidar = LidarSimulator(
+            lidar.sensor,
+            lidar.scene,
+            lidar.drone,
+            self.trajectory,
+            lidar.extinction,
+            self.clutter,
+            (*lidar.targets[1:], *others),
+            rng,
+        )
+
+    def object_truth(self, t: float, object_index: NDArray[np.int64]) -> ObjectTruth:
+        """Every drone's and bird's state at time t, and ``object_index`` per point."""
+        drones = self.targets
+        present = np.array([d.present(t) for d in drones])
+        positions = np.full((len(drones), 3), np.nan)
+        velocities = np.full((len(drones), 3), np.nan)
+        for k in np.flatnonzero(present):
+            positions[k] = drones[k].trajectory.position(t)[0]
+            velocities[k] = drones[k].trajectory.velocity(t)[0]
+        kinds = ["drone"] * len(drones)
+        flock = None if self.clutter is None else self.clutter.flock
+        if flock is not None:
+            b = len(flock)
+            positions = np.concatenate([positions, flock.positions(t)])
+            velocities = np.concatenate([velocities, flock.velocities(t)])
+            present = np.concatenate([present, np.ones(b, dtype=bool)])
+            kinds += ["bird"] * b
+        return ObjectTruth(
+            ids=np.arange(len(kinds), dtype=np.int64),
+            kinds=np.array(kinds),
+            positions=positions,
+            velocities=velocities,
+            present=present,
+            object_index=object_index,
+        )
 
     @property
     def time(self) -> float:
@@ -323,10 +377,13 @@ class SimWorld:
             pose_t=times,
             poses=reported,
         )
+        assert scan.object_index is not None
+        bird_positions = None if self.clutter is None else self.clutter.bird_positions(t1)
+        objects = self.object_truth(t1, scan.object_index)  # the target is object 0
         truth = FrameTruth(
             t=t1,
-            target_position=self.trajectory.position(t1)[0],
-            target_velocity=self.trajectory.velocity(t1)[0],
+            target_position=objects.positions[0].copy(),
+            target_velocity=objects.velocities[0].copy(),
             target_attitude=self.lidar.target_attitude(t1),
             hit_target=scan.hit_target,
             n_pulses=scan.n_pulses,
@@ -334,6 +391,7 @@ class SimWorld:
             observer_position=observer,
             observer_reported=observer_reported,
             clutter=scan.clutter,
-            bird_positions=None if self.clutter is None else self.clutter.bird_positions(t1),
+            bird_positions=bird_positions,
+            objects=objects,
         )
         return frame, truth
