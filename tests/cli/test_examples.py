@@ -90,3 +90,28 @@ def test_each_grid_runs_as_many_runs_as_its_comment_says(name: str) -> None:
         assert count == runs // spec.runs
     else:
         assert count == runs
+
+
+def test_the_three_drones_scenario_adds_two_drones_as_its_comments_say(tmp_path: Path) -> None:
+    path = EXAMPLES / "three_drones.toml"
+    cfg = load_scenario_file(path, SCENARIOS)
+    assert [(t.model, t.start_s) for t in cfg.targets] == [("f550", 5.0), ("phantom4", 20.0)]
+    assert Path(cfg.targets[1].file or "").name == "trajectory.csv"
+    out = tmp_path / "render"
+    assert run(["render", str(path), "--duration", "30", "--out", str(out)]) == 0
+    with np.load(out / "frames.npz") as npz:
+        data = dict(npz)
+    assert data["object_kinds"].tolist() == ["drone"] * 3
+    end, present, position = data["frame_end"], data["object_present"], data["object_positions"]
+    assert present[:, 0].all()
+    np.testing.assert_array_equal(present[:, 1], end >= 5.0 - 1e-9)
+    np.testing.assert_array_equal(present[:, 2], end >= 20.0 - 1e-9)
+    # The F550's manoeuvres stay in their 16 m box 15 m out.
+    assert np.all(np.abs(position[present[:, 1], 1, 0] - 15.0) <= 8.5)
+    # The second Phantom 4 flies the target's path 20 s (200 frames) behind it.
+    np.testing.assert_allclose(position[200:, 2], position[:-200, 0], atol=1e-9)
+    # simulate runs it too, for a flight long enough to see the last drone enter.
+    sim = tmp_path / "sim"
+    assert run(["simulate", str(path), "--duration", "25", "--out", str(sim)]) == 0
+    assert _metrics(sim)["frames"] == 250
+    assert (sim / "config.toml").read_text().count("[[targets]]") == 2
