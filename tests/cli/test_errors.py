@@ -258,3 +258,46 @@ def test_compare_help_names_every_suite(capsys: pytest.CaptureFixture[str]) -> N
     assert "acquisition" in SUITES
     for name in SUITES:
         assert name in text, name
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ('model = "x-wing"\nflight = "aggressive"\n', "targets.0: unknown drone 'x-wing'"),
+        ('file = "missing.csv"\n', "targets.0: trajectory CSV not found"),
+        ('file = "bad.csv"\n', "targets.0: trajectory CSV"),
+        ('flight = "aggressive"\nstart_s = 8.0\n', "targets.0.start_s = 8 s is not before"),
+        ('flight = "aggressive"\nstart_s = 9.0\n', "targets.0.start_s = 9 s is not before"),
+        ('flight = "aggressive"\nstart_s = -0.5\n', "targets.0.start_s"),
+    ],
+)
+def test_a_bad_target_entry_is_one_error_line(
+    entry: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "bad.csv").write_text("t,x,y,z\n0,0,0,0\n0,1,1,1\n")
+    path = tmp_path / "s.toml"
+    path.write_text(f'base = "default"\nduration_s = 8.0\n[[targets]]\n{entry}')
+    line = _one_error(["simulate", str(path), "--out", str(tmp_path / "o")], capsys)
+    assert message in line
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["simulate", "render", "record"])
+def test_a_further_trajectory_that_cannot_be_read_is_one_error_line(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    good = Path(__file__).resolve().parents[2] / "examples" / "trajectory.csv"
+    missing = tmp_path / "nowhere.csv"
+    out = tmp_path / ("o.bag" if command == "record" else "o")
+    args = [command, "default", "--trajectory", str(good), "--trajectory", str(missing)]
+    line = _one_error([*args, "--duration", "1", "--out", str(out)], capsys)
+    assert f"targets.0: trajectory CSV not found: {missing}" in line
+
+
+def test_a_run_shorter_than_a_targets_start_is_one_error_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text('base = "default"\n[[targets]]\nflight = "aggressive"\nstart_s = 30.0\n')
+    line = _one_error(["simulate", str(path), "--duration", "10"], capsys)
+    assert "targets.0.start_s = 30 s is not before the run ends (duration_s = 10 s)" in line

@@ -38,13 +38,20 @@ def _line(path: Path) -> Path:
     return _csv(path, t + 100.0, np.column_stack([20 + 2 * t, np.ones_like(t), 10 + 0.5 * t]))
 
 
+def _scenario_file(folder: Path, text: str) -> Path:
+    """A scenario file ``text`` in ``folder``, beside a flight ``b.csv`` (``_line``)."""
+    _line(folder / "b.csv")
+    path = folder / "two.toml"
+    path.write_text(text)
+    return path
+
+
 def test_targets_in_a_file_load_with_paths_next_to_it_and_defaults(tmp_path: Path) -> None:
-    _line(tmp_path / "b.csv")
-    path = tmp_path / "two.toml"
-    path.write_text(
+    path = _scenario_file(
+        tmp_path,
         'base = "default"\n'
         '[[targets]]\nmodel = "f550"\nflight = "aggressive"\nstart_s = 5.0\n'
-        '[[targets]]\nfile = "b.csv"\nhold_s = 1.5\nreflectivity_scale = 0.5\n'
+        '[[targets]]\nfile = "b.csv"\nhold_s = 1.5\nreflectivity_scale = 0.5\n',
     )
     cfg = get_scenario(str(path))
     assert [t.model for t in cfg.targets] == ["f550", "phantom4"]
@@ -81,12 +88,11 @@ def test_simulate_counts_a_start_from_the_end_of_the_background_scan() -> None:
 
 
 def test_a_scenario_file_with_targets_round_trips(tmp_path: Path) -> None:
-    _line(tmp_path / "b.csv")
-    path = tmp_path / "two.toml"
-    path.write_text(
+    path = _scenario_file(
+        tmp_path,
         'base = "outdoor-two-drones"\nduration_s = 6.0\n'
         '[[targets]]\nflight = "crossing-right"\n'
-        '[[targets]]\nmodel = "spyder-x4"\nfile = "b.csv"\nstart_s = 2.0\n'
+        '[[targets]]\nmodel = "spyder-x4"\nfile = "b.csv"\nstart_s = 2.0\n',
     )
     resolved = resolve_scenario(get_scenario(str(path)))
     assert Path(resolved.targets[1].file or "").is_absolute()

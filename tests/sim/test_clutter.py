@@ -9,7 +9,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from dronetrack.config.rig import make_turret
 from dronetrack.config.run import ClutterConfig, ScenarioConfig, dump_scenario
 from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.control.aiming import aim_angles
@@ -23,16 +22,13 @@ from dronetrack.sim.clutter import (
     ClutterSpec,
     Sway,
 )
-from dronetrack.sim.drones import make_drone
 from dronetrack.sim.primitives import BOX, ELLIPSOID, Primitives
 from dronetrack.sim.scene import RHO_CROWN, RHO_HEDGE, Scene, make_scene
-from dronetrack.sim.sensors import make_sensor
 from dronetrack.sim.shapes import cylinder, ellipsoid
-from dronetrack.sim.trajectories import fly_waypoints
 from dronetrack.sim.world import SimWorld
 from dronetrack.types import TurretCommand
+from sim_helpers import avia_world
 
-TURRET = make_turret("widowx")
 BEHIND = (-40.0, 0.0, 30.0)  # a drone hovering here is out of an Avia's view looking along +x
 EXTENT = (-50.0, -150.0, 250.0, 150.0)  # the outdoor field's area
 
@@ -46,20 +42,7 @@ def _world(
 ) -> SimWorld:
     """An Avia without noise (nor its own false alarms) aimed at ``aim``; the drone hovers
     at ``target``."""
-    pan, tilt = aim_angles(aim, TURRET.mount)
-    return SimWorld(
-        make_sensor("avia", noise=False),
-        scene,
-        make_drone("phantom4"),
-        fly_waypoints(target, []),
-        TURRET,
-        TURRET.mount,
-        0.0,
-        np.random.default_rng(seed),
-        pan=pan,
-        tilt=tilt,
-        clutter=clutter,
-    )
+    return avia_world(scene, clutter, seed, aim, target)
 
 
 def _with_clutter(cfg: ScenarioConfig, clutter: ClutterConfig) -> ScenarioConfig:

@@ -11,7 +11,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dronetrack.config.rig import make_turret
 from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.control.aiming import aim_angles
 from dronetrack.errors import InputError
@@ -29,8 +28,8 @@ from dronetrack.sim.targets import SimTarget
 from dronetrack.sim.trajectories import fly_waypoints
 from dronetrack.sim.world import SimWorld
 from dronetrack.types import ObjectTruth, TurretCommand, truth_objects
+from sim_helpers import avia_world
 
-TURRET = make_turret("widowx")
 PHANTOM = make_drone("phantom4")
 BEHIND = (-40.0, 0.0, 30.0)  # out of an Avia's view looking along +x
 
@@ -49,20 +48,7 @@ def _world(
 ) -> SimWorld:
     """An Avia without noise aimed at ``aim``; the target hovers at ``target``, the others
     as given."""
-    pan, tilt = aim_angles(aim, TURRET.mount)
-    world = SimWorld(
-        make_sensor("avia", noise=False),
-        make_scene(scene),
-        PHANTOM,
-        fly_waypoints(target, []),
-        TURRET,
-        TURRET.mount,
-        0.0,
-        np.random.default_rng(seed),
-        pan=pan,
-        tilt=tilt,
-        clutter=clutter,
-    )
+    world = avia_world(make_scene(scene), clutter, seed, aim, target)
     if others:
         world.add_targets(others, np.random.default_rng(seed + 100))
     return world

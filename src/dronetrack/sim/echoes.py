@@ -12,6 +12,8 @@ sensor reports, is ``sim/returns.py``'s business.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -55,32 +57,21 @@ def subray_count(sensor: SensorModel, range_m: float) -> int:
     return int(np.clip(np.ceil(area / SUBRAY_SPACING_M**2), 4, s.beam_samples))
 
 
+@dataclass(frozen=True, slots=True)
 class FrameRays:
     """One frame's pulses in the world: the sensor poses, each pulse's origin and
     direction, where the rays start (within ``slack`` of ``o_mean``) and the range of
     the scene along each central ray."""
 
-    def __init__(
-        self,
-        sensor: SensorModel,
-        pulses: Pulses,
-        pose_t: FloatArray,
-        poses: FloatArray,
-        orig: FloatArray,
-        D: FloatArray,
-        o_mean: FloatArray,
-        slack: float,
-        scene_range: FloatArray,
-    ) -> None:
-        self.sensor = sensor
-        self.pulses = pulses
-        self.pose_t = pose_t
-        self.poses = poses
-        self.orig = orig
-        self.D = D
-        self.o_mean = o_mean
-        self.slack = slack
-        self.scene_range = scene_range
+    sensor: SensorModel
+    pulses: Pulses
+    pose_t: FloatArray
+    poses: FloatArray
+    orig: FloatArray
+    D: FloatArray
+    o_mean: FloatArray
+    slack: float
+    scene_range: FloatArray
 
     @property
     def half_beam(self) -> float:
