@@ -155,6 +155,16 @@ def _detection() -> None:
     cluster_statistics(points, dbscan(points, 1.0, 1))
 
 
+def _object_tracks() -> None:
+    """Every object's track: the filter bank's predict, gates and update."""
+    from dronetrack.track.multi import cv_predict, cv_update, gate_costs
+
+    x, P = np.zeros((1, 6)), np.eye(6)[None]
+    x, P = cv_predict(x, P, np.array([0.1]), 1.0)
+    cost = gate_costs(x, P, x[:, :3], np.array([1.0]), np.zeros((1, 3)), np.eye(3)[None], 10.0)
+    cv_update(x, P, np.zeros((1, 3)), np.eye(3)[None] + cost[0, 0] * 0.0)
+
+
 def _replay() -> None:
     """A recording's ground-truth point count and PCD's LZF decoder."""
     from dronetrack.formats.lzf import lzf_compress_literal, lzf_decompress
@@ -174,6 +184,7 @@ PIPELINE_WARM_UPS: tuple[WarmUpStep, ...] = (
     _foreground,
     _particle_filters,
     _detection,
+    _object_tracks,
 )
 REPLAY_WARM_UPS: tuple[WarmUpStep, ...] = (*PIPELINE_WARM_UPS, _replay)
 

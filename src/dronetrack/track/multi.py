@@ -47,6 +47,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
@@ -128,42 +129,102 @@ def cv_process_noise(dt: FloatArray, sigma_a: float) -> FloatArray:
 def cv_predict(
     x: FloatArray, P: FloatArray, dt: FloatArray, sigma_a: float
 ) -> tuple[FloatArray, FloatArray]:
-    """Every track's (x⁻, P⁻) after its own Δt (K,): x⁻ = F x, P⁻ = F P Fᵀ + Q, by
-    blocks (F = [[I, Δt I], [0, I]], P = [[A, B], [Bᵀ, C]]):
+    """Every track's (x⁻, P⁻) after its own Δt (K,): x⁻ = F x, P⁻ = F P Fᵀ + Q
+    (``_predict_bank``)."""
+    x_pred = np.array(x, dtype=np.float64)
+    P_pred = np.array(P, dtype=np.float64)
+    _predict_bank(x_pred, P_pred, np.array(dt, dtype=np.float64), float(sigma_a) ** 2)
+    return x_pred, P_pred
+
+
+@nb.njit(cache=True)
+def _predict_bank(x: FloatArray, P: FloatArray, dt: FloatArray, q: float) -> None:
+    """In place, per track k with Δt = dt[k], by blocks (F = [[I, Δt I], [0, I]],
+    P = [[A, B], [Bᵀ, C]], Q = q [[Δt⁴/4 I, Δt³/2 I], [Δt³/2 I, Δt² I]]):
 
         p⁻ = p + Δt v,   v⁻ = v
         A⁻ = A + Δt (B + Bᵀ) + Δt² C + Q_pp,   B⁻ = B + Δt C + Q_pv,   C⁻ = C + Q_vv
     """
-    dt = np.asarray(dt, dtype=np.float64)
-    d = dt[:, None, None]
-    x_pred = x.copy()
-    x_pred[:, :3] += dt[:, None] * x[:, 3:]
-    A, B, C = P[:, :3, :3], P[:, :3, 3:], P[:, 3:, 3:]
-    Q = cv_process_noise(dt, sigma_a)
-    P_pred = np.empty_like(P)
-    B_new = B + d * C + Q[:, :3, 3:]
-    P_pred[:, :3, :3] = A + d * (B + np.transpose(B, (0, 2, 1))) + d * d * C + Q[:, :3, :3]
-    P_pred[:, :3, 3:] = B_new
-    P_pred[:, 3:, :3] = np.transpose(B_new, (0, 2, 1))
-    P_pred[:, 3:, 3:] = C + Q[:, 3:, 3:]
-    return x_pred, 0.5 * (P_pred + np.transpose(P_pred, (0, 2, 1)))
+    for k in range(x.shape[0]):
+        d = dt[k]
+        if d == 0.0:
+            continue
+        for a in range(3):
+            x[k, a] += d * x[k, 3 + a]
+        A = np.empty((3, 3))
+        B = np.empty((3, 3))
+        for a in range(3):
+            for b in range(3):
+                bab = P[k, a, 3 + b]
+                bba = P[k, b, 3 + a]
+                c = P[k, 3 + a, 3 + b]
+                A[a, b] = P[k, a, b] + d * (bab + bba) + d * d * c
+                B[a, b] = bab + d * c
+        for a in range(3):
+            A[a, a] += q * d**4 / 4.0
+            B[a, a] += q * d**3 / 2.0
+            P[k, 3 + a, 3 + a] += q * d * d
+        for a in range(3):
+            for b in range(3):
+                P[k, a, b] = 0.5 * (A[a, b] + A[b, a])
+                P[k, a, 3 + b] = B[a, b]
+                P[k, 3 + b, a] = B[a, b]
+        for a in range(3):  # C stays symmetric: the same q Δt² on its diagonal
+            for b in range(a + 1, 3):
+                c = 0.5 * (P[k, 3 + a, 3 + b] + P[k, 3 + b, 3 + a])
+                P[k, 3 + a, 3 + b] = c
+                P[k, 3 + b, 3 + a] = c
+
+
+@nb.njit(cache=True)
+def _inverse3(S: FloatArray) -> tuple[FloatArray, float]:
+    """S⁻¹ and det S of a 3 × 3 matrix (the adjugate over the determinant)."""
+    inv = np.empty((3, 3))
+    inv[0, 0] = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
+    inv[0, 1] = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]
+    inv[0, 2] = S[0, 1] * S[1, 2] - S[0, 2] * S[1, 1]
+    inv[1, 0] = S[1, 2] * S[2, 0] - S[1, 0] * S[2, 2]
+    inv[1, 1] = S[0, 0] * S[2, 2] - S[0, 2] * S[2, 0]
+    inv[1, 2] = S[0, 2] * S[1, 0] - S[0, 0] * S[1, 2]
+    inv[2, 0] = S[1, 0] * S[2, 1] - S[1, 1] * S[2, 0]
+    inv[2, 1] = S[0, 1] * S[2, 0] - S[0, 0] * S[2, 1]
+    inv[2, 2] = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    det = S[0, 0] * inv[0, 0] + S[0, 1] * inv[1, 0] + S[0, 2] * inv[2, 0]
+    for a in range(3):
+        for b in range(3):
+            inv[a, b] /= det
+    return inv, det
 
 
 def cv_update(
     x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """The position update of K tracks at once (H = [I 0]; Joseph form, as
-    ``track.kalman.kf_update``): S = P_pp + R,  K = P Hᵀ S⁻¹,  x⁺ = x + K (z − p),
-    P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ."""
-    PHt = P[:, :, :3]  # P Hᵀ (K, 6, 3)
-    S = P[:, :3, :3] + R
-    # K = P Hᵀ S⁻¹  ⇔  S Kᵀ = (P Hᵀ)ᵀ  (S symmetric)
-    gain = np.transpose(np.linalg.solve(S, np.transpose(PHt, (0, 2, 1))), (0, 2, 1))
-    x_post = x + np.einsum("kij,kj->ki", gain, z - x[:, :3])
-    I_KH = np.broadcast_to(np.eye(6), P.shape).copy()
-    I_KH[:, :, :3] -= gain
-    P_post = I_KH @ P @ np.transpose(I_KH, (0, 2, 1)) + gain @ R @ np.transpose(gain, (0, 2, 1))
-    return x_post, 0.5 * (P_post + np.transpose(P_post, (0, 2, 1)))
+    """The position update of K tracks at once (``_update_bank``)."""
+    x_post = np.array(x, dtype=np.float64)
+    P_post = np.array(P, dtype=np.float64)
+    _update_bank(x_post, P_post, np.array(z, dtype=np.float64), np.array(R, dtype=np.float64))
+    return x_post, P_post
+
+
+@nb.njit(cache=True)
+def _update_bank(x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray) -> None:
+    """In place, track k with measurement z[k] of noise R[k] (H = [I 0]; Joseph form,
+    as ``track.kalman.kf_update``):
+
+        S = P_pp + R,  K = P Hᵀ S⁻¹,  x⁺ = x + K (z − p),
+        P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ
+    """
+    for k in range(x.shape[0]):
+        Pk = np.ascontiguousarray(P[k])
+        Rk = np.ascontiguousarray(R[k])
+        Sinv, _ = _inverse3(Pk[:3, :3] + Rk)
+        G = np.ascontiguousarray(Pk[:, :3]) @ Sinv  # K (6, 3)
+        nu = z[k] - x[k, :3]
+        x[k] += G @ nu
+        I_KH = np.eye(6)
+        I_KH[:, :3] -= G
+        Pn = I_KH @ Pk @ I_KH.T + G @ Rk @ G.T
+        P[k] = 0.5 * (Pn + Pn.T)
 
 
 def gate_costs(
@@ -177,19 +238,50 @@ def gate_costs(
 ) -> FloatArray:
     """The assignment cost J = d² + ln|S| of every (track k, cluster j), (K, D), with
     ``_INFEASIBLE`` outside the gates: d² > γ, or |c_j − p_k| > reach_k where p_k is
-    ``last`` (the track's last updated position) and reach_k = v_max Δt_u + g."""
-    k, d = len(x_pred), len(z)
-    if k == 0 or d == 0:
-        return np.empty((k, d))
-    # S_kj = H P⁻_k Hᵀ + R_j
-    S = P_pred[:, None, :3, :3] + R[None, :, :, :]
-    nu = z[None, :, :] - x_pred[:, None, :3]  # innovations (K, D, 3)
-    sol = np.linalg.solve(S, nu[..., None])[..., 0]
-    d2 = np.einsum("kdi,kdi->kd", nu, sol)
-    _, logdet = np.linalg.slogdet(S)
-    moved = np.linalg.norm(z[None, :, :] - last[:, None, :], axis=2)
-    feasible = (d2 <= gate) & (moved <= reach[:, None])
-    return np.where(feasible, d2 + logdet, _INFEASIBLE)
+    ``last`` (the track's last updated position) and reach_k = v_max Δt_u + g
+    (``_gate_kernel``)."""
+    # copies: writeable C arrays, the one type the kernel is compiled for (the
+    # clusters' centroids are read-only)
+    return _gate_kernel(
+        np.array(x_pred, dtype=np.float64),
+        np.array(P_pred, dtype=np.float64),
+        np.array(last, dtype=np.float64),
+        np.array(reach, dtype=np.float64),
+        np.array(z, dtype=np.float64).reshape(-1, 3),
+        np.array(R, dtype=np.float64).reshape(-1, 3, 3),
+        float(gate),
+    )
+
+
+@nb.njit(cache=True)
+def _gate_kernel(
+    x: FloatArray,
+    P: FloatArray,
+    last: FloatArray,
+    reach: FloatArray,
+    z: FloatArray,
+    R: FloatArray,
+    gate: float,
+) -> FloatArray:
+    """S_kj = P_pp,k + R_j,  ν = c_j − p⁻_k,  d² = νᵀ S⁻¹ ν;  J = d² + ln|S| inside both
+    gates, ``_INFEASIBLE`` outside."""
+    K, D = x.shape[0], z.shape[0]
+    cost = np.full((K, D), _INFEASIBLE)
+    for k in range(K):
+        for j in range(D):
+            moved = 0.0
+            for a in range(3):
+                moved += (z[j, a] - last[k, a]) ** 2
+            if moved > reach[k] ** 2:
+                continue
+            Sinv, det = _inverse3(P[k, :3, :3] + R[j])
+            d2 = 0.0
+            for a in range(3):
+                for b in range(3):
+                    d2 += (z[j, a] - x[k, a]) * Sinv[a, b] * (z[j, b] - x[k, b])
+            if d2 <= gate and det > 0.0:
+                cost[k, j] = d2 + np.log(det)
+    return cost
 
 
 def associate(cost: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
