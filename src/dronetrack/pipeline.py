@@ -64,6 +64,9 @@ from dronetrack.types import (
 __all__ = ["Acquisition", "OutlierSettings", "Pipeline", "RunStats", "Stage", "StepResult", "run"]
 
 log = logging.getLogger(__name__)
+# A lock on a track classed static this long [s] is given up: the turret holds a static
+# object at most this long after its class, within the second the issue allows.
+STATIC_HOLD_S = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,6 +138,7 @@ class Pipeline:
         self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
         self.acquisition = acquisition
         self.classifier = classifier  # each track's class (``classify``)
+        self._static_since: tuple[int, float] | None = None  # (held track, since when)
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
 
@@ -220,12 +224,10 @@ class Pipeline:
         if not isinstance(self.tracker, CandidateStart):
             return found, confirmed, offered, tracks
         lock = self.acquisition.lock
-        if tracks is not None and lock.locked and lock.estimate is not None:
-            held = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
-            if held >= 0 and tracks.classes[held] == STATIC:
-                log.info("frame ending %.3f s: the locked target is static; lock given up", t)
-                self.tracker.reset()
-                lock.reset()
+        if self._held_static(t, tracks):
+            log.info("frame ending %.3f s: the locked target is static; lock given up", t)
+            self.tracker.reset()
+            lock.reset()
         other = lock.switch(offered)
         if other is not None:
             log.info("frame ending %.3f s: lock moved to a target that hovered", t)
@@ -237,6 +239,21 @@ class Pipeline:
             if start is not None and len(start) > 0:
                 self.tracker.acquire(start)
         return found, confirmed, offered, tracks
+
+    def _held_static(self, t: float, tracks: Tracks | None) -> bool:
+        """Whether the locked target's track has been classed static for ``STATIC_HOLD_S``
+        (a track may be classed static for a frame or two as it lifts off or stops)."""
+        lock = self.acquisition.lock if self.acquisition is not None else None
+        held = -1
+        if tracks is not None and lock is not None and lock.locked and lock.estimate is not None:
+            held = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
+        if held < 0 or tracks is None or tracks.classes[held] != STATIC:
+            self._static_since = None
+            return False
+        ident = int(tracks.ids[held])
+        if self._static_since is None or self._static_since[0] != ident:
+            self._static_since = (ident, t)
+        return t - self._static_since[1] >= STATIC_HOLD_S - 1e-9
 
     def _tracks(
         self, frame: Frame, fg: Foreground, found: Detections, confirmed: Candidates

@@ -18,6 +18,7 @@ from dronetrack.eval.metrics import (
     scored_tracking,
     timing,
 )
+from dronetrack.eval.objects import ObjectsLog
 from dronetrack.eval.tracks import TracksLog
 from dronetrack.geometry.transforms import FloatArray
 
@@ -108,12 +109,13 @@ class TrackLog:
     read-only view of the rows appended so far.
     """
 
-    __slots__ = ("_n", "_rows", "tracks")
+    __slots__ = ("_n", "_rows", "objects", "tracks")
 
     def __init__(self) -> None:
         self._rows = np.zeros(_INITIAL_ROWS, dtype=_ROW)
         self._n = 0
         self.tracks = TracksLog()  # every object's track, frame by frame (tracks.csv)
+        self.objects = ObjectsLog()  # every object's truth, where the source knows it
 
     def append(
         self,

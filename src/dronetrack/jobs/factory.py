@@ -19,6 +19,7 @@ from typing import Any, Literal, get_args
 import numpy as np
 
 from dronetrack.classify.classifier import TrackClassifier
+from dronetrack.classify.rules import ClassRules
 from dronetrack.config.pipeline import (
     AcquisitionConfig,
     ControllerConfig,
@@ -274,12 +275,20 @@ def build_pipeline(
     )
 
 
+STILL_PER_SIZE = 2.5  # a static object's clusters stay within this many drone sizes
+
+
 def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | None:
     """Each track's class (``classify``), with the acquisition; ``floor_z`` is the crop
     box's floor [m]."""
     if not cfg.acquisition.enabled:
         return None
+    # still_m: a drone-sized object's centroid wanders about its size; 2.5 s_diag is the
+    # 1 m bound outdoors (s_diag 0.4 m) and 0.3 m indoors (a Crazyflie, 0.12 m), where
+    # a slow drone moves less than 1 m in its first seconds
+    s_diag = cfg.tracker.s_diag if cfg.tracker.s_diag is not None else 0.4
     return TrackClassifier(
+        ClassRules(still_m=STILL_PER_SIZE * s_diag),
         reach_m=cfg.evaluation.reach_m,
         floor_z=floor_z,
         hover_speed=cfg.acquisition.hover_speed_m_s,

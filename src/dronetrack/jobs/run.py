@@ -19,6 +19,7 @@ from dronetrack.config.rig import TurretSpec, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig, dump_scenario
 from dronetrack.config.tomlfile import tidy_model
 from dronetrack.eval.log import TrackLog
+from dronetrack.eval.objects import drone_figures, mot_figures
 from dronetrack.formats.background import read_background_settings
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_pipeline, noise_parameters, resolve_tracker
@@ -139,6 +140,24 @@ class RunResult:
     kernels: KernelWarmUp = NO_WARM_UP  # the warm-up before the timed loop
     interrupted: bool = False  # Ctrl-C ended it early: the log holds the frames done
 
+    def object_metrics(self) -> dict[str, Any]:
+        """With every object's truth (the simulator's): ``drones``, each drone's own
+        figures (as drone 0's in the run's metrics, against the turret's estimate, with
+        its identity switches and own-track share), and ``mot``, the multi-object
+        figures (``eval.objects``); empty otherwise."""
+        objects = self.log.objects
+        if len(objects) != len(self.log) or len(objects.drones()) == 0:
+            return {}
+        radius = self.config.pipeline.evaluation.correct_radius_m
+        est = self.log.est
+        positions = objects.positions
+        fields = [detection_area(self.config, positions[:, k]) for k in objects.drones()]
+        drones = drone_figures(objects, self.log.t, est, self.log.tracked, radius, fields)
+        mot = mot_figures(objects, self.log.tracks, radius)
+        for own, scored in zip(drones, mot.pop("drones"), strict=True):
+            own.update(scored)
+        return {"drones": drones, "mot": mot}
+
     @property
     def realtime_factor(self) -> float:
         return self.simulated_s / self.wall_s if self.wall_s > 0 else math.inf
@@ -153,6 +172,7 @@ class RunResult:
         )
         if area is not None:
             out["outside_field_pct"] = outside_share(area[known])
+        out.update(self.object_metrics())
         out["realtime_factor"] = self.realtime_factor
         out["wall_s"] = self.wall_s
         if self.interrupted:

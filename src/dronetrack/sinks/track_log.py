@@ -15,7 +15,7 @@ import numpy as np
 from dronetrack.eval.log import TrackLog
 from dronetrack.geometry.mount import pointing_angles
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.types import Sample, StepResult
+from dronetrack.types import Sample, StepResult, truth_objects
 
 __all__ = ["TrackLogSink", "log_result", "measurement_error"]
 
@@ -67,6 +67,9 @@ def log_result(log: TrackLog, sample: Sample, result: StepResult) -> None:
         pan, tilt = float(p), float(t)
     if result.tracks is not None:
         log.tracks.append(frame.end, result.tracks)
+    objects = truth_objects(truth)
+    if objects is not None:
+        log.objects.append(frame.end, objects, sensor)
     var = est.variance
     log.append(
         t=frame.end,

@@ -1,0 +1,206 @@
+"""Every object's truth, frame by frame, and the figures scored against it: each drone's
+own figures (as the single-target metrics score drone 0) and the multi-object figures
+of ``motmetrics`` (MOTA, MOTP, IDF1, identity switches).
+
+Multi-object scoring (CLEAR MOT and the identity metrics, Bernardin & Stiefelhagen
+2008, Ristani et al. 2016) is ``motmetrics``'s: each frame, the drones that return
+points are the ground truth and the tracks not classed static or bird are the
+hypotheses (a static or bird class is the tracker's claim that a track is no drone);
+a pair may match within the correct radius, on the 3-D Euclidean distance.  MOTP is
+the mean distance of the matched pairs [m].
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dronetrack.errors import MissingExtraError
+from dronetrack.eval.metrics import acquisition_metrics, scored_tracking
+from dronetrack.eval.tracks import TracksLog
+from dronetrack.geometry.transforms import FloatArray
+from dronetrack.types import TRACK_CLASSES, ObjectTruth
+
+__all__ = ["NOT_DRONE_CLASSES", "ObjectsLog", "drone_figures", "mot_figures"]
+
+# The classes by which a track claims to be no drone: not hypotheses of a drone.
+NOT_DRONE_CLASSES = (TRACK_CLASSES.index("static"), TRACK_CLASSES.index("bird"))
+
+
+class ObjectsLog:
+    """The truth of every object, one entry per tracking frame (the same objects in the
+    same order every frame: ``ObjectTruth``)."""
+
+    def __init__(self) -> None:
+        self.ids: NDArray[np.int64] | None = None
+        self.kinds: NDArray[np.str_] | None = None
+        self._t: list[float] = []
+        self._positions: list[FloatArray] = []
+        self._returns: list[NDArray[np.int64]] = []
+        self._ranges: list[FloatArray] = []
+
+    def __len__(self) -> int:
+        return len(self._t)
+
+    def append(self, t: float, objects: ObjectTruth, sensor: FloatArray) -> None:
+        """The objects at the end of the frame ending at ``t``; ``sensor`` (3,) its
+        position."""
+        if self.ids is None:
+            self.ids, self.kinds = objects.ids.copy(), objects.kinds.copy()
+        self._t.append(t)
+        positions = np.where(objects.present[:, None], objects.positions, np.nan)
+        self._positions.append(positions)
+        self._returns.append(objects.returns())
+        self._ranges.append(np.linalg.norm(positions - sensor, axis=1))
+
+    @property
+    def t(self) -> FloatArray:
+        return np.asarray(self._t, dtype=np.float64)
+
+    @property
+    def positions(self) -> FloatArray:
+        """(frames, K, 3), NaN where an object is not present."""
+        return np.stack(self._positions) if self._positions else np.empty((0, 0, 3))
+
+    @property
+    def returns(self) -> NDArray[np.int64]:
+        """(frames, K) returns from each object."""
+        return np.stack(self._returns) if self._returns else np.empty((0, 0), np.int64)
+
+    @property
+    def ranges(self) -> FloatArray:
+        """(frames, K) each object's range from the sensor [m]."""
+        return np.stack(self._ranges) if self._ranges else np.empty((0, 0))
+
+    def drones(self) -> NDArray[np.intp]:
+        """The indices of the drones among the objects."""
+        if self.kinds is None:
+            return np.empty(0, dtype=np.intp)
+        return np.flatnonzero(self.kinds == "drone")
+
+
+def drone_figures(
+    objects: ObjectsLog,
+    t: FloatArray,
+    est: FloatArray,
+    tracked: NDArray[np.bool_],
+    radius: float,
+    in_field: list[NDArray[np.bool_] | None] | None = None,
+) -> list[dict[str, Any]]:
+    """Each drone's own figures, as ``TrackLog.summary`` scores drone 0 against the
+    turret's estimate ``est`` (frames, 3) and its lock ``tracked``: ``coverage_pct``,
+    ``max_tracking_distance_m``, ``acquire_s``, ``lock_on_visible_pct`` and the rest of
+    ``acquisition_metrics``, and its ``visible_frames``.  ``in_field``: per drone, its
+    frames inside the detection area (None: all)."""
+    if len(objects) != len(t):
+        raise ValueError(f"{len(objects)} object truths for {len(t)} frames")
+    positions, returns, ranges = objects.positions, objects.returns, objects.ranges
+    assert objects.ids is not None
+    out = []
+    for n, k in enumerate(objects.drones()):
+        gt = positions[:, k]
+        err = est - gt
+        counts = returns[:, k]
+        field = None if in_field is None else in_field[n]
+        # max_tracking_distance_m counts frames whose update used a measurement of the
+        # drone: for drone 0 the measurement's own error; here, whether the drone
+        # returned points (the particle filter weighs every foreground point)
+        measured = np.where(counts > 0, 0.0, np.nan)
+        coverage, distance = scored_tracking(err, ranges[:, k], radius, measured)
+        figures = acquisition_metrics(t, err, tracked, counts, radius, field, ranges[:, k])
+        visible = counts > 0 if field is None else (counts > 0) & field
+        row: dict[str, Any] = {
+            "id": int(objects.ids[k]),
+            "coverage_pct": coverage,
+            "max_tracking_distance_m": distance,
+            "visible_frames": int(np.count_nonzero(visible)),
+        }
+        for key in ("acquire_s", "lock_on_visible_pct", "reacquire_max_s", "losses"):
+            if key in figures:
+                row[key] = figures[key]
+        out.append(row)
+    return out
+
+
+def _mm() -> Any:
+    try:
+        import motmetrics
+    except ImportError as err:  # a core dependency; a broken install says so
+        raise MissingExtraError(
+            "multi-object metrics need motmetrics: pip install motmetrics"
+        ) from err
+    return motmetrics
+
+
+def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[str, Any]:
+    """The multi-object figures of the drones (see the module docstring): ``mota``,
+    ``motp_m``, ``idf1``, ``id_switches``, ``false_positives``, ``misses``, ``matches``,
+    ``frames``, and per drone its identity switches and the share of its visible frames
+    its track matched (``own_track_pct``)."""
+    mm = _mm()
+    acc = mm.MOTAccumulator(auto_id=True)
+    rows = tracks.rows
+    frame_of = np.searchsorted(objects.t, rows["t"])
+    drones = objects.drones()
+    positions, returns = objects.positions, objects.returns
+    assert objects.ids is not None
+    for f in range(len(objects)):
+        seen = drones[returns[f, drones] > 0]
+        here = rows[(frame_of == f) & ~np.isin(rows["cls"], NOT_DRONE_CLASSES)]
+        gt = positions[f, seen]
+        d = np.linalg.norm(gt[:, None, :] - here["position"][None, :, :], axis=2)
+        acc.update(
+            objects.ids[seen].tolist(), here["id"].tolist(), np.where(d <= radius, d, np.nan)
+        )
+    summary = (
+        mm.metrics.create()
+        .compute(
+            acc,
+            metrics=[
+                "mota",
+                "motp",
+                "idf1",
+                "num_switches",
+                "num_false_positives",
+                "num_misses",
+                "num_matches",
+                "num_frames",
+            ],
+            name="drones",
+        )
+        .iloc[0]
+    )
+    events = acc.mot_events
+    per: list[dict[str, Any]] = []
+    for k in drones:
+        mine = events[events["OId"] == objects.ids[k]]
+        seen_frames = int(np.count_nonzero(returns[:, k] > 0))
+        hit = int(mine["Type"].isin(["MATCH", "SWITCH"]).sum())
+        per.append(
+            {
+                "id": int(objects.ids[k]),
+                "id_switches": int((mine["Type"] == "SWITCH").sum()),
+                "own_track_pct": 100.0 * hit / seen_frames if seen_frames else None,
+                "track_ids": int(mine["HId"].dropna().nunique()),
+            }
+        )
+
+    def number(value: Any) -> float | None:
+        v = float(value)
+        return v if np.isfinite(v) else None
+
+    return {
+        "objects": "drones",
+        "radius_m": radius,
+        "mota": number(summary["mota"]),
+        "motp_m": number(summary["motp"]),
+        "idf1": number(summary["idf1"]),
+        "id_switches": int(summary["num_switches"]),
+        "false_positives": int(summary["num_false_positives"]),
+        "misses": int(summary["num_misses"]),
+        "matches": int(summary["num_matches"]),
+        "frames": int(summary["num_frames"]),
+        "drones": per,
+    }

@@ -1,0 +1,131 @@
+"""Every object's truth and the figures scored against it (``eval.objects``): each
+drone's own figures and motmetrics' multi-object figures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dronetrack.eval.objects import ObjectsLog, drone_figures, mot_figures
+from dronetrack.eval.tracks import TracksLog
+from dronetrack.types import TRACK_CLASSES, ObjectTruth, Tracks
+
+T = 0.1
+DRONE, BIRD = TRACK_CLASSES.index("drone"), TRACK_CLASSES.index("bird")
+
+
+def _truth(positions: np.ndarray, returns: list[int], kinds: tuple[str, ...]) -> ObjectTruth:
+    index = np.concatenate([np.full(n, k) for k, n in enumerate(returns)] or [np.empty(0)])
+    k = len(kinds)
+    return ObjectTruth(
+        ids=np.arange(k),
+        kinds=np.array(kinds),
+        positions=positions,
+        velocities=np.zeros((k, 3)),
+        present=np.ones(k, dtype=bool),
+        object_index=index.astype(np.int64),
+    )
+
+
+def _tracks(ids: list[int], positions: np.ndarray, classes: list[int]) -> Tracks:
+    k = len(ids)
+    return Tracks(
+        ids=np.array(ids, dtype=np.int64),
+        positions=np.asarray(positions, dtype=float).reshape(k, 3),
+        velocities=np.zeros((k, 3)),
+        covariances=np.tile(np.eye(6), (k, 1, 1)),
+        born=np.zeros(k),
+        updated=np.ones(k, dtype=bool),
+        hovered=np.zeros(k, dtype=bool),
+        locked=np.zeros(k, dtype=bool),
+        classes=np.array(classes, dtype=np.int64),
+    )
+
+
+def _scene(
+    frames: int, switch_at: int | None = None, bird_track: bool = False
+) -> tuple[ObjectsLog, TracksLog]:
+    """Two drones 20 m apart, each followed by a track 0.5 m off; from ``switch_at`` on
+    the two tracks trade drones (identity switches); optionally a bird-class track."""
+    objects, tracks = ObjectsLog(), TracksLog()
+    for f in range(frames):
+        t = T * (f + 1)
+        drones = np.array([[30.0 + f, 0.0, 10.0], [30.0 + f, 20.0, 10.0]])
+        objects.append(t, _truth(drones, [5, 5], ("drone", "drone")), np.zeros(3))
+        ids = [1, 2] if switch_at is None or f < switch_at else [2, 1]
+        est = drones + np.array([0.5, 0.0, 0.0])
+        extra_ids, extra_pos, extra_cls = [], [], []
+        if bird_track:
+            extra_ids, extra_pos, extra_cls = [9], [[80.0, -40.0, 30.0]], [BIRD]
+        tracks.append(
+            t,
+            _tracks(
+                ids + extra_ids,
+                np.vstack([est, *extra_pos]) if extra_pos else est,
+                [DRONE, DRONE, *extra_cls],
+            ),
+        )
+    return objects, tracks
+
+
+def test_two_drones_each_followed_by_its_track_score_perfectly() -> None:
+    objects, tracks = _scene(20, bird_track=True)
+    mot = mot_figures(objects, tracks, radius=4.0)
+    assert mot["mota"] == pytest.approx(1.0)
+    assert mot["idf1"] == pytest.approx(1.0)
+    assert mot["motp_m"] == pytest.approx(0.5)
+    assert mot["id_switches"] == 0
+    assert mot["false_positives"] == 0  # the bird-class track is no drone hypothesis
+    assert [d["own_track_pct"] for d in mot["drones"]] == [100.0, 100.0]
+    assert [d["track_ids"] for d in mot["drones"]] == [1, 1]
+
+
+def test_tracks_that_trade_drones_switch_identity_once_each() -> None:
+    objects, tracks = _scene(20, switch_at=10)
+    mot = mot_figures(objects, tracks, radius=4.0)
+    assert mot["id_switches"] == 2
+    assert [d["id_switches"] for d in mot["drones"]] == [1, 1]
+    assert [d["track_ids"] for d in mot["drones"]] == [2, 2]
+    assert mot["idf1"] == pytest.approx(0.5)
+
+
+def test_a_drone_without_returns_is_not_expected_and_a_track_far_off_is_a_false_positive() -> None:
+    objects, tracks = ObjectsLog(), TracksLog()
+    for f in range(4):
+        drone = np.array([[40.0, 0.0, 10.0]])
+        objects.append(T * (f + 1), _truth(drone, [0 if f < 2 else 3], ("drone",)), np.zeros(3))
+        tracks.append(T * (f + 1), _tracks([1], np.array([[40.0, 10.0, 10.0]]), [DRONE]))
+    mot = mot_figures(objects, tracks, radius=4.0)
+    assert mot["false_positives"] == 4  # 10 m off: never within the 4 m radius
+    assert mot["misses"] == 2  # the two frames it returned points
+    assert mot["drones"][0]["own_track_pct"] == 0.0
+
+
+def test_each_drones_figures_score_the_turrets_estimate_against_it() -> None:
+    objects, _ = _scene(30)
+    t = T * np.arange(1, 31)
+    # the turret holds drone 1 (at y = 20) from frame 10 on
+    est = np.array([[30.0 + f, 20.0, 10.0] for f in range(30)])
+    tracked = np.arange(30) >= 10
+    drones = drone_figures(objects, t, est, tracked, radius=4.0)
+    assert [d["id"] for d in drones] == [0, 1]
+    assert drones[0]["lock_on_visible_pct"] == 0.0
+    assert drones[0]["acquire_s"] is None
+    assert drones[1]["lock_on_visible_pct"] == pytest.approx(100.0 * 20 / 30)
+    assert drones[1]["acquire_s"] == pytest.approx(1.0)
+    assert drones[1]["visible_frames"] == 30
+
+
+def test_drone_0s_own_figures_are_the_runs_single_target_figures() -> None:
+    """A simulated run: the figures of drone 0 in ``drones`` are computed as the run's
+    own (coverage, acquisition, lock-on) are, against the same truth."""
+    from dronetrack.config.scenarios import get_scenario
+    from dronetrack.jobs.simulate import run_simulation
+
+    run = run_simulation(get_scenario("default").model_copy(update={"duration_s": 14.0}))
+    metrics = run.metrics()
+    own = metrics["drones"][0]
+    for key in ("coverage_pct", "max_tracking_distance_m", "acquire_s", "lock_on_visible_pct"):
+        assert own[key] == pytest.approx(metrics[key]), key
+    assert 0.0 <= metrics["mot"]["mota"] <= 1.0
+    assert metrics["mot"]["frames"] == metrics["frames"]
