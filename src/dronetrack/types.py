@@ -178,6 +178,8 @@ class Candidates:
     ids: (K,) a number that stays with a tentative track for its life.
     hovered: (K,) whether it has moved slower than a bird can fly for several frames in
         a row (``detect.tentative``); left out: none has.
+    clusters: (K,) the index of this frame's cluster (``Detections``) each one is; −1
+        where it is not one of them (a cue's predicted position); left out: none.
     """
 
     positions: FloatArray
@@ -186,11 +188,14 @@ class Candidates:
     sizes: FloatArray
     ids: NDArray[np.int64]
     hovered: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    clusters: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def __post_init__(self) -> None:
         k = len(self.positions)
         if len(self.hovered) == 0:
             object.__setattr__(self, "hovered", np.zeros(k, dtype=bool))
+        if len(self.clusters) == 0:
+            object.__setattr__(self, "clusters", np.full(k, -1, dtype=np.int64))
         for name, shape, dtype in (
             ("positions", (k, 3), np.float64),
             ("velocities", (k, 3), np.float64),
@@ -198,6 +203,7 @@ class Candidates:
             ("sizes", (k,), np.float64),
             ("ids", (k,), np.int64),
             ("hovered", (k,), np.bool_),
+            ("clusters", (k,), np.int64),
         ):
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 
@@ -219,6 +225,7 @@ class Candidates:
             self.sizes[idx],
             self.ids[idx],
             self.hovered[idx],
+            self.clusters[idx],
         )
 
 

@@ -256,3 +256,17 @@ def test_a_track_that_hovered_keeps_the_flag_at_speed_and_comes_first() -> None:
     assert len(out) == 2
     assert out.hovered.tolist() == [True, False]
     np.testing.assert_allclose(out.positions[0], p)
+
+
+def test_a_confirmed_candidate_names_its_cluster_of_the_frame() -> None:
+    tracks = TentativeTracks(ConfirmationSettings(v_max=15.0, hits=2, frames=4))
+    g = np.random.default_rng(2)
+    for k in range(6):
+        drones = np.array([[30.0 + k, 0.0, 10.0], [60.0, 20.0 - k, 15.0]])
+        clutter = g.uniform([0, -100, 0], [200, 100, 50], size=(3, 3))
+        order = g.permutation(5)
+        found = _found(*map(tuple, np.vstack([drones, clutter])[order]))
+        confirmed = tracks.update(T * k, found)
+    assert len(confirmed) == 2
+    assert np.all(confirmed.clusters >= 0)
+    np.testing.assert_array_equal(confirmed.positions, found.centroids[confirmed.clusters])

@@ -34,7 +34,7 @@ class TrackClassifier:
         hover_speed: float = 4.0,
         hover_frames: int = 3,
         ground_cell_m: float = 5.0,
-        ground_every: int = 5,
+        ground_every: int = 10,
     ) -> None:
         self.rules = rules if rules is not None else ClassRules()
         self.reach_m = reach_m
@@ -64,7 +64,7 @@ class TrackClassifier:
 
         ``world`` (N, 3) is every return of the frame and ``foreground`` the rows of it
         that are foreground: the ground is learnt from the others, every
-        ``ground_every`` frames (it changes slowly; a sample of a frame costs 0.2 ms);
+        ``ground_every`` frames (it changes slowly; a sample of a frame costs 0.15 ms);
         ``sensor`` (3,) is the sensor's position, ``is_background`` the background
         map's test (None: no map yet)."""
         if self._frames % self.ground_every == 0:

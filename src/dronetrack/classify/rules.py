@@ -98,12 +98,11 @@ def classify(
     grounded = life.grounded >= 0.5
     joined = life.joined >= 0.5
     beyond = life.beyond_reach >= 0.5
-    large = np.nan_to_num(life.extent, nan=0.0) > rules.max_extent_m
+    extent = np.nan_to_num(life.extent, nan=0.0)
+    large = extent > rules.max_extent_m
     # d_max ≤ max(still_m, extent, θ_still r): a far object's few returns land anywhere
     # on it and its beam footprint
-    wander = np.maximum(
-        np.nan_to_num(life.extent, nan=0.0), rules.still_rad * np.nan_to_num(life.range_m, nan=0.0)
-    )
+    wander = np.maximum(extent, rules.still_rad * np.nan_to_num(life.range_m, nan=0.0))
     still = life.moved <= np.maximum(rules.still_m, wander)
     seen = life.observed >= rules.min_observed
     flying = ~still & ~life.hovered & (life.age >= rules.bird_after_s) & seen

@@ -29,12 +29,18 @@ def candidate_tracks(candidates: Candidates, found: Detections, tracks: Tracks) 
     out = np.full(len(candidates), -1, dtype=np.intp)
     if len(candidates) == 0 or len(found) == 0 or len(tracks) == 0:
         return out
-    gap = np.linalg.norm(candidates.positions[:, None, :] - found.centroids[None, :, :], axis=2)
-    cluster = np.argmin(gap, axis=1)
-    exact = gap[np.arange(len(candidates)), cluster] <= _SAME
-    owner = {int(c): k for k, c in enumerate(tracks.clusters) if c >= 0}
-    for i in np.flatnonzero(exact):
-        out[i] = owner.get(int(cluster[i]), -1)
+    cluster = candidates.clusters.astype(np.intp)
+    if np.any(cluster < 0):  # not recorded by the detect stage: found by position
+        gap = np.linalg.norm(candidates.positions[:, None, :] - found.centroids[None, :, :], axis=2)
+        nearest = np.argmin(gap, axis=1)
+        exact = gap[np.arange(len(candidates)), nearest] <= _SAME
+        cluster = np.where(exact, nearest, -1)
+    # owner[j]: the track cluster j updated
+    owner = np.full(len(found), -1, dtype=np.intp)
+    took = tracks.clusters >= 0
+    owner[tracks.clusters[took]] = np.flatnonzero(took)
+    has = cluster >= 0
+    out[has] = owner[cluster[has]]
     return out
 
 

@@ -184,6 +184,7 @@ class TentativeTracks:
         self.count = np.empty(0, dtype=np.int64)  # returns in the latest detection
         self.slow = np.empty(0, dtype=np.int64)  # detections in a row with |v| < v_hover
         self.hovered = np.empty(0, dtype=bool)
+        self.cluster = np.empty(0, dtype=np.int64)  # this frame's cluster (-1: missed)
         self.ids = np.empty(0, dtype=np.int64)
         self._next_id = 0
 
@@ -207,6 +208,8 @@ class TentativeTracks:
             first[:, None], v_meas, self.v[rows] + SMOOTHING * (v_meas - self.v[rows])
         )
         self.p[rows] = found.centroids[cols]
+        self.cluster = np.full(len(self), -1, dtype=np.int64)
+        self.cluster[rows] = cols
         self.t_last[rows] = t
         self.size[rows] = found.extents[cols, 0]
         self.count[rows] = found.counts[cols]
@@ -238,6 +241,7 @@ class TentativeTracks:
             "count",
             "slow",
             "hovered",
+            "cluster",
             "ids",
         ):
             setattr(self, name, getattr(self, name)[keep])
@@ -256,6 +260,7 @@ class TentativeTracks:
         self.count = np.concatenate([self.count, found.counts[new]])
         self.slow = np.concatenate([self.slow, np.zeros(k, dtype=np.int64)])
         self.hovered = np.concatenate([self.hovered, np.zeros(k, dtype=bool)])
+        self.cluster = np.concatenate([self.cluster, new.astype(np.int64)])
         self.ids = np.concatenate([self.ids, self._next_id + np.arange(k, dtype=np.int64)])
         self._next_id += k
         excess = len(self) - self.settings.max_tracks
@@ -270,7 +275,13 @@ class TentativeTracks:
         hits = _popcount(self.history)
         idx = self._best(hits, (self.t_last == t) & (hits >= self.settings.hits))
         return Candidates(
-            self.p[idx], self.v[idx], hits[idx], self.size[idx], self.ids[idx], self.hovered[idx]
+            self.p[idx],
+            self.v[idx],
+            hits[idx],
+            self.size[idx],
+            self.ids[idx],
+            self.hovered[idx],
+            self.cluster[idx],
         )
 
     def cues(self, t: float) -> Candidates:

@@ -300,9 +300,12 @@ def measurement_noise(found: Detections, sigma_meas: float) -> FloatArray:
 
 
 def _cluster_of(candidates: Candidates, found: Detections) -> NDArray[np.intp]:
-    """The index of the cluster each confirmed candidate is (its centroid this frame)."""
+    """The index of the cluster each confirmed candidate is (its centroid this frame),
+    −1 for none: as the detect stage recorded it, else found by its position."""
     if len(candidates) == 0 or len(found) == 0:
         return np.full(len(candidates), -1, dtype=np.intp)
+    if np.all(candidates.clusters >= 0):
+        return candidates.clusters.astype(np.intp)
     gap = np.linalg.norm(candidates.positions[:, None, :] - found.centroids[None, :, :], axis=2)
     nearest = np.argmin(gap, axis=1)
     return np.where(gap[np.arange(len(candidates)), nearest] <= 1e-9, nearest, -1)
