@@ -377,9 +377,9 @@ def test_a_lock_on_a_static_object_is_given_up_for_the_drone() -> None:
     """An object the background does not hold stands on the ground 40 m out (a crate or
     a bush, 1.6 × 1 × 1.2 m, its bottom cut by the crop's 1 m floor) and is alone in
     view: the tracker locks on it.  Once its track has been classed static (still for
-    1 s, grounded) for 0.5 s the lock is given up and the object is never offered again; a drone that
-    then hovers 30 m up, 50 m away, is locked on and held.  Without the track layer's
-    classes the lock stays on the crate."""
+    1 s, grounded) for 0.5 s the lock is given up and the object is never offered
+    again; a drone that then hovers 30 m up, 50 m away, is locked on and held.  Without
+    the track layer's classes the lock stays on the crate."""
     car = (40.0, 10.0, 1.6)
     drone = (50.0, -20.0, 30.0)
 

@@ -33,7 +33,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.classify.classifier import TrackClassifier
-from dronetrack.control.choose import STATIC, held_track, not_static
+from dronetrack.control.choose import (
+    STATIC,
+    TargetChooser,
+    candidate_tracks,
+    held_track,
+    not_static,
+)
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.detect.lock import SAME_TARGET_M, LockBook
@@ -123,6 +129,7 @@ class Pipeline:
         field: FieldOfRegard | None = None,
         ranges: RangeImage | None = None,
         classifier: TrackClassifier | None = None,
+        chooser: TargetChooser | None = None,
     ) -> None:
         self.tracker = tracker
         self.controller = controller
@@ -139,6 +146,8 @@ class Pipeline:
         self.acquisition = acquisition
         self.classifier = classifier  # each track's class (``classify``)
         self._static_since: tuple[int, float] | None = None  # (held track, since when)
+        self.chooser = chooser  # the track the turret serves among several
+        self._look: Candidates | None = None  # where the served track is, out of view
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
 
@@ -188,7 +197,7 @@ class Pipeline:
                     t_cmd,
                     estimate,
                     points,
-                    self._reachable(frame.end, offered),
+                    self._look if self._look is not None else self._reachable(frame.end, offered),
                     self._cues(frame.end),
                 )
                 if steps > 0
@@ -228,6 +237,7 @@ class Pipeline:
             log.info("frame ending %.3f s: the locked target is static; lock given up", t)
             self.tracker.reset()
             lock.reset()
+        offered = self._serve(t, found, tracks, offered)
         other = lock.switch(offered)
         if other is not None:
             log.info("frame ending %.3f s: lock moved to a target that hovered", t)
@@ -239,6 +249,49 @@ class Pipeline:
             if start is not None and len(start) > 0:
                 self.tracker.acquire(start)
         return found, confirmed, offered, tracks
+
+    def _serve(
+        self, t: float, found: Detections, tracks: Tracks | None, offered: Candidates
+    ) -> Candidates:
+        """The candidates the tracker may take after the chooser's turn
+        (``control.choose``): with two tracks or more worth the turret, the one to serve;
+        when it is not the one held, the tracker lets go, takes the served track's
+        candidate if it has one this frame, and the turret looks where the track is
+        predicted (``_look``) until it has."""
+        self._look = None
+        if self.chooser is None or tracks is None:
+            return offered
+        lock = self.acquisition.lock if self.acquisition is not None else None
+        assert lock is not None
+        apart = self.chooser.settings.apart_m
+        held = -1
+        if lock.locked and lock.estimate is not None:
+            held = held_track(tracks, lock.estimate.position, apart)
+        held_id = int(tracks.ids[held]) if held >= 0 else None
+        served = self.chooser.choose(t, tracks, held_id)
+        if served is None or served == held_id:
+            return offered
+        k = int(np.flatnonzero(tracks.ids == served)[0])
+        if (
+            lock.locked
+            and lock.estimate is not None
+            and np.linalg.norm(tracks.positions[k] - lock.estimate.position) <= apart
+        ):
+            return offered  # the served track is where the tracker already is
+        if lock.locked:
+            log.info("frame ending %.3f s: the turret turns to track %d", t, served)
+            self.tracker.reset()
+            lock.reset()
+        mine = offered.take(np.flatnonzero(candidate_tracks(offered, found, tracks) == k))
+        if len(mine) == 0:
+            self._look = Candidates(
+                tracks.positions[k : k + 1],
+                tracks.velocities[k : k + 1],
+                np.ones(1, dtype=np.int64),
+                np.zeros(1),
+                tracks.ids[k : k + 1],
+            )
+        return mine
 
     def _held_static(self, t: float, tracks: Tracks | None) -> bool:
         """Whether the locked target's track has been classed static for ``STATIC_HOLD_S``

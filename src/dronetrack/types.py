@@ -249,6 +249,7 @@ class Tracks:
         a drone (``classify``); left out: unknown, 0.5.
     clusters: (K,) the index of the frame's cluster (``Detections``) that updated it,
         −1 when none did; left out: none.
+    last_seen: (K,) the time of its last update [s]; left out: its birth.
     """
 
     ids: NDArray[np.int64]
@@ -262,11 +263,14 @@ class Tracks:
     classes: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     p_drone: FloatArray = field(default_factory=lambda: np.zeros(0))
     clusters: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    last_seen: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
         k = len(self.ids)
         if len(self.clusters) == 0 and k:
             object.__setattr__(self, "clusters", np.full(k, -1, dtype=np.int64))
+        if len(self.last_seen) == 0 and k:
+            object.__setattr__(self, "last_seen", np.asarray(self.born, dtype=np.float64))
         if len(self.classes) == 0 and k:
             object.__setattr__(self, "classes", np.zeros(k, dtype=np.int64))
         if len(self.p_drone) == 0 and k:
@@ -283,6 +287,7 @@ class Tracks:
             ("classes", (k,), np.int64),
             ("p_drone", (k,), np.float64),
             ("clusters", (k,), np.int64),
+            ("last_seen", (k,), np.float64),
         ):
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 

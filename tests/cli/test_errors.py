@@ -301,3 +301,27 @@ def test_a_run_shorter_than_a_targets_start_is_one_error_line(
     path.write_text('base = "default"\n[[targets]]\nflight = "aggressive"\nstart_s = 30.0\n')
     line = _one_error(["simulate", str(path), "--duration", "10"], capsys)
     assert "targets.0.start_s = 30 s is not before the run ends (duration_s = 10 s)" in line
+
+
+@pytest.mark.parametrize(
+    ("section", "key", "value", "message"),
+    [
+        ("choose", "revisit_s", "0", "pipeline.choose.revisit_s: Input should be greater than 0"),
+        ("choose", "revisit_s", "-3", "pipeline.choose.revisit_s: Input should be greater than 0"),
+        ("choose", "hysteresis", "0.5", "pipeline.choose.hysteresis"),
+        ("tracks", "coast_s", "-1", "pipeline.tracks.coast_s: Input should be greater than 0"),
+    ],
+)
+def test_a_bad_track_or_turret_setting_is_one_line(
+    section: str,
+    key: str,
+    value: str,
+    message: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    scenario = tmp_path / "bad.toml"
+    scenario.write_text(f'base = "default"\n[pipeline.{section}]\n{key} = {value}\n')
+    line = _one_error(["simulate", str(scenario), "--duration", "1"], capsys)
+    assert message in line
+    assert str(scenario) in line

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from dronetrack.config.pipeline import (
     BackgroundConfig,
+    ChooseConfig,
     ControllerConfig,
     CropConfig,
     EvaluationConfig,
@@ -281,7 +282,9 @@ def _several(name: str, flights: list[str], description: str, duration: float) -
     the background scan ends."""
     base = _acquisition(name, flights[0], description, duration)
     others = tuple(TargetConfig(model="phantom4", flight=f) for f in flights[1:])
-    return base.model_copy(update={"targets": others})
+    # the turret shares itself among the drones ([pipeline.choose], off by default)
+    pipeline = base.pipeline.model_copy(update={"choose": ChooseConfig(enabled=True)})
+    return base.model_copy(update={"targets": others, "pipeline": pipeline})
 
 
 _LIST = [

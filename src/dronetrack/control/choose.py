@@ -11,13 +11,24 @@ classed static, so the turret never holds one for longer than a frame after that
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
+from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES, Candidates, Detections, Tracks
 
-__all__ = ["STATIC", "candidate_tracks", "held_track", "not_static"]
+__all__ = [
+    "STATIC",
+    "ChooseSettings",
+    "TargetChooser",
+    "candidate_tracks",
+    "held_track",
+    "not_static",
+    "threat",
+]
 
 STATIC = TRACK_CLASSES.index("static")
 _SAME = 1e-9  # a candidate is its cluster's centroid, to the bit
@@ -60,3 +71,156 @@ def held_track(tracks: Tracks, position: FloatArray, within: float) -> int:
     gap = np.linalg.norm(tracks.positions - position, axis=1)
     k = int(np.argmin(gap))
     return k if gap[k] <= within else -1
+
+
+# --- which track the turret serves -----------------------------------------------------
+
+DRONE = TRACK_CLASSES.index("drone")
+
+
+def threat(
+    positions: FloatArray,
+    velocities: FloatArray,
+    p_drone: FloatArray,
+    protected: FloatArray,
+    d_ref: float,
+    v_ref: float,
+) -> FloatArray:
+    """Each track's threat (K,): p_drone times its closeness to the protected point q and
+    its closing speed,
+
+        threat = p · d_ref / (d_ref + |p − q|) · (1 + max(0, −v · (p − q) / |p − q|) / v_ref)
+
+    so a likely drone near q, flying at it, comes first."""
+    rel = positions - protected
+    d = np.linalg.norm(rel, axis=1)
+    closing = -np.einsum("ij,ij->i", velocities, rel) / np.maximum(d, 1e-9)
+    out: FloatArray = p_drone * d_ref / (d_ref + d) * (1.0 + np.maximum(closing, 0.0) / v_ref)
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class ChooseSettings:
+    """How the turret shares itself among the tracks (SI units; see ``TargetChooser``).
+
+    protected: the point the site protects [m]; d_ref, v_ref: the threat's scales;
+    hysteresis: another track must be this much more threatening (1.5: 50 % more) to
+    take the turret; hold_s: the least time a served track keeps it; revisit_s: a drone
+    not served for this long is looked at again; look_s: how long a look at a track out
+    of view lasts before it is given up; fresh_s: a track unseen for longer is no
+    candidate (its prediction is stale); apart_m: a track this close to the held one
+    is a second track on the same drone, no candidate.
+    """
+
+    protected: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    d_ref: float = 100.0
+    v_ref: float = 15.0
+    hysteresis: float = 1.5
+    hold_s: float = 1.0
+    revisit_s: float = 10.0
+    look_s: float = 1.5
+    fresh_s: float = 1.0
+    apart_m: float = 5.0
+
+    def __post_init__(self) -> None:
+        for name in ("d_ref", "v_ref", "revisit_s", "look_s", "fresh_s"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"choose: {name} must be positive, got {getattr(self, name)}")
+        if not self.hysteresis >= 1.0 or not self.hold_s >= 0.0:
+            raise ConfigError(
+                f"choose: need hysteresis ≥ 1 and hold_s ≥ 0, got {self.hysteresis}, {self.hold_s}"
+            )
+
+
+class TargetChooser:
+    """The track the turret serves, once a frame (``choose``).
+
+    The candidates are the tracks classed drone that a cluster updated within
+    ``fresh_s`` (and the held track, whatever its class).  The served track keeps the
+    turret for ``hold_s`` at least; then
+    it gives way to a candidate ``hysteresis`` times as threatening (``threat``), or to
+    a drone-class candidate not served for ``revisit_s`` (the most overdue first), so
+    that two drones far apart in angle share the turret.  A served track that the
+    tracker does not hold after ``look_s`` (it was not found where it was predicted)
+    gives way too and is not chosen again until it is seen anew.  With one candidate
+    or none nothing is chosen: the single-target acquisition decides alone.
+    """
+
+    def __init__(self, settings: ChooseSettings | None = None) -> None:
+        self.settings = settings if settings is not None else ChooseSettings()
+        self.reset()
+
+    def reset(self) -> None:
+        self.served: int | None = None
+        self.since = 0.0  # when the served track was chosen [s]
+        self.held_at: dict[int, float] = {}  # when each track was last held [s]
+        self.first_seen: dict[int, float] = {}
+        self.given_up: dict[int, float] = {}  # track → its last_seen when a look failed
+
+    def choose(self, t: float, tracks: Tracks, locked: int | None) -> int | None:
+        """The identity of the track to serve after the frame ending at ``t`` (None: let
+        the single-target acquisition decide); ``locked`` is the identity of the track the
+        tracker holds."""
+        s = self.settings
+        for ident in tracks.ids.tolist():
+            self.first_seen.setdefault(ident, t)
+        if locked is not None:
+            self.held_at[locked] = t
+        ok = (tracks.classes == DRONE) & (t - tracks.last_seen <= s.fresh_s)
+        held = self._position(tracks.ids, locked)
+        if held is not None:  # a second track on the held drone is none of another
+            ok &= np.linalg.norm(tracks.positions - tracks.positions[held], axis=1) > s.apart_m
+            ok[held] = True
+        for k in np.flatnonzero(ok):
+            gave_up = self.given_up.get(int(tracks.ids[k]))
+            if gave_up is not None and tracks.last_seen[k] <= gave_up:
+                ok[k] = False
+        idx = np.flatnonzero(ok)
+        if len(idx) < 2:
+            self.served = None
+            return None
+        score = threat(
+            tracks.positions[idx],
+            tracks.velocities[idx],
+            tracks.p_drone[idx],
+            np.asarray(s.protected),
+            s.d_ref,
+            s.v_ref,
+        )
+        ids = tracks.ids[idx]
+        current = self._position(ids, self.served)
+        if current is None:  # start with the held track if it is a fair choice
+            held = self._position(ids, locked)
+            best = int(np.argmax(score))
+            pick = held if held is not None and score[held] * s.hysteresis >= score[best] else best
+            return self._serve(t, int(ids[pick]))
+        if t - self.since < s.hold_s:
+            return self.served
+        if self.served != locked and t - self.since >= s.look_s:  # not found: give way
+            self.given_up[int(ids[current])] = float(tracks.last_seen[idx[current]])
+            others = np.flatnonzero(ids != ids[current])
+            return self._serve(t, int(ids[others[np.argmax(score[others])]]))
+        overdue = [
+            (t - self.held_at.get(int(i), self.first_seen[int(i)]), n)
+            for n, i in enumerate(ids)
+            if i != self.served and tracks.classes[idx[n]] == DRONE
+        ]
+        late = [(wait, n) for wait, n in overdue if wait >= s.revisit_s]
+        if late:
+            return self._serve(t, int(ids[max(late)[1]]))
+        best = int(np.argmax(score))
+        if score[best] > s.hysteresis * score[current]:
+            return self._serve(t, int(ids[best]))
+        return self.served
+
+    @staticmethod
+    def _position(ids: NDArray[np.int64], ident: int | None) -> int | None:
+        if ident is None:
+            return None
+        at = np.flatnonzero(ids == ident)
+        return int(at[0]) if len(at) else None
+
+    def _serve(self, t: float, ident: int) -> int:
+        if ident != self.served:
+            self.served, self.since = ident, t
+        return ident

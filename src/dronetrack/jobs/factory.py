@@ -32,6 +32,7 @@ from dronetrack.config.pipeline import (
     field_of_regard,
     scan_area,
 )
+from dronetrack.control.choose import ChooseSettings, TargetChooser
 from dronetrack.control.controller import Controller, TurretController
 from dronetrack.control.controller import Mode as TurretMode
 from dronetrack.control.strategies import Mode as StrategyMode
@@ -64,6 +65,7 @@ __all__ = [
     "ControllerBuilder",
     "TrackerBuilder",
     "build_acquisition",
+    "build_chooser",
     "build_classifier",
     "build_pipeline",
     "build_tracker",
@@ -272,6 +274,23 @@ def build_pipeline(
         field=field_of_regard(cfg, mount.base),
         ranges=RangeImage(np.asarray(mount.base)) if scanning and bg_cfg.near_track else None,
         classifier=build_classifier(cfg, crop[0][2]),
+        chooser=build_chooser(cfg),
+    )
+
+
+def build_chooser(cfg: PipelineConfig) -> TargetChooser | None:
+    """The turret's choice among several drones (``control.choose``), when enabled."""
+    c = cfg.choose
+    if not (c.enabled and cfg.acquisition.enabled):
+        return None
+    return TargetChooser(
+        ChooseSettings(
+            protected=c.protected_m,
+            revisit_s=c.revisit_s,
+            hysteresis=c.hysteresis,
+            hold_s=c.hold_s,
+            look_s=c.look_s,
+        )
     )
 
 

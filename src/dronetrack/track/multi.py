@@ -473,5 +473,6 @@ class MultiTargetTracker:
             hovered=self.hovered.copy(),
             locked=np.zeros(k, dtype=bool),
             clusters=np.where(self.updated, self.cluster, -1),
+            last_seen=self.t_update.copy(),
         )
         return tracks if estimate is None else tracks.with_locked(estimate, SAME_TARGET_M)

@@ -1,0 +1,122 @@
+"""Which track the turret serves (``control.choose``): threat, hysteresis, revisits and
+looks that find nothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dronetrack.control.choose import ChooseSettings, TargetChooser, threat
+from dronetrack.errors import ConfigError
+from dronetrack.types import TRACK_CLASSES, Tracks
+
+DRONE, BIRD = TRACK_CLASSES.index("drone"), TRACK_CLASSES.index("bird")
+
+
+def _tracks(
+    t: float,
+    positions: list[list[float]],
+    classes: list[int],
+    p: list[float],
+    seen: list[float] | None = None,
+) -> Tracks:
+    k = len(positions)
+    return Tracks(
+        ids=np.arange(1, k + 1),
+        positions=np.array(positions, dtype=float),
+        velocities=np.zeros((k, 3)),
+        covariances=np.tile(np.eye(6), (k, 1, 1)),
+        born=np.zeros(k),
+        updated=np.ones(k, dtype=bool),
+        hovered=np.zeros(k, dtype=bool),
+        locked=np.zeros(k, dtype=bool),
+        classes=np.array(classes),
+        p_drone=np.array(p),
+        last_seen=np.full(k, t) if seen is None else np.array(seen),
+    )
+
+
+def test_threat_grows_with_p_drone_closeness_and_closing_speed() -> None:
+    q = np.zeros(3)
+    pos = np.array([[100.0, 0, 20], [50.0, 0, 20], [100.0, 0, 20], [100.0, 0, 20]])
+    vel = np.array([[0.0, 0, 0], [0.0, 0, 0], [-15.0, 0, 0], [15.0, 0, 0]])
+    p = np.array([0.9, 0.9, 0.9, 0.9])
+    th = threat(pos, vel, p, q, d_ref=100.0, v_ref=15.0)
+    d = np.linalg.norm(pos[0])
+    assert th[0] == pytest.approx(0.9 * 100 / (100 + d))
+    assert th[1] > th[0]  # closer
+    assert th[2] == pytest.approx(th[0] * (1 + 15 * 100 / d / 15))  # closing at 15·cos
+    assert th[3] == pytest.approx(th[0])  # leaving counts as not closing
+    assert threat(pos[:1], vel[:1], np.array([0.45]), q, 100.0, 15.0)[0] == pytest.approx(th[0] / 2)
+
+
+def test_one_drone_leaves_the_choice_to_the_acquisition() -> None:
+    chooser = TargetChooser()
+    tracks = _tracks(1.0, [[60, 0, 20], [40, 10, 5]], [DRONE, BIRD], [0.98, 0.1])
+    assert chooser.choose(1.0, tracks, locked=1) is None
+
+
+def test_two_drones_share_the_turret_every_revisit_period() -> None:
+    chooser = TargetChooser(ChooseSettings(revisit_s=5.0, hold_s=1.0, look_s=1.5))
+    served = []
+    for k in range(200):  # 20 s at 10 Hz; the held track is the one served
+        t = 0.1 * k
+        tracks = _tracks(t, [[60, -40, 20], [60, 40, 20]], [DRONE, DRONE], [0.98, 0.98])
+        locked = served[-1] if served else 1
+        served.append(chooser.choose(t, tracks, locked))
+    changes = [k for k in range(1, 200) if served[k] != served[k - 1]]
+    assert served[0] == 1  # the held drone is kept at first (equal threat)
+    assert len(changes) >= 3  # turns to the other and back, time after time
+    gaps = np.diff([0, *changes]) * 0.1
+    assert np.all(gaps <= 5.0 + 0.1 + 1e-9)  # each waits no longer than the revisit period
+    assert np.all(gaps[1:] >= 1.0 - 1e-9)  # and holds the turret at least hold_s
+
+
+def test_a_much_greater_threat_takes_the_turret_after_the_hold() -> None:
+    chooser = TargetChooser(ChooseSettings(hysteresis=1.5, hold_s=1.0, revisit_s=100.0))
+    both = [DRONE, DRONE]
+    even = [[100, -30, 20], [100, 30, 20]]
+    assert chooser.choose(0.0, _tracks(0.0, even, both, [0.98, 0.98]), 1) == 1
+    # track 2 closes in: three times the threat at 20 m, but only after the hold
+    near = [[100, -30, 20], [20, 0, 10]]
+    assert chooser.choose(0.5, _tracks(0.5, near, both, [0.98, 0.98]), 1) == 1
+    assert chooser.choose(1.0, _tracks(1.0, near, both, [0.98, 0.98]), 1) == 2
+    # a threat only 10 % greater does not take it
+    chooser2 = TargetChooser(ChooseSettings(hysteresis=1.5, hold_s=0.0, revisit_s=100.0))
+    close = [[100, -10, 20], [95, 10, 20]]
+    for k in range(20):
+        assert chooser2.choose(0.1 * k, _tracks(0.1 * k, close, both, [0.98, 0.98]), 1) == 1
+
+
+def test_a_look_that_finds_nothing_gives_way_and_is_not_repeated() -> None:
+    chooser = TargetChooser(ChooseSettings(hysteresis=1.5, hold_s=0.0, look_s=1.0, revisit_s=100.0))
+    far_near = [[140, 0, 20], [20, 0, 10]]
+    served = [chooser.choose(0.0, _tracks(0.0, far_near, [DRONE, DRONE], [0.98, 0.98]), 1)]
+    assert served[0] == 2  # the near one, not held
+    for k in range(1, 15):  # the tracker never finds track 2 (held stays 1)
+        t = 0.1 * k
+        served.append(
+            chooser.choose(t, _tracks(t, far_near, [DRONE, DRONE], [0.98, 0.98], [t, 0.0]), 1)
+        )
+    assert served[9] == 2
+    assert served[10] == 1  # given up after look_s: back to the held one
+    assert served[-1] is None  # and not chosen again while it is not seen anew
+
+
+def test_stale_and_bird_tracks_are_no_candidates() -> None:
+    chooser = TargetChooser(ChooseSettings(fresh_s=1.0))
+    tracks = _tracks(
+        5.0,
+        [[60, 0, 20], [60, 40, 20], [60, -40, 20]],
+        [DRONE, DRONE, BIRD],
+        [0.98, 0.98, 0.1],
+        [5.0, 3.0, 5.0],
+    )
+    assert chooser.choose(5.0, tracks, locked=1) is None  # the other drone is 2 s unseen
+
+
+def test_bad_settings_are_refused() -> None:
+    with pytest.raises(ConfigError, match="revisit_s"):
+        ChooseSettings(revisit_s=0.0)
+    with pytest.raises(ConfigError, match="hysteresis"):
+        ChooseSettings(hysteresis=0.5)
