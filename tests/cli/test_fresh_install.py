@@ -39,7 +39,7 @@ def _fresh(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
 
 def test_bench_runs_with_an_empty_kernel_cache(tmp_path: Path) -> None:
     out = tmp_path / "bench"
-    done = _fresh(tmp_path, "bench", "--quick", "--replay-seconds", "5", "--out", str(out))
+    done = _fresh(tmp_path, "bench", "--quick", "--replay-seconds", "8", "--out", str(out))
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
     data = json.loads((out / "bench.json").read_text())

@@ -235,6 +235,9 @@ def test_the_named_scenarios_with_several_drones_are_phantom4s_on_the_acquisitio
         cfg: ScenarioConfig = SCENARIOS[name]
         assert 1 + len(cfg.targets) == count
         assert {t.model for t in cfg.targets} == {cfg.drone.model} == {"phantom4"}
-        assert cfg.pipeline == SCENARIOS["outdoor-incoming"].pipeline
+        # the acquisition rig's pipeline, the turret shared among the drones
+        assert cfg.pipeline.choose.enabled
+        rig = SCENARIOS["outdoor-incoming"].pipeline
+        assert cfg.pipeline.model_copy(update={"choose": rig.choose}) == rig
         assert all(t.start_s < cfg.duration_s for t in cfg.targets)
         assert math.isinf(cfg.weather.visibility_m)

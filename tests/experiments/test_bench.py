@@ -107,7 +107,7 @@ def test_quick_bench_writes_every_measurement(
         (["--rounds", "0"], "--rounds"),
         (["--repeats", "0"], "--repeats"),
         (["--rounds", "many"], "--rounds"),
-        (["--replay-seconds", "1", "--quick"], "at least 5 s"),
+        (["--replay-seconds", "1", "--quick"], "at least 8 s"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(
@@ -124,7 +124,7 @@ def test_bad_input_exits_2_with_one_line(
 def test_bench_refuses_bad_settings() -> None:
     with pytest.raises(ConfigError, match="at least 1"):
         bench(rounds=0)
-    with pytest.raises(ConfigError, match="at least 5 s"):
+    with pytest.raises(ConfigError, match="at least 8 s"):
         bench(quick=True, replay_s=float("nan"))
 
 

@@ -8,9 +8,9 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
   off what stands on the ground:  z_lo ≤ max(g(c) + h_g, z_floor + h_f)
   (g from ``preprocess.ground``; h_g 0.5 m: a person's or a car's bottom is the
   ground, a drone in flight is metres above it);
-- *joined*: the background map holds a cell just beside or below the cluster
-  (probes at c ± (e/2 + m) along x and y, and at z_lo − m): a tree's crown or a
-  building's edge that the map lacks part of, rather than something in the open air;
+- *joined*: the background map holds a cell just beside the cluster (probes at
+  c ± (e/2 + m) along x and y): a tree's crown or a building's edge that the map lacks
+  part of, rather than something in the open air;
 - *beyond reach*: r > 1.5 × the reach of the drone model the site guards (the reach
   is where a drone on the axis still returns points in 80 % of frames; at 1.15 ×
   it is 26 %, and beyond 1.5 × none was seen: what returns there is larger or
@@ -104,15 +104,16 @@ def observe(
 def _touches_background(
     c: FloatArray, low: FloatArray, extent: FloatArray, margin: float, test: BackgroundTest
 ) -> NDArray[np.bool_]:
-    """(K,) whether a background cell lies beside a cluster (±(e/2 + m) along x and y
-    from its centroid) or below it (m under its lowest point)."""
+    """(K,) whether a background cell lies beside a cluster, ±(e/2 + m) along x and y
+    from its centroid.  Nothing is probed below it: the map's lookup cells are coarse
+    (4 m outdoors), and a probe under a drone flying 3 m up would find the ground's;
+    what stands on the ground is told by ``grounded``."""
     h = 0.5 * extent + margin
-    offsets = np.zeros((len(c), 5, 3))
+    offsets = np.zeros((len(c), 4, 3))
     offsets[:, 0, 0], offsets[:, 1, 0] = h, -h
     offsets[:, 2, 1], offsets[:, 3, 1] = h, -h
     probes = c[:, None, :] + offsets
-    probes[:, 4, 2] = low - margin
-    hit = test(probes.reshape(-1, 3)).reshape(len(c), 5)
+    hit = test(probes.reshape(-1, 3)).reshape(len(c), 4)
     return np.asarray(hit.any(axis=1), dtype=bool)
 
 

@@ -153,7 +153,7 @@ class Settings:
 
 
 FULL = Settings(repeats=200, rounds=3, replay_s=30.0)
-QUICK = Settings(repeats=5, rounds=1, replay_s=5.0)  # a smoke test, not a measurement
+QUICK = Settings(repeats=5, rounds=1, replay_s=8.0)  # a smoke test, not a measurement
 STAGES = len(PF_PARTICLES) + 1 + len(TRACKER_NAMES) + len(SENSORS) + len(REPLAY_FORMATS)
 
 
@@ -232,7 +232,7 @@ def bench(
     particles, tracker steps, simulator frames; ``heavy_repeats`` of it at 100,000
     particles); ``rounds``: rounds per measurement, the best kept; ``replay_s``:
     the replay recording's length.  Defaults: ``FULL`` (200, 3, 30 s), or with
-    ``quick`` ``QUICK`` (5, 1, 5 s); a value given wins.  The recordings are
+    ``quick`` ``QUICK`` (5, 1, 8 s); a value given wins.  The recordings are
     written to ``workdir`` (default: a temporary folder) and deleted after use.
     ``progress(what, done, total)`` is called before each measurement and at the end.
     """
