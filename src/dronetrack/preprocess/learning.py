@@ -10,7 +10,7 @@ that any return has hit keeps two 64-bit masks over the last W = ⌈T / Δw⌉ w
 which it was looked at (T seconds of a voxel in view; a voxel out of view keeps its
 history, so what the turret turns away from is still known when it turns back):
 
-- L, the windows in which it was *looked at*: in one of the window's frames, a return
+- L, the windows in which it was *looked at*: in the window's first frame, a return
   came from its direction (cells of about 1° around the sensor: a cube map, 90 × 90
   cells a face, so no trigonometry per return) at its range or beyond (the
   beam reached it), or no return came from its direction although the sensor samples
@@ -342,16 +342,15 @@ class LearningBackground:
         map changed (a window closed and a voxel entered or left)."""
         w = int(np.floor(t / self.window_s))
         changed = False
-        if self._window is None:
-            self._window = w
-        elif w > self._window:
+        opened = self._window is None or w > self._window
+        if self._window is not None and w > self._window:
             changed = self._close(self._window)
-            self._window = w
+        self._window = w
         _sample(
             np.ascontiguousarray(sensor_points, dtype=np.float64), self.covered, COVERAGE_STRIDE
         )
         sensor = np.ascontiguousarray(pose[:3, 3], dtype=np.float64)
-        if len(self.keys):
+        if opened and len(self.keys):  # looks: a window's first frame (hits: all of them)
             farthest = look_cells(np.ascontiguousarray(world - sensor, dtype=np.float64))
             self._looked |= looked_at(
                 key_centres(self.keys, self.settings.resolution),
