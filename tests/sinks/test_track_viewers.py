@@ -335,7 +335,9 @@ def test_rerun_shows_every_track_with_its_id_and_class(tmp_path: Path) -> None:
         ids = ids or []
         positions = row["Points3D:positions"]
         assert len(positions) == len(ids)
-        assert row["track_id"] == ids
+        # an empty frame carries no values: rerun refuses an empty AnyValues (a warning,
+        # an error in strict mode)
+        assert row.get("track_id", []) == ids
         expected = [
             _label(i, p_drone=False)
             if locked and i == LOCKED_ID
@@ -349,8 +351,8 @@ def test_rerun_shows_every_track_with_its_id_and_class(tmp_path: Path) -> None:
             np.array(positions).reshape(-1, 3), np.array([TRACKS[i][2] for i in ids]).reshape(-1, 3)
         )
         assert row["Points3D:radii"] == pytest.approx([_size(i) / 2 for i in ids])
-        assert row["p_drone"] == pytest.approx([TRACKS[i][1] for i in ids])
-        assert row["locked"] == [locked and i == LOCKED_ID for i in ids]
+        assert row.get("p_drone", []) == pytest.approx([TRACKS[i][1] for i in ids])
+        assert row.get("locked", []) == [locked and i == LOCKED_ID for i in ids]
     box = sorted(rows["/world/tracks/locked"], key=lambda r: r["frame"])
     assert [r.get("Clear:is_recursive") is not None for r in box] == [False, True, True]
     np.testing.assert_allclose(box[0]["Boxes3D:centers"], [TRACKS[LOCKED_ID][2]])

@@ -165,6 +165,17 @@ def _object_tracks() -> None:
     cv_update(x, P, np.zeros((1, 3)), np.eye(3)[None] + cost[0, 0] * 0.0)
 
 
+def _learning() -> None:
+    """The learning background map: direction cells, looks and the sampled directions."""
+    from dronetrack.preprocess.learning import LearningBackground, LearningSettings
+
+    model = LearningBackground(LearningSettings(min_occupied_s=0.0), 0.1)
+    pts = np.array([[10.0, 0.5, 0.5], [30.0, 1.0, 2.0]])
+    none = np.empty((0, 3))
+    for t in (0.0, 0.5):  # the second frame closes a window and looks at the first's voxels
+        model.observe(t, pts, pts, np.eye(4), pts, none, np.empty(0))
+
+
 def _replay() -> None:
     """A recording's ground-truth point count and PCD's LZF decoder."""
     from dronetrack.formats.lzf import lzf_compress_literal, lzf_decompress
@@ -185,6 +196,7 @@ PIPELINE_WARM_UPS: tuple[WarmUpStep, ...] = (
     _particle_filters,
     _detection,
     _object_tracks,
+    _learning,
 )
 REPLAY_WARM_UPS: tuple[WarmUpStep, ...] = (*PIPELINE_WARM_UPS, _replay)
 

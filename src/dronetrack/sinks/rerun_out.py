@@ -253,13 +253,16 @@ class RerunWriter:
             class_ids=[TRACK_CLASSES.index(t.cls) for t in tracks],
             show_labels=True,
         )
-        values = rr.AnyValues(
-            track_id=np.array([t.id for t in tracks], dtype=np.int64),
-            p_drone=np.array([t.p_drone for t in tracks], dtype=np.float64),
-            pos_sigma_m=np.array([t.sigma for t in tracks], dtype=np.float64),
-            locked=np.array([t.locked for t in tracks], dtype=bool),
-        )
-        self._rec.log("world/tracks", points, values)
+        if not tracks:  # no values to attach: rerun refuses an empty AnyValues
+            self._rec.log("world/tracks", points)
+        else:
+            values = rr.AnyValues(
+                track_id=np.array([t.id for t in tracks], dtype=np.int64),
+                p_drone=np.array([t.p_drone for t in tracks], dtype=np.float64),
+                pos_sigma_m=np.array([t.sigma for t in tracks], dtype=np.float64),
+                locked=np.array([t.locked for t in tracks], dtype=bool),
+            )
+            self._rec.log("world/tracks", points, values)
         locked = [t for t in tracks if t.locked]
         if locked:
             t = locked[0]

@@ -20,9 +20,6 @@ import numpy as np
 from dronetrack.config.pipeline import FieldOfRegardConfig
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.jobs.run import run_seeds, turret_pipeline
-from dronetrack.jobs.simulate import flight_config, place_at_start, resolve_run
-from dronetrack.sim.build import build_world
-from dronetrack.sim.rig import SimSource, SimTurret
 
 __all__ = ["MAP_S", "SWEEP_DEG_S", "learning_map"]
 
@@ -35,6 +32,11 @@ def learning_map(seconds: float = MAP_S, seed: int = 0) -> dict[str, float]:
     [MB], its voxels with a history and in the map at their peak, the process's peak
     resident memory [MB], the pipeline step's median and 99th percentile [ms] and the
     wall time [s]."""
+    # the simulator is imported here: ``dronetrack track`` loads the CLI, never the simulator
+    from dronetrack.jobs.simulate import flight_config, place_at_start, resolve_run
+    from dronetrack.sim.build import build_world
+    from dronetrack.sim.rig import SimSource, SimTurret
+
     cfg = get_scenario("default")
     p = cfg.pipeline
     pipeline = p.model_copy(
