@@ -142,8 +142,8 @@ def test_confusion_md_sums_each_scenarios_runs_with_row_shares() -> None:
     md = confusion_markdown(MULTI, results, runs=2, duration=None, methods=MULTI.methods)
     assert md is not None
     section = md.split("## default\n")[1]
-    assert "| drone | 0 (0 %) | 19 (95 %) | 1 (5 %) | 0 (0 %) | 20 |" in section
-    assert "| none | 0 (0 %) | 0 (0 %) | 0 (0 %) | 5 (100 %) | 5 |" in section
+    assert "| drone | 0 (0.0 %) | 19 (95.0 %) | 1 (5.0 %) | 0 (0.0 %) | 20 |" in section
+    assert "| none | 0 (0.0 %) | 0 (0.0 %) | 0 (0.0 %) | 5 (100.0 %) | 5 |" in section
     assert "\n| bird |" not in section  # a row without frames is left out
     assert md.count("| truth \\ class | unknown | drone | bird | static | frames |") == 4
     # suites whose runs have no classes write none

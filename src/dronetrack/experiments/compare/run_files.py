@@ -76,7 +76,7 @@ def _matrix_lines(kinds: list[str], classes: list[str], counts: np.ndarray) -> l
         total = int(counts[i].sum())
         if total == 0:
             continue
-        cells = [f"{counts[i, j]} ({format_number(shares[i, j])} %)" for j in range(len(classes))]
+        cells = [f"{counts[i, j]} ({shares[i, j]:.1f} %)" for j in range(len(classes))]
         lines.append(f"| {kind} | " + " | ".join(cells) + f" | {total} |")
     return lines
 
