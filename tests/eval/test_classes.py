@@ -17,7 +17,8 @@ from dronetrack.eval.classes import (
 )
 from dronetrack.eval.objects import ObjectsLog
 from dronetrack.eval.tracks import TracksLog
-from dronetrack.types import TRACK_CLASSES, ObjectTruth, Tracks
+from dronetrack.types import TRACK_CLASSES, ObjectTruth
+from track_helpers import hand_tracks
 
 T = 0.125  # a frame [s], exact in binary: 16 frames are 2 s
 UNKNOWN, DRONE, BIRD, STATIC = (TRACK_CLASSES.index(c) for c in TRACK_CLASSES)
@@ -32,23 +33,6 @@ def _truth(positions: np.ndarray, kinds: tuple[str, ...]) -> ObjectTruth:
         velocities=np.zeros((k, 3)),
         present=np.all(np.isfinite(np.asarray(positions, dtype=float).reshape(k, 3)), axis=1),
         object_index=np.zeros(0, dtype=np.int64),
-    )
-
-
-def _tracks(
-    ids: list[int], positions: list[list[float]], classes: list[int], updated: list[bool]
-) -> Tracks:
-    k = len(ids)
-    return Tracks(
-        ids=np.array(ids, dtype=np.int64),
-        positions=np.array(positions, dtype=float).reshape(k, 3),
-        velocities=np.zeros((k, 3)),
-        covariances=np.tile(np.eye(6), (k, 1, 1)),
-        born=np.zeros(k),
-        updated=np.array(updated, dtype=bool),
-        hovered=np.zeros(k, dtype=bool),
-        locked=np.zeros(k, dtype=bool),
-        classes=np.array(classes, dtype=np.int64),
     )
 
 
@@ -80,7 +64,7 @@ def _scene(frames: int = 26) -> tuple[ObjectsLog, TracksLog]:
         coast = max(0, f - 12)
         rows.append((3, [-100.0, 2.0 * coast, 5.0], STATIC if f >= 16 else UNKNOWN, coast == 0))
         ids, pos, cls, upd = (list(c) for c in zip(*rows, strict=True))
-        tracks.append(t, _tracks(ids, pos, cls, upd))
+        tracks.append(t, hand_tracks(ids, pos, cls, upd))
     return objects, tracks
 
 
@@ -134,7 +118,7 @@ def _lone_track(frames: int) -> tuple[ObjectsLog, TracksLog]:
     for f in range(frames):
         t = T * (f + 1)
         objects.append(t, _truth(np.array([_drone(f)]), ("drone",)), np.zeros(3))
-        tracks.append(t, _tracks([7], [[0.0, -80.0, 3.0 + 0.01 * f]], [UNKNOWN], [True]))
+        tracks.append(t, hand_tracks([7], [[0.0, -80.0, 3.0 + 0.01 * f]], [UNKNOWN], [True]))
     return objects, tracks
 
 
@@ -153,7 +137,7 @@ def test_a_track_that_moved_or_followed_an_object_is_no_static_track() -> None:
         objects.append(t, _truth(np.array([_drone(f)]), ("drone",)), np.zeros(3))
         walking = [0.0, -80.0 + 0.5 * f, 3.0]  # updated, 14.5 m from where it was born
         touching = [_drone(f), [0.0, 50.0, 3.0]][min(f, 1)]  # on the drone at its birth
-        tracks.append(t, _tracks([1, 2], [walking, touching], [STATIC] * 2, [True] * 2))
+        tracks.append(t, hand_tracks([1, 2], [walking, touching], [STATIC] * 2, [True] * 2))
     assert class_figures(objects, tracks, radius=4.0)["static_tracks"] == 0
 
 
@@ -174,7 +158,7 @@ def test_a_tracks_age_counts_from_its_first_row() -> None:
 def test_tracks_at_times_without_truth_are_refused() -> None:
     objects, tracks = _scene(4)
     late = TracksLog()
-    late.append(9.0, _tracks([1], [[0.0, 0, 0]], [DRONE], [True]))
+    late.append(9.0, hand_tracks([1], [[0.0, 0, 0]], [DRONE], [True]))
     with pytest.raises(ValueError, match="without object truth"):
         class_figures(objects, late, radius=4.0)
     with pytest.raises(ValueError, match="truth"):
@@ -199,17 +183,14 @@ def _worlds(draw: st.DrawFn) -> tuple[ObjectsLog, TracksLog]:
             pos[draw(st.lists(st.booleans(), min_size=len(kinds), max_size=len(kinds)))] = np.nan
         objects.append(t, _truth(pos, kinds), np.zeros(3))
         ids = sorted(draw(st.sets(st.integers(1, 5), max_size=5)))
-        k = len(ids)
         tracks.append(
             t,
-            _tracks(
+            hand_tracks(
                 ids,
                 [[draw(coord), draw(coord), 0.0] for _ in ids],
                 [draw(st.integers(0, len(TRACK_CLASSES) - 1)) for _ in ids],
                 [draw(st.booleans()) for _ in ids],
-            )
-            if k
-            else _tracks([], [], [], []),
+            ),
         )
     return objects, tracks
 
