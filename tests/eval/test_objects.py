@@ -8,7 +8,8 @@ import pytest
 
 from dronetrack.eval.objects import ObjectsLog, drone_figures, mot_figures
 from dronetrack.eval.tracks import TracksLog
-from dronetrack.types import TRACK_CLASSES, ObjectTruth, Tracks
+from dronetrack.types import TRACK_CLASSES, ObjectTruth
+from track_helpers import hand_tracks
 
 T = 0.1
 DRONE, BIRD = TRACK_CLASSES.index("drone"), TRACK_CLASSES.index("bird")
@@ -24,21 +25,6 @@ def _truth(positions: np.ndarray, returns: list[int], kinds: tuple[str, ...]) ->
         velocities=np.zeros((k, 3)),
         present=np.ones(k, dtype=bool),
         object_index=index.astype(np.int64),
-    )
-
-
-def _tracks(ids: list[int], positions: np.ndarray, classes: list[int]) -> Tracks:
-    k = len(ids)
-    return Tracks(
-        ids=np.array(ids, dtype=np.int64),
-        positions=np.asarray(positions, dtype=float).reshape(k, 3),
-        velocities=np.zeros((k, 3)),
-        covariances=np.tile(np.eye(6), (k, 1, 1)),
-        born=np.zeros(k),
-        updated=np.ones(k, dtype=bool),
-        hovered=np.zeros(k, dtype=bool),
-        locked=np.zeros(k, dtype=bool),
-        classes=np.array(classes, dtype=np.int64),
     )
 
 
@@ -59,7 +45,7 @@ def _scene(
             extra_ids, extra_pos, extra_cls = [9], [[80.0, -40.0, 30.0]], [BIRD]
         tracks.append(
             t,
-            _tracks(
+            hand_tracks(
                 ids + extra_ids,
                 np.vstack([est, *extra_pos]) if extra_pos else est,
                 [DRONE, DRONE, *extra_cls],
@@ -94,7 +80,7 @@ def test_a_drone_without_returns_is_not_expected_and_a_track_far_off_is_a_false_
     for f in range(4):
         drone = np.array([[40.0, 0.0, 10.0]])
         objects.append(T * (f + 1), _truth(drone, [0 if f < 2 else 3], ("drone",)), np.zeros(3))
-        tracks.append(T * (f + 1), _tracks([1], np.array([[40.0, 10.0, 10.0]]), [DRONE]))
+        tracks.append(T * (f + 1), hand_tracks([1], np.array([[40.0, 10.0, 10.0]]), [DRONE]))
     mot = mot_figures(objects, tracks, radius=4.0)
     assert mot["false_positives"] == 4  # 10 m off: never within the 4 m radius
     assert mot["misses"] == 2  # the two frames it returned points

@@ -46,11 +46,13 @@ def compare(
 ) -> None:
     """Run every method of a suite on the same seeded scenarios, side by side.
 
-    A suite is a seed's table, or acquisition.  Writes table.csv
-    (scenario,method,metric,mean,std,paper), table.md and, for seed003, the seed's CSV
-    logs of every run.
+    A suite is a seed's table, acquisition or multi.  Writes table.csv
+    (scenario,method,metric,mean,std,paper), table.md, results.jsonl (one line per
+    run), for multi confusion.md (each scenario's class confusion matrix) and, for
+    seed003, the seed's CSV logs of every run.
     """
 
+    from dronetrack.experiments.compare.run_files import write_run_files
     from dronetrack.experiments.compare.runner import run_suite
     from dronetrack.experiments.compare.suites import get_suite
     from dronetrack.experiments.compare.tables import aggregate, write_tables
@@ -75,7 +77,8 @@ def compare(
         )
     rows = aggregate(chosen, results)
     ran = tuple(dict.fromkeys(r.method for r in results))
-    paths = write_tables(chosen, rows, out_dir, runs=runs, duration=duration, methods=ran)
+    paths = [*write_tables(chosen, rows, out_dir, runs=runs, duration=duration, methods=ran)]
+    paths += write_run_files(chosen, results, out_dir, runs=runs, duration=duration, methods=ran)
     print_markdown(out_dir / "table.md")
     for p in paths:
         typer.echo(str(p))

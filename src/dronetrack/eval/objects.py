@@ -12,6 +12,8 @@ the mean distance of the matched pairs [m].
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -23,7 +25,13 @@ from dronetrack.eval.tracks import TracksLog
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES, ObjectTruth
 
-__all__ = ["NOT_DRONE_CLASSES", "ObjectsLog", "drone_figures", "mot_figures"]
+__all__ = [
+    "NOT_DRONE_CLASSES",
+    "ObjectsLog",
+    "drone_figures",
+    "drone_summary",
+    "mot_figures",
+]
 
 # The classes by which a track claims to be no drone: not hypotheses of a drone.
 NOT_DRONE_CLASSES = (TRACK_CLASSES.index("static"), TRACK_CLASSES.index("bird"))
@@ -204,3 +212,30 @@ def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[s
         "frames": int(summary["num_frames"]),
         "drones": per,
     }
+
+
+def _over(values: list[Any], worst: Callable[[list[float]], float]) -> tuple[float, float]:
+    """(mean, worst) of the numbers among ``values`` (None left out), NaN without any."""
+    known = [float(v) for v in values if v is not None]
+    if not known:
+        return math.nan, math.nan
+    return float(np.mean(known)), float(worst(known))
+
+
+def drone_summary(drones: list[dict[str, Any]]) -> dict[str, float]:
+    """A run's per-drone figures (``drones`` of metrics.json: ``drone_figures`` with
+    ``mot_figures``' per-drone entries) over its drones: the mean and the worst drone's
+    ``coverage_pct``, ``lock_on_visible_pct`` and ``own_track_pct`` (``*_mean_pct``,
+    ``*_min_pct``), of ``acquire_s`` (``acquire_mean_s``, ``acquire_max_s``, over the
+    drones acquired), ``never_acquired`` (drones visible but never acquired) and
+    ``id_switches_max``; NaN where no drone has the figure."""
+    out: dict[str, float] = {}
+    for key in ("coverage", "lock_on_visible", "own_track"):
+        mean, low = _over([d.get(f"{key}_pct") for d in drones], min)
+        out[f"{key}_mean_pct"], out[f"{key}_min_pct"] = mean, low
+    out["acquire_mean_s"], out["acquire_max_s"] = _over([d.get("acquire_s") for d in drones], max)
+    out["never_acquired"] = float(
+        sum(d.get("acquire_s") is None and d.get("visible_frames", 0) > 0 for d in drones)
+    )
+    out["id_switches_max"] = _over([d.get("id_switches") for d in drones], max)[1]
+    return out

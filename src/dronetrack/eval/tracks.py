@@ -38,6 +38,7 @@ _ROW = np.dtype(
         ("velocity", np.float64, (3,)),
         ("pos_sigma", np.float64),
         ("locked", np.bool_),
+        ("updated", np.bool_),  # a cluster of the frame updated it (else it coasted)
     ]
 )
 
@@ -68,6 +69,7 @@ class TracksLog:
         chunk["velocity"] = tracks.velocities
         chunk["pos_sigma"] = tracks.position_sigma
         chunk["locked"] = tracks.locked
+        chunk["updated"] = tracks.updated
         self._chunks.append(chunk)
         self._n += k
 
@@ -83,7 +85,7 @@ class TracksLog:
     @property
     def rows(self) -> NDArray[Any]:
         """Every row so far, a structured array (t, id, cls, p_drone, position,
-        velocity, pos_sigma, locked); read-only."""
+        velocity, pos_sigma, locked, updated); read-only."""
         if self._chunks:
             self._rows = np.concatenate([self._rows, *self._chunks])
             self._chunks = []

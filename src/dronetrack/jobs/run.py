@@ -18,6 +18,7 @@ from dronetrack.config.pipeline import crop_box, field_of_regard, scan_area
 from dronetrack.config.rig import TurretSpec, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig, dump_scenario
 from dronetrack.config.tomlfile import tidy_model
+from dronetrack.eval.classes import class_figures
 from dronetrack.eval.log import TrackLog
 from dronetrack.eval.objects import drone_figures, mot_figures
 from dronetrack.formats.background import read_background_settings
@@ -144,11 +145,15 @@ class RunResult:
         """With every object's truth (the simulator's): ``drones``, each drone's own
         figures (as drone 0's in the run's metrics, against the turret's estimate, with
         its identity switches and own-track share), and ``mot``, the multi-object
-        figures (``eval.objects``); empty otherwise."""
+        figures (``eval.objects``); and ``classes``, the class confusion matrix and the
+        static objects' time to class (``eval.classes``); empty otherwise."""
         objects = self.log.objects
-        if len(objects) != len(self.log) or len(objects.drones()) == 0:
+        if len(objects) != len(self.log) or len(objects) == 0:
             return {}
         radius = self.config.pipeline.evaluation.correct_radius_m
+        classes = class_figures(objects, self.log.tracks, radius)
+        if len(objects.drones()) == 0:
+            return {"classes": classes}
         est = self.log.est
         positions = objects.positions
         fields = [detection_area(self.config, positions[:, k]) for k in objects.drones()]
@@ -156,7 +161,7 @@ class RunResult:
         mot = mot_figures(objects, self.log.tracks, radius)
         for own, scored in zip(drones, mot.pop("drones"), strict=True):
             own.update(scored)
-        return {"drones": drones, "mot": mot}
+        return {"drones": drones, "mot": mot, "classes": classes}
 
     @property
     def realtime_factor(self) -> float:

@@ -10,8 +10,9 @@ from __future__ import annotations
 import math
 import tracemalloc
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +26,8 @@ from dronetrack.eval.metrics import (
     rmse,
     scored_tracking,
 )
-from dronetrack.experiments.compare.suites import Case, Suite
+from dronetrack.eval.objects import drone_summary
+from dronetrack.experiments.compare.suites import MULTI_METRICS, Case, Suite
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_tracker
 from dronetrack.jobs.run import RunResult, detection_area
@@ -33,7 +35,7 @@ from dronetrack.jobs.simulate import run_lockstep, run_simulation
 from dronetrack.sinks.strategy_logs import StrategyLogger
 from dronetrack.types import Sample, StepResult
 
-__all__ = ["RunMetrics", "case_config", "run_metrics", "run_suite"]
+__all__ = ["RunMetrics", "case_config", "object_run_metrics", "run_metrics", "run_suite"]
 
 Progress = Callable[[str, int, int], None]  # (what, done, total)
 
@@ -46,6 +48,8 @@ class RunMetrics:
     method: str
     run: int
     metrics: dict[str, float]
+    # metrics.json's drones, mot and classes of the run, for the suites that score them
+    objects: dict[str, Any] = field(default_factory=dict)
 
 
 def case_config(
@@ -140,10 +144,11 @@ def run_suite(
                 # (the logs of the runs already done stay written).
                 raise KeyboardInterrupt
             for m, sim, fg in zip(chosen, done, foregrounds, strict=True):
-                values = run_metrics(suite, sim)
+                objects = sim.object_metrics() if _scores_objects(suite) else {}
+                values = run_metrics(suite, sim, objects)
                 if memory:
                     values["memory_mb"] = tracker_memory_mb(sim.config, fg)
-                out.append(RunMetrics(case.label, m, r, values))
+                out.append(RunMetrics(case.label, m, r, values, objects))
     return out
 
 
@@ -153,8 +158,31 @@ def _progress(progress: Progress | None, what: str) -> Callable[[int, int], None
     return lambda i, n: progress(what, i, n)
 
 
-def run_metrics(suite: Suite, sim: RunResult) -> dict[str, float]:
-    """The suite's metrics of one finished run (see the suite notes for definitions)."""
+def _scores_objects(suite: Suite) -> bool:
+    """Whether the suite's metrics need every object's figures (``object_metrics``)."""
+    return bool(set(suite.metrics) & set(MULTI_METRICS))
+
+
+def object_run_metrics(objects: dict[str, Any]) -> dict[str, float]:
+    """The multi suite's figures from a run's ``object_metrics`` (metrics.json's
+    ``drones``, ``mot`` and ``classes``) as numbers (NaN for none): the drones'
+    ``drone_summary``, motmetrics' ``mota``, ``motp_m``, ``idf1``, ``id_switches``,
+    and every number of ``classes`` but its confusion matrix."""
+    out = drone_summary(objects.get("drones", []))
+    mot = objects.get("mot", {})
+    for key in ("mota", "motp_m", "idf1", "id_switches"):
+        out[key] = mot.get(key, math.nan)
+    for key, value in objects.get("classes", {}).items():
+        if key != "confusion":
+            out[key] = value
+    return {k: math.nan if v is None else float(v) for k, v in out.items()}
+
+
+def run_metrics(
+    suite: Suite, sim: RunResult, objects: dict[str, Any] | None = None
+) -> dict[str, float]:
+    """The suite's metrics of one finished run (see the suite notes for definitions);
+    ``objects``: the run's ``object_metrics``, if already computed."""
     a = sim.log.arrays()
     gt = np.column_stack([a["gt_x"], a["gt_y"], a["gt_z"]])
     est = np.column_stack([a["est_x"], a["est_y"], a["est_z"]])
@@ -192,6 +220,8 @@ def run_metrics(suite: Suite, sim: RunResult) -> dict[str, float]:
     }
     out.update(_detection_metrics(a, err))
     out.update(_acquisition_metrics(sim.config, a, err, evaluation.correct_radius_m))
+    if _scores_objects(suite):
+        out.update(object_run_metrics(sim.object_metrics() if objects is None else objects))
     return {k: v for k, v in out.items() if k in suite.metrics}
 
 

@@ -15,7 +15,7 @@ from typing import get_args
 from dronetrack.config.pipeline import TrackerKind
 from dronetrack.errors import ConfigError
 
-__all__ = ["SUITES", "Case", "Suite", "get_suite"]
+__all__ = ["MULTI_METRICS", "SUITES", "Case", "MetricGroup", "Suite", "get_suite"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -25,6 +25,15 @@ class Case:
     label: str  # as the paper names it
     scenario: str  # a named scenario
     turret: str  # controller mode: truth, fixed, or a seed 003 scan strategy
+
+
+@dataclass(frozen=True, slots=True)
+class MetricGroup:
+    """Metrics that table.md shows together, one row per case (and method)."""
+
+    title: str
+    metrics: tuple[str, ...]
+    note: str = ""  # what the columns mean
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,6 +56,9 @@ class Suite:
     # How our set-up differs from the seed's and what that acts on.  It explains, it
     # does not rank: table.md writes every ranking from the numbers.
     setup_note: str = ""
+    # table.md's layout: none, one table per case with a row per method; else one table
+    # per group with a row per case (and method), for suites of many metrics
+    groups: tuple[MetricGroup, ...] = ()
 
 
 def _grid(
@@ -341,6 +353,86 @@ _LIST.append(
             "false_lock_pct: tracked frames off the drone over tracked frames; lock_transfers: "
             "times a lock went straight from the drone to something else.  A run where "
             "a figure does not exist (never acquired, no loss) leaves it out of the mean."
+        ),
+    )
+)
+
+# The multi suite's figures, from metrics.json's drones, mot and classes (eval/).
+_MULTI_GROUPS = (
+    MetricGroup(
+        "Every drone",
+        (
+            "coverage_min_pct",
+            "coverage_mean_pct",
+            "acquire_max_s",
+            "acquire_mean_s",
+            "never_acquired",
+            "lock_on_visible_min_pct",
+            "lock_on_visible_mean_pct",
+            "own_track_min_pct",
+            "own_track_mean_pct",
+            "id_switches_max",
+        ),
+        "Each drone's figures of metrics.json's drones, per run the minimum (_min), the "
+        "maximum (_max) or the mean (_mean) over the drones: coverage against the "
+        "turret's estimate; acquire_s from its first visible frame to its first locked-on "
+        "one (over the drones acquired; never_acquired counts the drones visible but "
+        "never locked on); lock_on_visible: its locked-on frames over its visible "
+        "frames; own_track: the share of its visible frames in which a track matched it "
+        "(motmetrics); id_switches: its identity switches.",
+    ),
+    MetricGroup(
+        "Multi-object figures (motmetrics, over the drones)",
+        ("mota", "motp_m", "idf1", "id_switches"),
+        "Each frame the drones that return points are the truth and the tracks not "
+        "classed static or bird the hypotheses, matched within the 4 m correct radius "
+        "(metrics.json's mot).",
+    ),
+    MetricGroup(
+        "Classes",
+        (
+            "drone_as_drone_pct",
+            "bird_as_drone_pct",
+            "none_as_drone_pct",
+            "static_tracks",
+            "static_to_class_median_s",
+            "static_to_class_max_s",
+            "static_late",
+        ),
+        "metrics.json's classes.  A track-frame follows the truth object nearest within "
+        "the correct radius, none if there is none (the static scene, clutter, or a "
+        "track coasting away from what it followed); counted from 2 s of track life.  "
+        "<kind>_as_drone_pct: that kind's track-frames classed drone.  static_tracks: "
+        "tracks that only ever follow none (or a static object) and never move more "
+        "than the radius from their birth; static_to_class: their time from birth to "
+        "their first static class, over those classed; static_late: those not "
+        "classed static within 3 s although they lived that long.  confusion.md has "
+        "each case's matrix.",
+    ),
+)
+MULTI_METRICS = tuple(m for g in _MULTI_GROUPS for m in g.metrics)
+# One line a case: the case is named after its scenario.
+_MULTI_SCENARIOS = (
+    "outdoor-two-drones",
+    "outdoor-swarm",
+    "outdoor-clutter",
+    "default",
+)
+_LIST.append(
+    Suite(
+        name="multi",
+        title="Several objects: every drone, the multi-object figures and the classes",
+        methods=("pf-delta",),
+        cases=tuple(Case(name, name, "tracking") for name in _MULTI_SCENARIOS),
+        metrics=MULTI_METRICS,
+        lockstep=False,
+        acquisition=True,
+        groups=_MULTI_GROUPS,
+        note=(
+            "Each scenario as it is named, the turret tracking with acquisition on, the "
+            "turret shared among the drones where the scenario turns [pipeline.choose] "
+            "on (outdoor-two-drones, outdoor-swarm).  A run where a figure does not "
+            "exist (no drone acquired, no static track) leaves it out of the mean."
         ),
     )
 )

@@ -95,28 +95,37 @@ def options_lines(
     lines.append(f"- methods: {', '.join(methods)}{which}")
     if cut:
         lengths = ", ".join(f"{label} {full[label]:g} s" for label in cut)
-        lines += [
-            "",
+        warning = (
             f"**Shortened runs.**  These flights were cut to {duration:g} s "
-            f"({lengths} at full length), while the seed's figures in brackets come "
-            "from full-length flights: ours and the seed's are not measured over the "
-            "same flight, so they do not compare like for like.",
-        ]
+            f"({lengths} at full length)"
+        )
+        if suite.paper:
+            warning += (
+                ", while the seed's figures in brackets come from full-length flights: "
+                "ours and the seed's are not measured over the same flight, so they do "
+                "not compare like for like."
+            )
+        else:
+            warning += ": the figures are not those of the full flights."
+        lines += ["", warning]
     return lines
 
 
-def table_markdown(
-    suite: Suite,
-    rows: Sequence[Row],
-    *,
-    runs: int,
-    duration: float | None,
-    methods: Sequence[str],
-) -> str:
-    """table.md: options, the side-by-side tables, and rankings written from ``rows``."""
-    lines = [f"# {suite.title}", "", f"Suite `{suite.name}`.", ""]
-    lines += options_lines(suite, runs, duration, methods)
-    lines += [
+def _cell(r: Row) -> str:
+    """A table cell: mean ± std, the runs with a number if not all, the seed's figure."""
+    cell = mean_text(r)
+    if math.isfinite(r.std):
+        cell += f" ± {format_number(r.std)}"
+    if 0 < r.finite < r.runs:
+        cell += f" ({r.finite} of {r.runs} runs)"
+    if math.isfinite(r.paper):
+        cell += f" [{format_number(r.paper)}]"
+    return cell
+
+
+def _case_tables(rows: Sequence[Row]) -> list[str]:
+    """One table per case: a row per method, a column per metric."""
+    lines = [
         "",
         "Each cell: our mean ± sample std over the runs, then the seed's figure in brackets; "
         "n/a where no run gave a number (e.g. no RMSE without returns from the target).",
@@ -131,15 +140,52 @@ def table_markdown(
             cells = []
             for metric in metrics:
                 (r,) = [x for x in mine if x.method == method and x.metric == metric]
-                cell = mean_text(r)
-                if math.isfinite(r.std):
-                    cell += f" ± {format_number(r.std)}"
-                if 0 < r.finite < r.runs:
-                    cell += f" ({r.finite} of {r.runs} runs)"
-                if math.isfinite(r.paper):
-                    cell += f" [{format_number(r.paper)}]"
-                cells.append(cell)
+                cells.append(_cell(r))
             lines.append(f"| {method} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _grouped_tables(suite: Suite, rows: Sequence[Row]) -> list[str]:
+    """One table per metric group of the suite: a row per case (and method, if the
+    suite ran several), a column per metric."""
+    lines = [
+        "",
+        "Each cell: the mean ± sample std over the runs; n/a where no run gave a number.",
+    ]
+    by_key = {(r.scenario, r.method, r.metric): r for r in rows}
+    pairs = list(dict.fromkeys((r.scenario, r.method) for r in rows))
+    several = len({method for _, method in pairs}) > 1
+    head = "| scenario | method | " if several else "| scenario | "
+    for group in suite.groups:
+        lines += ["", f"## {group.title}", ""]
+        lines.append(head + " | ".join(group.metrics) + " |")
+        lines.append("|---|" + "---|" * (len(group.metrics) + several))
+        for scenario, method in pairs:
+            cells = [scenario, method] if several else [scenario]
+            for metric in group.metrics:
+                r = by_key.get((scenario, method, metric))
+                cells.append(_cell(r) if r is not None else "")
+            lines.append("| " + " | ".join(cells) + " |")
+        if group.note:
+            lines += ["", group.note]
+    return lines
+
+
+def table_markdown(
+    suite: Suite,
+    rows: Sequence[Row],
+    *,
+    runs: int,
+    duration: float | None,
+    methods: Sequence[str],
+) -> str:
+    """table.md: options, the side-by-side tables, and rankings written from ``rows``."""
+    lines = [f"# {suite.title}", "", f"Suite `{suite.name}`.", ""]
+    lines += options_lines(suite, runs, duration, methods)
+    if suite.groups:
+        lines += _grouped_tables(suite, rows)
+    else:
+        lines += _case_tables(rows)
     if suite.note:
         lines += ["", suite.note]
     ranking = ranking_lines(rows)

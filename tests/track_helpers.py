@@ -1,0 +1,32 @@
+"""Hand-built ``Tracks`` for the evaluation tests."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from dronetrack.types import Tracks
+
+
+def hand_tracks(
+    ids: Sequence[int],
+    positions: ArrayLike,
+    classes: Sequence[int],
+    updated: Sequence[bool] | None = None,
+) -> Tracks:
+    """Tracks at ``positions`` (K, 3), at rest, born at 0, with these classes; every one
+    updated this frame unless ``updated`` says otherwise."""
+    k = len(ids)
+    return Tracks(
+        ids=np.array(ids, dtype=np.int64),
+        positions=np.asarray(positions, dtype=float).reshape(k, 3),
+        velocities=np.zeros((k, 3)),
+        covariances=np.tile(np.eye(6), (k, 1, 1)),
+        born=np.zeros(k),
+        updated=np.ones(k, dtype=bool) if updated is None else np.array(updated, dtype=bool),
+        hovered=np.zeros(k, dtype=bool),
+        locked=np.zeros(k, dtype=bool),
+        classes=np.array(classes, dtype=np.int64),
+    )
