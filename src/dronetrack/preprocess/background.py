@@ -13,6 +13,14 @@ alone in the sky, where it would hide a drone in its whole lookup cell (4 m
 outdoors) for as long as it takes to fly through.  Free space is not
 modelled: OctoMap's ray clearing matters for moving scenes, and the seed assumes
 a static one.
+
+With ``free_object_m`` set, a part of the scan that stands free (a 26-connected
+component of occupied voxels that touches no other) and is no larger than that
+(its bounding box's longest edge) is left out of the map: a drone hovering in view
+while the sensor scans (a sensor switched on with the drone up) would otherwise be
+background for good.  What is left out is foreground like anything new: the track
+layer tracks it, the classes tell a hovering drone from an object on a pole, and the
+learning map (``preprocess.learning``) learns what is static.
 """
 
 from __future__ import annotations
@@ -27,11 +35,13 @@ from dronetrack.preprocess.voxel import (
     KeySet,
     coarsen_keys,
     dilate_keys,
+    key_centres,
     neighbour_counts,
+    voxel_components,
     voxel_keys,
 )
 
-__all__ = ["VoxelBackground", "occupied_voxels"]
+__all__ = ["VoxelBackground", "free_objects", "occupied_voxels"]
 
 
 def occupied_voxels(
@@ -49,6 +59,23 @@ def occupied_voxels(
     return voxels
 
 
+def free_objects(voxels: NDArray[np.int64], resolution: float, largest: float) -> NDArray[np.bool_]:
+    """(N,) the voxels (sorted, distinct keys of edge ``resolution``) of the components
+    that touch no other and whose bounding box's longest edge is at most ``largest`` [m]."""
+    if len(voxels) == 0:
+        return np.zeros(0, dtype=bool)
+    labels = voxel_components(voxels)
+    centres = key_centres(voxels, resolution)
+    k = int(labels.max()) + 1
+    lo = np.full((k, 3), np.inf)
+    hi = np.full((k, 3), -np.inf)
+    np.minimum.at(lo, labels, centres)
+    np.maximum.at(hi, labels, centres)
+    edge = (hi - lo).max(axis=1) + resolution  # the voxels' extent, end to end
+    small: NDArray[np.bool_] = edge[labels] <= largest + 1e-9
+    return small
+
+
 class VoxelBackground:
     """Accumulates scan points, then answers "is this point background?"."""
 
@@ -59,7 +86,10 @@ class VoxelBackground:
         lookup_depth: int = 0,
         min_hits: int = 1,
         min_neighbours: int = 0,
+        free_object_m: float | None = None,
     ) -> None:
+        if free_object_m is not None and not free_object_m > 0:
+            raise InputError("background: free_object_m must be positive (or unset)")
         if resolution <= 0 or inflate < 0 or lookup_depth < 0 or min_hits < 1:
             raise InputError("background: resolution > 0, inflate ≥ 0, depth ≥ 0, min_hits ≥ 1")
         if not 0 <= min_neighbours <= 26:
@@ -69,6 +99,8 @@ class VoxelBackground:
         self.lookup_depth = int(lookup_depth)
         self.min_hits = int(min_hits)
         self.min_neighbours = int(min_neighbours)
+        self.free_object_m = free_object_m
+        self.left_out = 0  # voxels of free-standing small objects left out of the map
         self._chunks: list[NDArray[np.int64]] = []
         self._cells: KeySet | None = None
 
@@ -100,6 +132,10 @@ class VoxelBackground:
         keys = np.concatenate(self._chunks) if self._chunks else np.empty(0, dtype=np.int64)
         self._chunks = []
         voxels = occupied_voxels(keys, self.min_hits, self.min_neighbours)
+        if self.free_object_m is not None:
+            free = free_objects(voxels, self.resolution, self.free_object_m)
+            self.left_out = int(np.count_nonzero(free))
+            voxels = voxels[~free]
         grown = dilate_keys(voxels, self.inflate)
         self._cells = KeySet.of(coarsen_keys(grown, self.lookup_depth))
 

@@ -23,6 +23,7 @@ __all__ = [
     "dilate_keys",
     "key_centres",
     "neighbour_counts",
+    "voxel_components",
     "unique_keys",
     "voxel_keys",
 ]
@@ -108,6 +109,31 @@ def neighbour_counts(keys: IntArray, support: IntArray) -> IntArray:
         at = np.minimum(np.searchsorted(support, neighbour), len(support) - 1)
         counts += support[at] == neighbour
     return counts
+
+
+def voxel_components(keys: IntArray) -> IntArray:
+    """(N,) a label per voxel of ``keys`` (sorted, distinct): voxels that touch over the
+    26-neighbourhood, directly or through others, share one (scipy's graph components)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(keys)
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    ix, iy, iz = _unpack(keys)
+    rows, cols = [], []
+    for ox, oy, oz in zip(*_offsets(1), strict=True):
+        if (ox, oy, oz) <= (0, 0, 0):  # each pair once
+            continue
+        neighbour = _pack_array(ix + ox, iy + oy, iz + oz)
+        at = np.minimum(np.searchsorted(keys, neighbour), n - 1)
+        hit = np.flatnonzero(keys[at] == neighbour)
+        rows.append(hit)
+        cols.append(at[hit])
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(len(r), dtype=np.int8), (r, c)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return np.asarray(labels, dtype=np.int64)
 
 
 def coarsen_keys(keys: IntArray, depth: int) -> IntArray:
