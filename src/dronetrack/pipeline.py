@@ -51,6 +51,7 @@ from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop, ball_mask, box_mask
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
+from dronetrack.preprocess.learning import LearningBackground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.seams import Actuator, Sink, Source
@@ -130,6 +131,7 @@ class Pipeline:
         ranges: RangeImage | None = None,
         classifier: TrackClassifier | None = None,
         chooser: TargetChooser | None = None,
+        learning: LearningBackground | None = None,
     ) -> None:
         self.tracker = tracker
         self.controller = controller
@@ -147,6 +149,8 @@ class Pipeline:
         self.classifier = classifier  # each track's class (``classify``)
         self._static_since: tuple[int, float] | None = None  # (held track, since when)
         self.chooser = chooser  # the track the turret serves among several
+        # The background that keeps learning after the scan (``preprocess.learning``).
+        self.learning = learning
         self._look: Candidates | None = None  # where the served track is, out of view
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
@@ -177,6 +181,8 @@ class Pipeline:
                 log.info("background model built: %d cells", len(self.background))
             result = self._result(frame, "scan", None, fg, fg.points, command, start, flags, steps)
         else:
+            seen = fg.points  # what the scanned map does not hold: the learning map's input
+            fg = self._without_learnt(fg)
             points = self._remove_outliers(fg.points)
             if "time_jump" in flags:
                 self.tracker.reset()
@@ -192,6 +198,8 @@ class Pipeline:
                 self.acquisition.lock.update(estimate, offered)
             if tracks is not None:
                 tracks = tracks.with_locked(estimate, SAME_TARGET_M)
+            if steps > 0:
+                self._learn(frame, fg.world, seen, found, tracks, estimate)
             command = (
                 self.controller.tracking(
                     t_cmd,
@@ -323,10 +331,58 @@ class Pipeline:
         tracks = objects.step(t, found, confirmed, t_meas=t - 0.5 * frame.duration)
         if self.classifier is None:
             return tracks
-        bg = self.background
-        test = bg.is_background if bg is not None and bg.ready else None
         sensor = frame.poses[-1, :3, 3]
+        test = self._in_background if self._has_background else None
         return self.classifier.step(t, tracks, found, fg.world, fg.index, sensor, test)
+
+    @property
+    def _has_background(self) -> bool:
+        bg = self.background
+        return (bg is not None and bg.ready) or self.learning is not None
+
+    def _in_background(self, points: FloatArray) -> NDArray[np.bool_]:
+        """(N,) whether each world point is in the scanned or the learnt map, or in a voxel
+        that what no track holds has hit lately (``LearningBackground.is_structure``)."""
+        out = np.zeros(len(points), dtype=bool)
+        if self.background is not None and self.background.ready:
+            out |= self.background.is_background(points)
+        if self.learning is not None:
+            out |= self.learning.is_structure(points)
+        return out
+
+    def _without_learnt(self, fg: Foreground) -> Foreground:
+        """The foreground without what the learning map holds (counted as background)."""
+        if self.learning is None or len(fg.points) == 0:
+            return fg
+        learnt = self.learning.is_background(fg.points)
+        if not learnt.any():
+            return fg
+        keep = ~learnt
+        return replace(
+            fg,
+            points=fg.points[keep],
+            index=fg.index[keep],
+            n_background=fg.n_background + int(np.count_nonzero(learnt)),
+        )
+
+    def _learn(
+        self,
+        frame: Frame,
+        world: FloatArray,
+        seen: FloatArray,
+        found: Detections | None,
+        tracks: Tracks | None,
+        estimate: TrackEstimate,
+    ) -> None:
+        """Show the learning map the frame, with what it must not learn: every track not
+        classed static, and the turret's target unless its track is."""
+        if self.learning is None or tracks is None or found is None:
+            return
+        centres, radii = protected_balls(tracks, found, estimate, self.learning.settings.resolution)
+        if self.learning.observe(
+            frame.end, world, frame.points, frame.poses[-1], seen, centres, radii
+        ):
+            log.debug("frame ending %.3f s: learnt map %d voxels", frame.end, len(self.learning))
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
         """The candidates within the lost target's reach (``detect.lock``)."""
@@ -425,6 +481,34 @@ class Pipeline:
             periods=periods,
             world=fg.world,
         )
+
+
+# A track without a cluster this frame is protected this far around its position [m],
+# on top of the margin: the largest drone the models fly is under 1 m across.
+COASTING_EXTENT_M = 1.0
+
+
+def protected_balls(
+    tracks: Tracks, found: Detections, estimate: TrackEstimate, margin: float
+) -> tuple[FloatArray, FloatArray]:
+    """Centres (B, 3) and radii (B,) of what the learning map must not learn: each track
+    not classed static, around its cluster (radius e/2 + margin, e its largest extent) or,
+    coasting, its position (COASTING_EXTENT_M / 2 + margin); and the turret's target
+    when locked and not on a static track."""
+    keep = tracks.classes != STATIC
+    j = tracks.clusters
+    has = keep & (j >= 0)
+    centres = np.array(tracks.positions, dtype=np.float64)
+    extent = np.full(len(tracks), COASTING_EXTENT_M)
+    centres[has] = found.centroids[j[has]]
+    extent[has] = found.extents[j[has], 0]
+    radii = 0.5 * extent + margin
+    centres, radii = centres[keep], radii[keep]
+    static_lock = bool(np.any(tracks.locked & ~keep))
+    if estimate.tracked and not static_lock and np.all(np.isfinite(estimate.position)):
+        centres = np.vstack([centres, estimate.position[None, :]])
+        radii = np.r_[radii, 0.5 * COASTING_EXTENT_M + margin]
+    return centres, radii
 
 
 def _keep(fg: Foreground, keep: NDArray[np.bool_]) -> Foreground:

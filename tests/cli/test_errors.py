@@ -341,6 +341,31 @@ def test_a_bad_walker_or_vehicle_entry_is_one_error_line(
         ("choose", "revisit_s", "-3", "pipeline.choose.revisit_s: Input should be greater than 0"),
         ("choose", "hysteresis", "0.5", "pipeline.choose.hysteresis"),
         ("tracks", "coast_s", "-1", "pipeline.tracks.coast_s: Input should be greater than 0"),
+        (
+            "background",
+            "learn_s",
+            "-1",
+            "pipeline.background.learn_s: Input should be greater than 0",
+        ),
+        (
+            "background",
+            "learn_share",
+            "-0.2",
+            "pipeline.background.learn_share: Input should be greater than 0",
+        ),
+        (
+            "background",
+            "learn_share",
+            "1.5",
+            "pipeline.background.learn_share: Input should be less than or equal to 1",
+        ),
+        (
+            "background",
+            "learn_after_s",
+            "-1",
+            "pipeline.background.learn_after_s: Input should be greater than or equal to 0",
+        ),
+        ("background", "learn_after_s", "30", "must not exceed learn_s (20)"),
     ],
 )
 def test_a_bad_track_or_turret_setting_is_one_line(

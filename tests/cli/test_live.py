@@ -4,10 +4,8 @@ falls silent, SIGTERM, and the live Foxglove server.  Every wait has a deadline.
 
 from __future__ import annotations
 
-import base64
 import csv
 import json
-import os
 import re
 import signal
 import socket
@@ -29,6 +27,7 @@ from dronetrack.sim.emulate.livox2 import EmulatedLivox2
 from dronetrack.sim.emulate.ptu import EmulatedPtu
 from dronetrack.sim.emulate.ptu_link import PtyPtuLink
 from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
+from foxglove_helpers import ws_messages
 
 LIVE_METRICS = {"latency_ms_p50", "latency_ms_p99", "frames_dropped", "packets_lost",
                 "packets_malformed"}  # fmt: skip
@@ -416,47 +415,6 @@ def test_info_of_the_servos(
     assert "ID 2 (tilt)" in lines[0]
 
 
-def _ws_messages(port: int, until_s: float) -> Iterator[dict[str, object]]:
-    """The JSON messages a Foxglove WebSocket server sends a new client (a WebSocket
-    handshake by hand, RFC 6455: unmasked server frames; binary frames skipped)."""
-    sock = socket.create_connection(("127.0.0.1", port), timeout=2.0)
-    key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall(
-        (
-            "GET / HTTP/1.1\r\nHost: localhost\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-            f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
-            "Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
-        ).encode()
-    )
-    buf = b""
-    while b"\r\n\r\n" not in buf:
-        buf += sock.recv(4096)
-    head, buf = buf.split(b"\r\n\r\n", 1)
-    assert head.startswith(b"HTTP/1.1 101"), head
-
-    def need(n: int) -> bytes:
-        nonlocal buf
-        while len(buf) < n:
-            buf += sock.recv(65536)
-        out, buf = buf[:n], buf[n:]
-        return out
-
-    deadline = time.monotonic() + until_s
-    try:
-        while time.monotonic() < deadline:
-            b0, b1 = need(2)
-            size = b1 & 0x7F
-            if size == 126:
-                size = int.from_bytes(need(2), "big")
-            elif size == 127:
-                size = int.from_bytes(need(8), "big")
-            payload = need(size)
-            if b0 & 0x0F == 1:  # a text frame
-                yield json.loads(payload)
-    finally:
-        sock.close()
-
-
 def test_the_foxglove_port_prints_its_address_and_the_sdks_log_is_a_warning_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -505,7 +463,7 @@ def test_the_live_foxglove_server_advertises_the_runs_topics() -> None:
     server = FoxgloveServer(0)
     try:
         advertised: set[str] = set()
-        for message in _ws_messages(server.port, 5.0):
+        for message in ws_messages(server.port, 5.0):
             if message.get("op") == "advertise":
                 channels = message["channels"]
                 assert isinstance(channels, list)

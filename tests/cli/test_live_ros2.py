@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dronetrack.cli.main import run
-from ros2_helpers import loopback_dds
+from ros2_helpers import check_tracks_published, loopback_dds
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = """\
@@ -99,14 +99,15 @@ def test_live_publishes_its_estimate_on_ros2(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``live --publish ros2`` (a recording played at wall-clock speed as the LiDAR):
-    a subscriber on the domain decodes the estimates with rosbags' Humble typestore,
-    and they are the run's own estimates, in order, in the world frame."""
+    a subscriber on the domain decodes the estimates and the tracks with rosbags' Humble
+    typestore, and they are the run's own estimates, in order, in the world frame, and
+    every track of every frame as its tracks.csv logs them."""
     import csv
     import time
 
     from rosbags.typesys import Stores, get_typestore
 
-    from dronetrack.formats.ros2_msgs import POINT_STAMPED
+    from dronetrack.formats.ros2_msgs import MARKER_ARRAY, POINT_STAMPED
     from dronetrack.sources.dds import DdsDomain
 
     domain = loopback_dds(tmp_path, monkeypatch)
@@ -116,14 +117,17 @@ def test_live_publishes_its_estimate_on_ros2(
     assert run(["record", str(tmp_path / "s.toml"), "--duration", "3", "--out", str(bag)]) == 0
     sub = DdsDomain(domain)
     reader = sub.reader("/dronetrack/estimate", POINT_STAMPED, "tf")  # reliable, depth 100
+    tracks = sub.reader("/dronetrack/tracks", MARKER_ARRAY, "tf")
     out = tmp_path / "live"
     got: list[bytes] = []
+    got_tracks: list[bytes] = []
     try:
         args = ["live", "--lidar", f"file://{bag}", "--turret", "none", "--publish", "ros2"]
         assert run([*args, "--ros-domain-id", str(domain), "--out", str(out)]) == 0
         end = time.monotonic() + 2.0
         while time.monotonic() < end:
             got.extend(reader.drain())
+            got_tracks.extend(tracks.drain())
             reader.wait(0.05)
     finally:
         sub.close()
@@ -137,3 +141,4 @@ def test_live_publishes_its_estimate_on_ros2(
     got_xyz = np.array([(m.point.x, m.point.y, m.point.z) for m in msgs])
     want = np.array([[float(r[k]) for k in ("est_x", "est_y", "est_z")] for r in rows])
     np.testing.assert_allclose(got_xyz, want, atol=1e-5)
+    check_tracks_published([ts.deserialize_cdr(raw, MARKER_ARRAY) for raw in got_tracks], out)

@@ -63,6 +63,10 @@ def test_quick_bench_writes_every_measurement(
     assert multi["median"] <= multi["p99"] <= multi["max"]
     assert multi["tracks"] >= 10  # the workload is the issue's: 10 tracks, 50 candidates
     assert multi["clusters"] >= 50
+    lm = data["learning_map"]
+    assert lm["seconds"] == 20.0
+    assert 0 < lm["final_mb"] <= lm["peak_mb"] < lm["rss_peak_mb"]
+    assert 0 < lm["learnt_peak"] <= lm["voxels_peak"]  # the map learnt the world it swept
     assert set(data["tracker_step_ms"]) == set(TRACKER_NAMES)
     for kind, row in data["tracker_step_ms"].items():
         _check_stats(row, f"tracker_step_ms {kind}")
@@ -87,7 +91,9 @@ def test_quick_bench_writes_every_measurement(
         "pf_step_ms.100000.median",
         "sim_frame_ms.avia",
         "multi_step_ms.p99",
+        "learning_map.peak_mb",
     }
+    assert targets["learning_map.peak_mb"]["value"] == lm["peak_mb"]
     assert targets["multi_step_ms.p99"]["value"] == multi["p99"]
     assert targets["pf_step_ms.5000.median"]["value"] == data["pf_step_ms"]["5000"]["median"]
     assert targets["sim_frame_ms.avia"]["value"] == data["sim_frame_ms"]["avia"]
@@ -133,6 +139,7 @@ def test_targets_are_met_at_their_limits_and_missed_above() -> None:
         "pf_step_ms": {"5000": {"median": 2.0}, "100000": {"median": 50.5}},
         "sim_frame_ms": {"avia": 9.0},
         "multi_step_ms": {"p99": 10.0},
+        "learning_map": {"peak_mb": 200.5},
     }
     verdicts = {k: v["met"] for k, v in evaluate_targets(results).items()}
     assert verdicts == {
@@ -140,6 +147,7 @@ def test_targets_are_met_at_their_limits_and_missed_above() -> None:
         "pf_step_ms.100000.median": False,
         "sim_frame_ms.avia": True,
         "multi_step_ms.p99": True,
+        "learning_map.peak_mb": False,
     }
 
 

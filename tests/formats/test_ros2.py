@@ -14,10 +14,12 @@ from hypothesis import strategies as st
 
 from dronetrack.errors import ConfigError, DecodeError
 from dronetrack.formats.ros2_msgs import (
+    MarkerSpec,
     decode_joint_state,
     decode_tf,
     encode_joint_command,
     encode_joint_state,
+    encode_marker_array,
     encode_path,
     encode_point_stamped,
     encode_points,
@@ -173,6 +175,15 @@ def _messages() -> dict[str, bytes]:
         "geometry_msgs/msg/PointStamped": encode_point_stamped(9, "world", np.array([1, 2, 3])),
         "nav_msgs/msg/Path": encode_path(9, "world", rng.normal(size=(3, 3))),
         "interbotix_xs_msgs/msg/JointGroupCommand": encode_joint_command("turret", [0.5, -0.25]),
+        "visualization_msgs/msg/MarkerArray": encode_marker_array(
+            11,
+            "world",
+            [
+                MarkerSpec("tracks", 4, "sphere", (1.0, 2.0, 3.0), 0.6, (0.9, 0.2, 0.8, 0.6)),
+                MarkerSpec("track_labels", 4, "text", (1.0, 2.0, 4.0), 1.0, text="4 drone"),
+                MarkerSpec("tracks", 9, "delete"),
+            ],
+        ),
     }
 
 

@@ -15,7 +15,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from dronetrack.cli.main import run
 from dronetrack.formats.ros2_names import check_type_name, ros_topic_name
-from ros2_helpers import loopback_dds
+from ros2_helpers import check_tracks_published, loopback_dds
 
 
 def _subscribe(domain_id: int) -> tuple[Any, dict[str, Any]]:
@@ -55,7 +55,7 @@ def test_simulate_publishes_what_rosbags_decodes(
         assert run([*args, "--ros-domain-id", str(domain), "--out", str(tmp_path / "r")]) == 0
         got: dict[str, list[bytes]] = {k: [] for k in readers}
         end = time.monotonic() + 3.0
-        while time.monotonic() < end and len(got["track"]) < 30:
+        while time.monotonic() < end and (len(got["track"]) < 30 or len(got["tracks"]) < 20):
             for key, reader in readers.items():
                 got[key].extend(reader.drain())
             time.sleep(0.05)
@@ -70,6 +70,7 @@ def test_simulate_publishes_what_rosbags_decodes(
     assert 0 < len(decoded["estimate"]) <= frames
     for key in ("particles", "foreground", "points"):
         assert 0 < len(decoded[key]) <= 5  # best effort, KEEP_LAST 5: the last ones
+    markers = decoded.pop("tracks")
     for msgs in decoded.values():
         assert all(m.header.frame_id == "world" for m in msgs)
     last = decoded["track"][-1]
@@ -89,9 +90,7 @@ def test_simulate_publishes_what_rosbags_decodes(
     logged = [float(rows[-1][k]) for k in ("est_x", "est_y", "est_z")]
     assert [est.x, est.y, est.z] == pytest.approx(logged, abs=1e-6)  # the run's own estimate
 
-
-def test_publish_refuses_an_unknown_target(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    assert run(["simulate", "--duration", "0.5", "--publish", "dds", "--out", str(tmp_path)]) == 2
-    assert "--publish 'dds': the one choice is ros2" in capsys.readouterr().err
+    # every track of every tracking frame (none during the 1 s scan), as tracks.csv
+    # logs it
+    assert len(markers) == 20
+    check_tracks_published(markers, tmp_path / "r")

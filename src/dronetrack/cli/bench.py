@@ -82,6 +82,16 @@ def bench_table(results: dict[str, Any], path: Path) -> Table:
     add(f"pipeline, {multi['tracks']} tracks", multi, "")
     cells = _target_cells(targets, "multi_step_ms.p99")
     table.add_row(f"  {multi['clusters']} clusters: p99", f"{multi['p99']:.2f}", "", "", "", *cells)
+    lm = results["learning_map"]
+    cells = _target_cells(targets, "learning_map.peak_mb")
+    table.add_row(
+        "learning map [MB]",
+        f"{lm['peak_mb']:.1f}",
+        "",
+        "",
+        "",
+        *cells,
+    )
     table.add_section()
     for kind, row in results["tracker_step_ms"].items():
         add(f"tracker, {kind}", row, "")

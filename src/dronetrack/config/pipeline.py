@@ -135,6 +135,25 @@ class BackgroundConfig(StrictModel):
     # a drone skimming a wall stays in view.  Needs the scan (not a loaded file).
     near_track: bool = False
     scan_s: float = Field(10.0, ge=0)  # scanning time before tracking starts
+    # Keep learning online (preprocess/learning.py): a voxel occupied in learn_share of
+    # its looks over the last learn_s seconds, looked at for learn_after_s at least,
+    # becomes background, and fades when looked through.  Needs the track layer
+    # (acquisition), which names what must never be learnt: every track not classed
+    # static, and the turret's target.
+    learn: bool = True
+    learn_s: float = Field(20.0, gt=0)
+    learn_share: float = Field(0.5, gt=0, le=1)
+    learn_after_s: float = Field(5.0, ge=0)
+
+    @model_validator(mode="after")
+    def _learning(self) -> BackgroundConfig:
+        if self.learn_after_s > self.learn_s:
+            raise ValueError(
+                f"background learn_after_s ({self.learn_after_s:g}) must not exceed "
+                f"learn_s ({self.learn_s:g}): the map remembers learn_s seconds"
+            )
+        return self
+
     file: str | None = None  # load a saved map instead of scanning (and skip the scan)
     # The scanning pattern: pan and tilt triangle waves over these ranges.  Unset: the
     # field of regard's ranges, or without one pan ±60°, tilt −25° to 5°.

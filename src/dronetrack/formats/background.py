@@ -1,11 +1,13 @@
 """A background model's file (``background.npz``): its lookup cells and settings,
-as numpy arrays, so a site is scanned once."""
+as numpy arrays, so a site is scanned once; and, when the map kept learning online,
+the voxels it learnt (``learnt``, at ``learnt_resolution``), so a site learns on."""
 
 from __future__ import annotations
 
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,6 +17,7 @@ from dronetrack.errors import InputError
 __all__ = [
     "BackgroundSettings",
     "load_background",
+    "load_learnt",
     "read_background_settings",
     "save_background",
 ]
@@ -35,11 +38,25 @@ class BackgroundSettings:
     min_neighbours: int = 0  # files written before the setting existed: none needed
 
 
-def save_background(path: Path, cells: IntArray, settings: BackgroundSettings) -> None:
-    """Write a built model's lookup-cell keys and settings as a compressed ``.npz``."""
+def save_background(
+    path: Path,
+    cells: IntArray,
+    settings: BackgroundSettings,
+    learnt: IntArray | None = None,
+    learnt_resolution: float | None = None,
+) -> None:
+    """Write a built model's lookup-cell keys and settings as a compressed ``.npz``, and
+    the voxel keys a learning map holds, with their voxel size [m], if given."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    members: dict[str, Any] = {}
+    if learnt is not None:
+        if learnt_resolution is None or not learnt_resolution > 0:
+            raise InputError("a learnt map needs its voxel size")
+        members["learnt"] = np.asarray(learnt, dtype=np.int64)
+        members["learnt_resolution"] = np.float64(learnt_resolution)
     np.savez_compressed(
         path,
+        **members,
         format=np.array(FORMAT),
         cells=np.asarray(cells, dtype=np.int64),
         resolution=np.float64(settings.resolution),
@@ -54,9 +71,12 @@ _MEMBERS = ("format", "cells", "resolution", "inflate", "lookup_depth", "min_hit
 _HINT = "give the background.npz that a dronetrack run wrote"
 
 
-def _read(path: Path, cells: bool) -> tuple[BackgroundSettings, IntArray | None]:
-    """The settings of a model written by ``save_background``, and its cells if asked
-    (the npz members load lazily, so settings alone skip the cells)."""
+def _read(
+    path: Path, cells: bool, learnt: bool = False
+) -> tuple[BackgroundSettings, IntArray | None, tuple[float, IntArray] | None]:
+    """The settings of a model written by ``save_background``, its cells if asked, and
+    its learnt voxels if asked and held (the npz members load lazily, so settings alone
+    skip the cells)."""
     if not path.is_file():
         raise InputError(f"background file not found: {path}")
     try:
@@ -84,7 +104,10 @@ def _read(path: Path, cells: bool) -> tuple[BackgroundSettings, IntArray | None]
                     int(data["min_hits"]),
                     int(data["min_neighbours"]) if "min_neighbours" in data.files else 0,
                 )
-                return settings, (data["cells"] if cells else None)
+                held = None
+                if learnt and "learnt" in data.files:
+                    held = (float(data["learnt_resolution"]), data["learnt"])
+                return settings, (data["cells"] if cells else None), held
     except ValueError as err:
         if "pickle" in str(err):  # object arrays, which are never loaded
             raise InputError(
@@ -102,6 +125,12 @@ def read_background_settings(path: Path) -> BackgroundSettings:
 
 def load_background(path: Path) -> tuple[BackgroundSettings, IntArray]:
     """The settings and lookup-cell keys of a model written by ``save_background``."""
-    settings, keys = _read(path, cells=True)
+    settings, keys, _ = _read(path, cells=True)
     assert keys is not None
     return settings, keys
+
+
+def load_learnt(path: Path) -> tuple[float, IntArray] | None:
+    """The voxel size [m] and keys of what a learning map held when the model was saved;
+    None for a model without (a scan's only, or written before maps learnt)."""
+    return _read(path, cells=False, learnt=True)[2]

@@ -13,7 +13,8 @@ writes the CDR bytes rosbags or its own encoders make and reads the raw bytes in
 its numpy decoders (``sources.dds``).  The classes give the DDS topic its type name
 and the type description other XTypes peers match against.
 
-Sources: ros2/common_interfaces (std_msgs, geometry_msgs, sensor_msgs, nav_msgs),
+Sources: ros2/common_interfaces (std_msgs, geometry_msgs, sensor_msgs, nav_msgs,
+visualization_msgs as of Humble),
 ros2/geometry2 (tf2_msgs), ros2/rcl_interfaces (builtin_interfaces),
 Livox-SDK/livox_ros_driver2 ``msg/`` and Interbotix/interbotix_ros_core
 (interbotix_xs_msgs ``JointGroupCommand``: ``string name``, ``float32[] cmd``).
@@ -166,6 +167,67 @@ class JointGroupCommand(IdlStruct, typename="interbotix_xs_msgs.msg.dds_.JointGr
     cmd: sequence[float32]
 
 
+@dataclass
+class Duration(IdlStruct, typename="builtin_interfaces.msg.dds_.Duration_"):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+class ColorRGBA(IdlStruct, typename="std_msgs.msg.dds_.ColorRGBA_"):
+    r: float32
+    g: float32
+    b: float32
+    a: float32
+
+
+@dataclass
+class CompressedImage(IdlStruct, typename="sensor_msgs.msg.dds_.CompressedImage_"):
+    header: Header
+    format: str
+    data: sequence[uint8]
+
+
+@dataclass
+class UVCoordinate(IdlStruct, typename="visualization_msgs.msg.dds_.UVCoordinate_"):
+    u: float32
+    v: float32
+
+
+@dataclass
+class MeshFile(IdlStruct, typename="visualization_msgs.msg.dds_.MeshFile_"):
+    filename: str
+    data: sequence[uint8]
+
+
+@dataclass
+class Marker(IdlStruct, typename="visualization_msgs.msg.dds_.Marker_"):
+    header: Header
+    ns: str
+    id: int32
+    type: int32
+    action: int32
+    pose: Pose
+    scale: Vector3
+    color: ColorRGBA
+    lifetime: Duration
+    frame_locked: bool
+    points: sequence[Point]
+    colors: sequence[ColorRGBA]
+    texture_resource: str
+    texture: CompressedImage
+    uv_coordinates: sequence[UVCoordinate]
+    text: str
+    mesh_resource: str
+    mesh_file: MeshFile
+    mesh_use_embedded_materials: bool
+
+
+@dataclass
+class MarkerArray(IdlStruct, typename="visualization_msgs.msg.dds_.MarkerArray_"):
+    markers: sequence[Marker]
+
+
 IDL_TYPES: dict[str, type[IdlStruct]] = {
     "std_msgs/msg/String": String,
     "sensor_msgs/msg/PointCloud2": PointCloud2,
@@ -176,6 +238,7 @@ IDL_TYPES: dict[str, type[IdlStruct]] = {
     "nav_msgs/msg/Path": Path,
     "sensor_msgs/msg/JointState": JointState,
     "interbotix_xs_msgs/msg/JointGroupCommand": JointGroupCommand,
+    "visualization_msgs/msg/MarkerArray": MarkerArray,
 }
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from rosbags.typesys.store import Typestore
@@ -25,6 +25,7 @@ from dronetrack.geometry.transforms import FloatArray, matrix_to_quaternion
 __all__ = [
     "JOINT_GROUP_COMMAND",
     "JOINT_STATE",
+    "MARKER_ARRAY",
     "NS",
     "PATH",
     "POINTCLOUD2",
@@ -32,10 +33,12 @@ __all__ = [
     "STRING",
     "TF_MESSAGE",
     "JointReading",
+    "MarkerSpec",
     "TfSample",
     "decode_joint_state",
     "decode_tf",
     "encode_joint_command",
+    "encode_marker_array",
     "encode_path",
     "encode_point_stamped",
     "encode_points",
@@ -52,6 +55,8 @@ JOINT_GROUP_COMMAND = "interbotix_xs_msgs/msg/JointGroupCommand"
 POINT_STAMPED = "geometry_msgs/msg/PointStamped"
 PATH = "nav_msgs/msg/Path"
 STRING = "std_msgs/msg/String"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
+MARKER = "visualization_msgs/msg/Marker"
 
 _JOINT_GROUP_COMMAND_MSG = "string name\nfloat32[] cmd\n"
 
@@ -175,6 +180,65 @@ def encode_tf(stamp_ns: int, links: Sequence[tuple[str, str, FloatArray]]) -> by
             )
         )
     return _cdr(types[TF_MESSAGE](transforms=out), TF_MESSAGE)
+
+
+@dataclass(frozen=True, slots=True)
+class MarkerSpec:
+    """One visualization_msgs/Marker: a sphere ``size`` [m] wide or a text ``size`` [m]
+    high at ``position`` [m], or the deletion of marker ``id`` of namespace ``ns``."""
+
+    ns: str
+    id: int
+    kind: Literal["sphere", "text", "delete"]
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    size: float = 0.0
+    rgba: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)  # each 0-1
+    text: str = ""
+
+
+def _marker(types: Any, header: Any, spec: MarkerSpec) -> Any:
+    cls = types[MARKER]
+    kind = {"sphere": cls.SPHERE, "text": cls.TEXT_VIEW_FACING, "delete": cls.SPHERE}[spec.kind]
+    action = cls.DELETE if spec.kind == "delete" else cls.ADD
+    x, y, z = (float(v) for v in spec.position)
+    r, g, b, a = (float(v) for v in spec.rgba)
+    size = float(spec.size)
+    no_bytes = np.zeros(0, dtype=np.uint8)
+    return cls(
+        header=header,
+        ns=spec.ns,
+        id=int(spec.id),
+        type=kind,
+        action=action,
+        pose=types["geometry_msgs/msg/Pose"](
+            position=types["geometry_msgs/msg/Point"](x=x, y=y, z=z),
+            orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        ),
+        scale=types["geometry_msgs/msg/Vector3"](x=size, y=size, z=size),
+        color=types["std_msgs/msg/ColorRGBA"](r=r, g=g, b=b, a=a),
+        lifetime=types["builtin_interfaces/msg/Duration"](sec=0, nanosec=0),
+        frame_locked=False,
+        points=[],
+        colors=[],
+        texture_resource="",
+        texture=types["sensor_msgs/msg/CompressedImage"](
+            header=_header(0, ""), format="", data=no_bytes
+        ),
+        uv_coordinates=[],
+        text=spec.text,
+        mesh_resource="",
+        mesh_file=types["visualization_msgs/msg/MeshFile"](filename="", data=no_bytes),
+        mesh_use_embedded_materials=False,
+    )
+
+
+def encode_marker_array(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) -> bytes:
+    """visualization_msgs/MarkerArray (ROS 2 Humble's Marker) of ``markers``, in order;
+    each lives until replaced or deleted."""
+    types = ros2_typestore().types
+    header = _header(stamp_ns, frame_id)
+    msg = types[MARKER_ARRAY](markers=[_marker(types, header, m) for m in markers])
+    return _cdr(msg, MARKER_ARRAY)
 
 
 @dataclass(frozen=True, slots=True)

@@ -42,10 +42,11 @@ from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.jobs.background import load_model
+from dronetrack.jobs.background import load_model, resume_learning
 from dronetrack.pipeline import Acquisition, OutlierSettings, Pipeline
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
+from dronetrack.preprocess.learning import LearningBackground, LearningSettings
 from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.track.base import SelfStart, Tracker
 from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
@@ -239,6 +240,9 @@ def build_pipeline(
                 bg_cfg.min_hits,
                 bg_cfg.min_neighbours,
             )
+    learning = build_learning(cfg, period)
+    if learning is not None and bg_cfg.file is not None:
+        resume_learning(Path(bg_cfg.file).expanduser(), learning)
     # With acquisition on, the scan ends at home, where the search starts; without it
     # (the seeds' runs) the raster runs as it falls, so seed tables II-IV stay comparable.
     scanning = background is not None and not background.ready
@@ -275,7 +279,24 @@ def build_pipeline(
         ranges=RangeImage(np.asarray(mount.base)) if scanning and bg_cfg.near_track else None,
         classifier=build_classifier(cfg, crop[0][2]),
         chooser=build_chooser(cfg),
+        learning=learning,
     )
+
+
+def build_learning(cfg: PipelineConfig, period: float) -> LearningBackground | None:
+    """The background that keeps learning (``preprocess.learning``), when the background
+    and the track layer that protects what it must not learn are on."""
+    b = cfg.background
+    if not (b.enabled and b.learn and cfg.acquisition.enabled):
+        return None
+    settings = LearningSettings(
+        memory_s=b.learn_s,
+        share=b.learn_share,
+        min_occupied_s=b.learn_after_s,
+        resolution=b.resolution_m,
+        inflate=b.inflate_voxels,
+    )
+    return LearningBackground(settings, period)
 
 
 def build_chooser(cfg: PipelineConfig) -> TargetChooser | None:

@@ -219,8 +219,13 @@ class RunFolder:
         self.close()
         out_dir = self.out_dir
         background = run.pipeline.background
+        learning = run.pipeline.learning
         config = run.config
-        if background is not None and background.ready and config.pipeline.background.file is None:
+        scanned = background is not None and background.ready
+        if learning is not None and len(learning):
+            # the map learnt: save what it holds now, on top of the scanned or loaded one
+            save_model(background if scanned else None, out_dir / "background.npz", learning)
+        elif scanned and config.pipeline.background.file is None:
             save_model(background, out_dir / "background.npz")
         (out_dir / "config.toml").write_text(dump_scenario(config))
         metrics = run.metrics() if extra is None else extra

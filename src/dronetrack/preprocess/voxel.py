@@ -21,6 +21,7 @@ __all__ = [
     "KeySet",
     "coarsen_keys",
     "dilate_keys",
+    "key_centres",
     "neighbour_counts",
     "unique_keys",
     "voxel_keys",
@@ -56,6 +57,12 @@ def voxel_keys(points: FloatArray, size: float) -> IntArray:
     if len(idx) and (np.abs(idx).max() >= OFFSET):
         raise InputError(f"points beyond ±{OFFSET * size:g} m do not fit the voxel keys")
     return _pack_array(idx[:, 0], idx[:, 1], idx[:, 2])
+
+
+def key_centres(keys: IntArray, size: float) -> FloatArray:
+    """(N, 3) the centres of the voxels of edge ``size`` with these keys [m]."""
+    ix, iy, iz = _unpack(np.asarray(keys, dtype=np.int64))
+    return (np.column_stack([ix, iy, iz]).astype(np.float64) + 0.5) * size
 
 
 def unique_keys(keys: IntArray) -> IntArray:

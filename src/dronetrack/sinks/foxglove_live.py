@@ -3,7 +3,8 @@ protocol (foxglove-sdk's server; the optional extra ``[foxglove]``).
 
 The topics and messages are those of the MCAP file (``sinks.foxglove_out``): the
 frame's points and foreground, the particles, the estimate, truth and trail
-markers, and the turret's links as ``/tf``.  Their times are the host's wall clock
+markers, the turret's links as ``/tf``, and every object's track (``/tracks/markers``,
+``/tracks``).  Their times are the host's wall clock
 at the run's start plus the run's clock, so the app shows them as they come.  The
 server listens on 127.0.0.1 (open ``ws://localhost:PORT`` in the app; from another
 machine, forward the port, e.g. ``ssh -L PORT:localhost:PORT rig``).

@@ -17,6 +17,8 @@ it is.  Topics (a user contract), one message each per frame unless said:
 - ``/tf`` (``foxglove.FrameTransform``): one message per edge of the frame's
   transform tree, parent and child frame ids as given, translation and unit
   quaternion.
+- ``/tracks/markers`` and ``/tracks``: every object's track, from the first frame
+  with a track layer on (``sinks.foxglove_tracks``).
 
 Point clouds and markers are in frame ``world``.  Every message's log time and
 header timestamp is ``start + frame.t`` in nanoseconds since the Unix epoch, so
@@ -42,10 +44,17 @@ import numpy as np
 
 from dronetrack.errors import InputError, MissingExtraError
 from dronetrack.geometry.transforms import FloatArray, matrix_to_quaternion
+from dronetrack.sinks.foxglove_tracks import (
+    MARKERS_TOPIC,
+    table_channel,
+    track_scene,
+    track_table,
+)
 from dronetrack.sinks.view import (
     WORLD_FRAME,
     EstimateTrail,
     NamedTransform,
+    ShownTracks,
     ViewFrame,
     checked,
     subsample_particles,
@@ -142,14 +151,27 @@ class FoxgloveChannels:
         self._markers = SceneUpdateChannel("/track/markers", context=ctx)
         self._tf = FrameTransformChannel("/tf", context=ctx)
         self._trail = EstimateTrail()
+        self._shown = ShownTracks()
+        self._tracks: tuple[Any, Any] | None = None  # opened with the first tracks
         self._closed = False
 
     def _close_channels(self) -> None:
         for channel in (self._points, self._foreground, self._particles, self._markers, self._tf):
             channel.close()
+        for channel in self._tracks or ():
+            channel.close()
+
+    def _track_channels(self) -> tuple[Any, Any]:
+        """The markers and table channels of the tracks, opened on first use."""
+        if self._tracks is None:
+            from foxglove.channels import SceneUpdateChannel
+
+            markers = SceneUpdateChannel(MARKERS_TOPIC, context=self._context)
+            self._tracks = (markers, table_channel(self._context))
+        return self._tracks
 
     def log(self, frame: ViewFrame) -> None:
-        """Add one frame: three point clouds, the markers and the transforms.
+        """Add one frame: three point clouds, the markers, the transforms and the tracks.
 
         The frame is checked whole first (``InputError``), so a bad frame writes nothing.
         """
@@ -167,11 +189,18 @@ class FoxgloveChannels:
         ]
         transforms = [_frame_transform(tf, stamp) for tf in frame.transforms]
         scene = self._scene(frame, stamp)
+        update = self._shown.update(frame.tracks)
+        tracks = None
+        if update is not None:
+            tracks = (track_scene(update, stamp), track_table(update, stamp))
         for channel, cloud in clouds:
             channel.log(cloud, log_time=ns)
         self._markers.log(scene, log_time=ns)
         for transform in transforms:
             self._tf.log(transform, log_time=ns)
+        if tracks is not None:
+            for channel, message in zip(self._track_channels(), tracks, strict=True):
+                channel.log(message, log_time=ns)
 
     def _scene(self, frame: ViewFrame, stamp: Timestamp) -> SceneUpdate:
         """The markers: what is known is drawn, what is not is deleted."""

@@ -21,8 +21,18 @@ Entity paths (a user contract), all in metres, z up:
 - ``world/frames/<child>``: for every edge of the frame's transform tree, the
   child frame's pose in the world frame (composed along the tree from
   ``world``), as ``Transform3D`` drawn with 0.3 m axes;
+- ``world/tracks``: every object's track, from the first frame with a track layer on
+  (none before): ``Points3D`` at its position, radius its position sigma
+  (0.15-5 m), in its class colour (``sinks.view.TRACK_RGB``), ``class_ids`` its class
+  (index into ``TRACK_CLASSES``; a static ``AnnotationContext`` names them), label
+  ``<id> <class>`` (`` locked`` after it on the track the turret's tracker holds),
+  and ``AnyValues`` ``track_id``, ``p_drone``, ``pos_sigma_m`` and ``locked`` per
+  instance;
+- ``world/tracks/locked``: a green wireframe box around the locked track (cleared
+  while none is);
 - ``plots/error_m``: |estimate − truth| [m], on frames where both are known;
-- ``plots/n_foreground``: the number of foreground points.
+- ``plots/n_foreground``: the number of foreground points;
+- ``plots/n_tracks``: the number of tracks (with a track layer).
 
 An entity with nothing to show this frame (no estimate, no truth, a trail of
 fewer than two points) is cleared, so the viewer never shows a stale marker.
@@ -50,17 +60,24 @@ import numpy as np
 from dronetrack.errors import ConfigError, MissingExtraError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sinks.view import (
+    LOCKED_RGB,
+    TRACK_RGB,
     EstimateTrail,
+    ShownTracks,
+    TrackUpdate,
     ViewFrame,
     checked,
     subsample_particles,
+    track_label,
+    track_size,
     world_poses,
 )
+from dronetrack.types import TRACK_CLASSES
 
 if TYPE_CHECKING:
     import rerun as rr
 
-__all__ = ["ENTITY_PATHS", "RerunWriter", "require_rerun"]
+__all__ = ["ENTITY_PATHS", "TRACK_PATHS", "RerunWriter", "require_rerun"]
 
 ENTITY_PATHS = (
     "world",
@@ -73,6 +90,7 @@ ENTITY_PATHS = (
     "plots/error_m",
     "plots/n_foreground",
 )
+TRACK_PATHS = ("world/tracks", "world/tracks/locked", "plots/n_tracks")
 
 _HINT = "--rerun needs rerun-sdk: pip install 'dronetrack[rerun]'"
 _GREY = (150, 150, 150)
@@ -86,6 +104,7 @@ _FOREGROUND_RADIUS = 0.06  # [m]
 _MARKER_RADIUS = 0.2  # [m]
 _TRAIL_RADIUS = 0.03  # [m]
 _AXIS_LENGTH = 0.3  # [m]
+_LOCKED_BOX = 0.75  # the locked track's box half size against its diameter
 
 
 def require_rerun() -> None:
@@ -119,6 +138,8 @@ class RerunWriter:
         self._rec.save(self.path)
         self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._trail = EstimateTrail()
+        self._shown = ShownTracks()
+        self._tracks_named = False  # the class annotation is logged with the first tracks
         self._index = 0
         self._closed = False
 
@@ -136,6 +157,9 @@ class RerunWriter:
         self._log_track(frame)
         self._log_frames(poses)
         self._log_plots(frame)
+        update = self._shown.update(frame.tracks)
+        if update is not None:
+            self._log_tracks(update)
         self._index += 1
 
     def close(self) -> None:
@@ -209,3 +233,44 @@ class RerunWriter:
         if frame.estimate is not None and frame.truth is not None:
             error = np.linalg.norm(frame.estimate - frame.truth)
             self._rec.log("plots/error_m", rr.Scalars(float(error)))
+
+    def _log_tracks(self, update: TrackUpdate) -> None:
+        import rerun as rr
+
+        tracks = update.tracks
+        if not self._tracks_named:
+            classes = [
+                rr.AnnotationInfo(id=k, label=name, color=TRACK_RGB[name])
+                for k, name in enumerate(TRACK_CLASSES)
+            ]
+            self._rec.log("world/tracks", rr.AnnotationContext(classes), static=True)
+            self._tracks_named = True
+        points = rr.Points3D(
+            np.array([t.position for t in tracks]).reshape(-1, 3),
+            radii=[track_size(t.sigma) / 2 for t in tracks],
+            colors=[t.rgb for t in tracks],
+            labels=[track_label(t, p_drone=False) for t in tracks],
+            class_ids=[TRACK_CLASSES.index(t.cls) for t in tracks],
+            show_labels=True,
+        )
+        values = rr.AnyValues(
+            track_id=np.array([t.id for t in tracks], dtype=np.int64),
+            p_drone=np.array([t.p_drone for t in tracks], dtype=np.float64),
+            pos_sigma_m=np.array([t.sigma for t in tracks], dtype=np.float64),
+            locked=np.array([t.locked for t in tracks], dtype=bool),
+        )
+        self._rec.log("world/tracks", points, values)
+        locked = [t for t in tracks if t.locked]
+        if locked:
+            t = locked[0]
+            half = _LOCKED_BOX * track_size(t.sigma)
+            box = rr.Boxes3D(
+                centers=[t.position],
+                half_sizes=[(half, half, half)],
+                colors=[LOCKED_RGB],
+                labels=[f"locked {t.id}"],
+            )
+            self._rec.log("world/tracks/locked", box)
+        else:
+            self._rec.log("world/tracks/locked", rr.Clear(recursive=False))
+        self._rec.log("plots/n_tracks", rr.Scalars(float(len(tracks))))

@@ -1,6 +1,7 @@
 """One frame as a viewer shows it, the interface of the viewer writers, and what the
-writers show the same way (the particle subsample, the estimate trail and the world
-pose of every frame of the transform tree).
+writers show the same way (the particle subsample, the estimate trail, the world
+pose of every frame of the transform tree, and every object's track: its class
+colour, size, label and the tracks shown before).
 
 ``simulate`` and ``track`` fill a ``ViewFrame`` per frame and hand it to every
 open ``ViewerSink`` (``--foxglove FILE.mcap``, ``--rerun FILE.rrd``).
@@ -21,19 +22,27 @@ import numpy as np
 from dronetrack.errors import InputError
 from dronetrack.geometry.mount import MountGeometry, turret_links
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.types import Frame, Sample, StepResult
+from dronetrack.types import TRACK_CLASSES, Frame, Sample, StepResult, Tracks
 
 __all__ = [
+    "LOCKED_RGB",
     "MAX_PARTICLES",
+    "TRACK_RGB",
     "TRAIL_LENGTH",
     "WORLD_FRAME",
     "EstimateTrail",
     "NamedTransform",
+    "ShownTracks",
+    "TrackUpdate",
+    "TrackView",
     "ViewFrame",
     "ViewerFeed",
     "ViewerSink",
     "checked",
     "subsample_particles",
+    "track_label",
+    "track_size",
+    "track_views",
     "view_frame",
     "world_poses",
     "xyz",
@@ -42,6 +51,16 @@ __all__ = [
 WORLD_FRAME = "world"
 MAX_PARTICLES = 2000  # at most this many particles are drawn per frame
 TRAIL_LENGTH = 50  # past estimates in the trail
+# A track's colour by class (r, g, b in 0-255), apart from the points' grey, the
+# foreground's red, the estimate's green and the truth's light blue.
+TRACK_RGB: dict[str, tuple[int, int, int]] = {
+    "unknown": (225, 225, 225),
+    "drone": (235, 50, 200),
+    "bird": (250, 200, 40),
+    "static": (150, 105, 60),
+}
+LOCKED_RGB = (30, 220, 50)  # the mark of the track the turret's tracker holds
+TRACK_SIZE_M = (0.3, 10.0)  # a track's drawn size (2 position sigma) is clipped to this [m]
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,6 +84,7 @@ class ViewFrame:
     truth: FloatArray | None  # (3,) ground truth, None when unknown
     particles: FloatArray | None  # (P, 3) a particle filter's particles
     transforms: tuple[NamedTransform, ...]  # world → turret links → sensor, at the frame end
+    tracks: Tracks | None = None  # every object's track; None without a track layer
 
 
 class ViewerSink(Protocol):
@@ -96,6 +116,7 @@ def view_frame(
         truth=truth if truth is not None and np.all(np.isfinite(truth)) else None,
         particles=None if est is None else est.particles,
         transforms=tuple(transforms),
+        tracks=result.tracks,
     )
 
 
@@ -222,3 +243,92 @@ def world_poses(
             raise InputError(f"transforms not connected to {root!r}: {names}")
         pending = left
     return {name: pose for name, pose in poses.items() if name != root}
+
+
+@dataclass(frozen=True, slots=True)
+class TrackView:
+    """One track as the viewers show it (world frame, SI units)."""
+
+    id: int
+    cls: str  # its class, one of ``TRACK_CLASSES``
+    p_drone: float
+    position: tuple[float, float, float]  # [m]
+    velocity: tuple[float, float, float]  # [m/s]
+    sigma: float  # √ of its largest position variance [m]
+    locked: bool
+
+    @property
+    def rgb(self) -> tuple[int, int, int]:
+        """Its class colour."""
+        return TRACK_RGB[self.cls]
+
+
+def _triple(v: FloatArray) -> tuple[float, float, float]:
+    x, y, z = (float(c) for c in v)
+    return (x, y, z)
+
+
+def track_views(tracks: Tracks | None) -> list[TrackView]:
+    """Every track of ``tracks`` (none for None), in their order."""
+    if tracks is None:
+        return []
+    sigma = tracks.position_sigma
+    return [
+        TrackView(
+            id=int(tracks.ids[k]),
+            cls=TRACK_CLASSES[int(tracks.classes[k])],
+            p_drone=float(tracks.p_drone[k]),
+            position=_triple(tracks.positions[k]),
+            velocity=_triple(tracks.velocities[k]),
+            sigma=float(sigma[k]),
+            locked=bool(tracks.locked[k]),
+        )
+        for k in range(len(tracks))
+    ]
+
+
+def track_size(sigma: float) -> float:
+    """A track's drawn diameter [m]: twice its position sigma within ``TRACK_SIZE_M``
+    (the largest for a sigma that is not finite)."""
+    low, high = TRACK_SIZE_M
+    return float(np.clip(2.0 * sigma, low, high)) if math.isfinite(sigma) else high
+
+
+def track_label(track: TrackView, p_drone: bool = True) -> str:
+    """``"<id> <class> p=<p_drone>"`` (without p= when ``p_drone`` is False), with
+    `` locked`` after it on the track the turret's tracker holds."""
+    text = f"{track.id} {track.cls}"
+    if p_drone:
+        text += f" p={track.p_drone:.2f}"
+    return text + " locked" if track.locked else text
+
+
+@dataclass(frozen=True, slots=True)
+class TrackUpdate:
+    """What a viewer shows of the tracks this frame and which of its past ones to delete."""
+
+    tracks: list[TrackView]
+    gone: list[int]  # ids shown before and not now, ascending
+
+
+class ShownTracks:
+    """The track ids a viewer shows, frame to frame.
+
+    ``update`` gives None until a frame has tracks (a run without a track layer, or
+    its background scan, shows none and deletes none); from then on every frame's
+    tracks (a frame with None has none) and the ids that are gone.
+    """
+
+    def __init__(self) -> None:
+        self._ids: set[int] = set()
+        self._active = False
+
+    def update(self, tracks: Tracks | None) -> TrackUpdate | None:
+        if tracks is None and not self._active:
+            return None
+        self._active = True
+        views = track_views(tracks)
+        ids = {t.id for t in views}
+        gone = sorted(self._ids - ids)
+        self._ids = ids
+        return TrackUpdate(views, gone)

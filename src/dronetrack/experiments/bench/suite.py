@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from dronetrack.errors import ConfigError
+from dronetrack.experiments.bench.learning import MAP_S, learning_map
 from dronetrack.experiments.bench.machine import machine_info
 from dronetrack.experiments.bench.multi import multi_step_ms
 from dronetrack.experiments.bench.pipeline import (
@@ -88,6 +89,7 @@ TARGETS: tuple[Target, ...] = (
     Target(
         ("multi_step_ms", "p99"), 10.0, "ms", "pipeline step, ≥ 10 tracks and 50 candidates, p99"
     ),
+    Target(("learning_map", "peak_mb"), 200.0, "MB", "learning map, all-round sweep, peak"),
 )
 
 
@@ -133,11 +135,13 @@ Progress = Callable[[str, int, int], None]
 
 @dataclass(frozen=True, slots=True)
 class Settings:
-    """How much of each measurement: timed steps, rounds, the replay's length [s]."""
+    """How much of each measurement: timed steps, rounds, the replay's length [s], the
+    learning map's all-round run [s]."""
 
     repeats: int
     rounds: int
     replay_s: float
+    map_s: float = MAP_S
 
     def checked(self) -> Settings:
         """These settings, or ConfigError naming the bad value."""
@@ -153,8 +157,8 @@ class Settings:
 
 
 FULL = Settings(repeats=200, rounds=3, replay_s=30.0)
-QUICK = Settings(repeats=5, rounds=1, replay_s=8.0)  # a smoke test, not a measurement
-STAGES = len(PF_PARTICLES) + 1 + len(TRACKER_NAMES) + len(SENSORS) + len(REPLAY_FORMATS)
+QUICK = Settings(repeats=5, rounds=1, replay_s=8.0, map_s=20.0)  # a smoke test
+STAGES = len(PF_PARTICLES) + 2 + len(TRACKER_NAMES) + len(SENSORS) + len(REPLAY_FORMATS)
 
 
 def _pf_suite(cfg: Settings, report: Callable[[str], None]) -> dict[str, dict[str, float]]:
@@ -232,7 +236,8 @@ def bench(
     particles, tracker steps, simulator frames; ``heavy_repeats`` of it at 100,000
     particles); ``rounds``: rounds per measurement, the best kept; ``replay_s``:
     the replay recording's length.  Defaults: ``FULL`` (200, 3, 30 s), or with
-    ``quick`` ``QUICK`` (5, 1, 8 s); a value given wins.  The recordings are
+    ``quick`` ``QUICK`` (5, 1, 8 s); a value given wins.  The learning map's all-round
+    run lasts ``map_s`` of them (600 s, or 20 s with ``quick``).  The recordings are
     written to ``workdir`` (default: a temporary folder) and deleted after use.
     ``progress(what, done, total)`` is called before each measurement and at the end.
     """
@@ -241,6 +246,7 @@ def bench(
         base.repeats if repeats is None else repeats,
         base.rounds if rounds is None else rounds,
         base.replay_s if replay_s is None else replay_s,
+        base.map_s,
     ).checked()
     stage = iter(range(STAGES + 1))
 
@@ -251,6 +257,8 @@ def bench(
 
     pf = _pf_suite(cfg, report)
     multi = _multi_suite(cfg, report)
+    report(f"learning map, {cfg.map_s:g} s all-round sweep")
+    learning = learning_map(cfg.map_s)
     trackers = _tracker_suite(cfg, report)
     sim = _sim_suite(cfg, report)
     formats = _replay_suite(cfg, report, workdir)
@@ -265,6 +273,7 @@ def bench(
         },
         "pf_step_ms": pf,
         "multi_step_ms": multi,
+        "learning_map": learning,
         "tracker_step_ms": trackers,
         "sim_frame_ms": {sensor: row["median"] for sensor, row in sim.items()},
         "sim_frame_stats_ms": sim,
