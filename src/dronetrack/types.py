@@ -385,12 +385,13 @@ class ObjectTruth:
 
     ids: (K,) a number that stays with an object for the whole run.  The simulator
         numbers its drones 0..D−1 in target order (0: the ``[drone]`` and
-        ``[trajectory]`` target, then the ``[[targets]]`` entries), its birds after them.
+        ``[trajectory]`` target, then the ``[[targets]]`` entries), its birds after them,
+        then its walkers and its vehicles (``[[walkers]]``, ``[[vehicles]]``, in order).
     kinds: (K,) each object's kind, one of ``OBJECT_KINDS``.
     positions: (K, 3) world position at the frame's end [m]; NaN while not present.
     velocities: (K, 3) world velocity at the frame's end [m/s]; NaN while not present.
     present: (K,) whether the object is in the world at the frame's end (a drone
-        enters at its start time).
+        enters at its start time, a vehicle as it starts to drive in).
     object_index: (N,) per return of the frame, the index into these K arrays of the
         object it came from; −1 for anything else (the scene, a false alarm).
 

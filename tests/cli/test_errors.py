@@ -304,6 +304,37 @@ def test_a_run_shorter_than_a_targets_start_is_one_error_line(
 
 
 @pytest.mark.parametrize(
+    ("entry", "where", "message"),
+    [
+        (
+            "[[walkers]]\narea_m = [10, -5, 20, 5]\nspeed_m_s = [-1.0, 1.5]\n",
+            "walkers.0",
+            "speed_m_s must be (low, high) with 0 < low ≤ high ≤ 5 m/s, got -1, 1.5",
+        ),
+        (
+            "[[vehicles]]\npath_m = [[40, 0], [30, 0]]\nspeed_m_s = -3\n",
+            "vehicles.0.speed_m_s",
+            "Input should be greater than 0",
+        ),
+        (
+            "[[vehicles]]\npath_m = [[40, 0], [30, 0]]\narrive_s = 12\n",
+            "vehicles.0.arrive_s",
+            "= 12 s is not before the run ends (duration_s = 8 s)",
+        ),
+    ],
+)
+def test_a_bad_walker_or_vehicle_entry_is_one_error_line(
+    entry: str, where: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(f'base = "default"\nduration_s = 8.0\n{entry}')
+    line = _one_error(["simulate", str(path), "--out", str(tmp_path / "o")], capsys)
+    assert f"{path}: {where}" in line
+    assert message in line
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
     ("section", "key", "value", "message"),
     [
         ("choose", "revisit_s", "0", "pipeline.choose.revisit_s: Input should be greater than 0"),

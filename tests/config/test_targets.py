@@ -23,6 +23,7 @@ from dronetrack.errors import ScenarioError
 from dronetrack.jobs.run import run_seeds
 from dronetrack.jobs.simulate import flight_config
 from dronetrack.sim.build import build_world, resolve_scenario
+from sim_helpers import assert_same_frames
 
 REACH_M = 130.0  # the Avia's for a Phantom 4 in clear air (config.run.REACH_M)
 
@@ -103,13 +104,7 @@ def test_a_scenario_file_with_targets_round_trips(tmp_path: Path) -> None:
     again.write_text(text)
     reloaded = load_scenario_file(again, SCENARIOS)
     assert reloaded == resolved
-    a, b = build_world(resolved), build_world(reloaded)
-    for _ in range(25):
-        (fa, ta), (fb, tb) = a.step(), b.step()
-        np.testing.assert_array_equal(fa.points, fb.points)
-        assert ta.objects is not None
-        assert tb.objects is not None
-        np.testing.assert_array_equal(ta.objects.object_index, tb.objects.object_index)
+    assert_same_frames(resolved, reloaded, 25)
 
 
 def test_a_scenario_without_targets_writes_none() -> None:

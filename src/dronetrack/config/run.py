@@ -2,7 +2,8 @@
 
 The target (``[drone]`` and ``[trajectory]``) is the drone the run is scored on;
 ``[[targets]]`` entries add further drones, each with its own model, path and
-start time.
+start time; ``[[walkers]]`` and ``[[vehicles]]`` people and cars on the ground
+(``config/movers.py``).
 
 The turret stands on the ground at the world origin, or, with an ``[observer]``
 section, rides on a drone flying its own trajectory (seed 002's relative
@@ -24,6 +25,7 @@ from typing import Any, ClassVar, Literal, Self
 import tomli_w
 from pydantic import Field, ValidationError, model_validator
 
+from dronetrack.config.movers import VehicleConfig, WalkerConfig
 from dronetrack.config.pipeline import PipelineConfig, StrictModel
 from dronetrack.config.tomlfile import read_toml
 from dronetrack.errors import ScenarioError
@@ -237,16 +239,25 @@ class ScenarioConfig(StrictModel):
     observer: ObserverConfig | None = None  # None: the turret stands on the ground
     # Further drones besides the target ([[targets]]); the run is scored on the target.
     targets: tuple[TargetConfig, ...] = ()
+    # People and cars on the ground ([[walkers]], [[vehicles]]), labelled in the truth.
+    walkers: tuple[WalkerConfig, ...] = ()
+    vehicles: tuple[VehicleConfig, ...] = ()
     # How the run is processed by ``dronetrack simulate``; the simulator ignores it.
     pipeline: PipelineConfig = PipelineConfig()
 
     @model_validator(mode="after")
-    def _targets_start_in_the_run(self) -> Self:
+    def _objects_come_in_the_run(self) -> Self:
         for i, target in enumerate(self.targets):
             if target.start_s >= self.duration_s:
                 raise ValueError(
                     f"targets.{i}.start_s = {target.start_s:g} s is not before the run ends "
                     f"(duration_s = {self.duration_s:g} s): the drone would never be seen"
+                )
+        for i, vehicle in enumerate(self.vehicles):
+            if vehicle.arrive_s >= self.duration_s:
+                raise ValueError(
+                    f"vehicles.{i}.arrive_s = {vehicle.arrive_s:g} s is not before the run "
+                    f"ends (duration_s = {self.duration_s:g} s): the vehicle would never park"
                 )
         return self
 
@@ -442,9 +453,11 @@ def apply_overrides(
 
 
 def dump_scenario(config: ScenarioConfig) -> str:
-    """The scenario as TOML (keys left unset are omitted, and so is ``targets`` when
-    there are none); further drones are ``[[targets]]`` tables."""
+    """The scenario as TOML (keys left unset are omitted, and so are ``targets``,
+    ``walkers`` and ``vehicles`` when there are none); further drones are ``[[targets]]``
+    tables, people and cars ``[[walkers]]`` and ``[[vehicles]]``."""
     data = config.model_dump(exclude_none=True)
-    if not data["targets"]:
-        del data["targets"]
+    for key in ("targets", "walkers", "vehicles"):
+        if not data[key]:
+            del data[key]
     return tomli_w.dumps(data)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dronetrack.config.movers import VehicleConfig, WalkerConfig
 from dronetrack.config.pipeline import (
     BackgroundConfig,
     ChooseConfig,
@@ -287,6 +288,109 @@ def _several(name: str, flights: list[str], description: str, duration: float) -
     return base.model_copy(update={"targets": others, "pipeline": pipeline})
 
 
+# outdoor-unscanned: the acquisition rig and its ±90° field of regard, but a background
+# scan that holds the turret within ±5° of the home bearing, so (with the Avia's ±35°
+# view) the map covers bearings within about ±40° only.  outdoor-masts' poles, masts, a
+# cabinet and a shed's corner stand beyond 50° either side, behind the drone's path,
+# and never enter the map; the drone waits off the sector (88°) during the scan.
+UNSCANNED_PAN_DEG = (-5.0, 5.0)
+_UNSCANNED = _acquisition(
+    "outdoor-unscanned",
+    "unscanned",
+    "a background scan of the home bearing ±40° only; the drone comes in from 88°, and "
+    "poles, masts, a cabinet and a shed's corner stand beyond it, off the scanned sector",
+    50.0,
+    scene="outdoor-masts",
+)
+UNSCANNED = _UNSCANNED.model_copy(
+    update={
+        "pipeline": _UNSCANNED.pipeline.model_copy(
+            update={
+                "background": BackgroundConfig(
+                    min_hits=2, scan_s=10.0, near_track=True, scan_pan_deg=UNSCANNED_PAN_DEG
+                )
+            }
+        )
+    }
+)
+
+# site-busy: default's rig and map settings, with no clean scan: 1 s of it, the turret
+# within ±5° of the home bearing and looking 10-15° up, at the drone already in the air
+# 35 m out; four people walk 15-45 m out and a car drives in from beyond the view on the
+# right and parks 34 m out, 20 s into the flight.
+SITE_BUSY_WALKERS = (WalkerConfig(count=4, area_m=(15.0, -12.0, 45.0, 12.0)),)
+SITE_BUSY_VEHICLES = (
+    VehicleConfig(
+        path_m=((90.0, -70.0), (50.0, -30.0), (30.0, -15.0)), arrive_s=20.0, speed_m_s=8.0
+    ),
+)
+_SITE_BUSY = _scenario(
+    "site-busy",
+    "the drone in view from the first frame, no clean scan (1 s); four people walk below "
+    "it 15-45 m out and a car drives in and parks 34 m out, 20 s into the flight",
+    40.0,
+    "outdoor",
+    "phantom4",
+    "site-roam",
+    "avia",
+    "widowx",
+    1.0,
+    pipeline=OUTDOOR.model_copy(
+        update={
+            "background": BackgroundConfig(
+                min_neighbours=1,
+                near_track=True,
+                scan_s=1.0,
+                scan_pan_deg=(-5.0, 5.0),
+                scan_tilt_deg=(-15.0, -10.0),
+            )
+        }
+    ),
+)
+SITE_BUSY = _SITE_BUSY.model_copy(
+    update={"walkers": SITE_BUSY_WALKERS, "vehicles": SITE_BUSY_VEHICLES}
+)
+
+# mid360-static: a Mid-360 on a WidowX that never moves (the fixed mode at home, level,
+# the scan held there), set up as a site file would set up a real static Mid-360: crop
+# ±60 m about the sensor, 0.5 m voxels, a 1 s scan.  The drone hovers 2.0-2.9 m from it
+# from the start; three people walk 3-14 m out, two in front of it and one behind.
+_STATIC_SENSOR_Z = 1.0 + _WIDOWX.pan_to_tilt[2] + _WIDOWX.tilt_to_sensor[2]
+STATIC_MID360 = PipelineConfig(
+    crop=CropConfig(min_m=(-60.0, -60.0, -60.0), max_m=(60.0, 60.0, 60.0)),
+    background=BackgroundConfig(
+        resolution_m=0.5, scan_s=1.0, scan_pan_deg=(0.0, 0.0), scan_tilt_deg=(0.0, 0.0)
+    ),
+    tracker=TrackerConfig(
+        v_max=5.0,
+        a_max=5.0,
+        cylinder_center_m=(0.0, 0.0, 0.0),
+        cylinder_radius_m=15.0,
+        cylinder_height_m=10.0,
+    ),
+    controller=ControllerConfig(mode="fixed", home_m=(10.0, 0.0, _STATIC_SENSOR_Z)),
+    # the drone is 2-3 m from people and the sensor: score within 1 m
+    evaluation=EvaluationConfig(correct_radius_m=1.0),
+)
+MID360_STATIC_WALKERS = (
+    WalkerConfig(count=2, area_m=(3.0, -8.0, 12.0, 8.0)),
+    WalkerConfig(count=1, area_m=(-12.0, -8.0, -3.0, 8.0)),
+)
+_MID360_STATIC = _scenario(
+    "mid360-static",
+    "a static Mid-360 (no turret motion, 1 s scan, ±60 m crop, 0.5 m voxels); a Phantom 4 "
+    "hovers 2.0-2.9 m from it from the start; three people walk 3-14 m out",
+    30.0,
+    "outdoor",
+    "phantom4",
+    "close-hover",
+    "mid360",
+    "widowx",
+    1.0,
+    pipeline=STATIC_MID360,
+)
+MID360_STATIC = _MID360_STATIC.model_copy(update={"walkers": MID360_STATIC_WALKERS})
+
 _LIST = [
     DEFAULT,
     _acquisition(
@@ -336,6 +440,9 @@ _LIST = [
         "alarms/s, 5 birds, two crossing the line of sight at 12 s and 40 s",
         OUTDOOR_CLUTTER,
     ),
+    UNSCANNED,
+    SITE_BUSY,
+    MID360_STATIC,
     _outdoor(
         "outdoor-simple-distance",
         "simple-distance",

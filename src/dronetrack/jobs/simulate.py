@@ -168,16 +168,20 @@ def run_lockstep(
 
 def flight_config(cfg: ScenarioConfig) -> ScenarioConfig:
     """The scenario whose flight starts after the background scan: the target waits on
-    the ground for ``scan_s`` more, and the other drones ([[targets]]) enter ``scan_s``
-    later (their ``start_s`` counts from the scan's end, as ``duration_s`` does)."""
+    the ground for ``scan_s`` more, the other drones ([[targets]]) enter ``scan_s`` later
+    and the vehicles park ``scan_s`` later (their ``start_s`` and ``arrive_s`` count from
+    the scan's end, as ``duration_s`` does).  Walkers walk from the start, the scan's
+    too."""
     scan_s = scan_duration(cfg.pipeline)
     targets = tuple(t.model_copy(update={"start_s": t.start_s + scan_s}) for t in cfg.targets)
+    vehicles = tuple(v.model_copy(update={"arrive_s": v.arrive_s + scan_s}) for v in cfg.vehicles)
     return cfg.model_copy(
         update={
             "trajectory": cfg.trajectory.model_copy(
                 update={"hold_s": cfg.trajectory.hold_s + scan_s}
             ),
             "targets": targets,
+            "vehicles": vehicles,
         }
     )
 

@@ -171,6 +171,7 @@ class Flock:
             for L in self.span
         ]
         self.radius = 0.5 * self.span  # the largest semi-axis
+        self.enter_s = np.full(n, -np.inf)  # every bird is there from the start
         # Starting states, drawn for every bird so the draws do not depend on the crossings.
         p = np.column_stack(
             [

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from dronetrack.config.movers import VehicleConfig, WalkerConfig
 from dronetrack.config.rig import resolve_turret, turret_spec
 from dronetrack.config.run import (
     FlightSource,
@@ -27,6 +28,7 @@ from dronetrack.errors import ConfigError, ScenarioError
 from dronetrack.sim.clutter import ClutterSpec
 from dronetrack.sim.drones import make_drone
 from dronetrack.sim.flights import make_flight
+from dronetrack.sim.movers import Mover, Movers, vehicle, walker
 from dronetrack.sim.physics import extinction_coefficient
 from dronetrack.sim.scene import make_scene
 from dronetrack.sim.sensors import SensorModel, make_sensor
@@ -84,6 +86,23 @@ def _target(i: int, cfg: TargetConfig, duration: float, rng: np.random.Generator
     return SimTarget(drone, path, cfg.start_s)
 
 
+def _movers(
+    walkers: tuple[WalkerConfig, ...],
+    vehicles: tuple[VehicleConfig, ...],
+    rng: np.random.Generator,
+) -> Movers:
+    """The walkers (each walking on a stream of its own, spawned from ``rng``), then the
+    vehicles, in the order given."""
+    out: list[Mover] = []
+    for group in walkers:
+        out += [
+            walker(group.area_m, group.speed_m_s, group.pause_s, stream)
+            for stream in rng.spawn(group.count)
+        ]
+    out += [vehicle(v.path_m, v.speed_m_s, v.arrive_s, v.size_m, v.reflectivity) for v in vehicles]
+    return Movers(out)
+
+
 def _observer(cfg: ObserverConfig, duration: float, rng: np.random.Generator) -> Observer:
     trajectory = _flight(cfg, duration, rng)
     yaw = math.radians(cfg.yaw_deg)
@@ -123,7 +142,9 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
     detections draw from a stream of their own, spawned after the world's, so the
     target, the observer and the clutter are the same with or without them; their
     ``start_s`` is a time on the world's clock here (``jobs.simulate.flight_config``
-    moves it past the background scan).
+    moves it past the background scan).  The walkers and vehicles draw from a stream
+    spawned after that, so with them the drones fly as without; a vehicle's
+    ``arrive_s`` is a time on the world's clock too.
     """
     rng = np.random.default_rng(cfg.seed) if rng is None else rng
     sensor = _sensor(cfg.sensor)
@@ -154,4 +175,7 @@ def build_world(cfg: ScenarioConfig, rng: np.random.Generator | None = None) -> 
         stream = rng.spawn(1)[0]  # after the world's own (odometry drift, clutter)
         others = [_target(i, t, cfg.duration_s, stream) for i, t in enumerate(cfg.targets)]
         world.add_targets(others, stream)
+    if cfg.walkers or cfg.vehicles:
+        stream = rng.spawn(1)[0]
+        world.add_movers(_movers(cfg.walkers, cfg.vehicles, stream), stream)
     return world

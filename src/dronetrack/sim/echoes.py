@@ -1,4 +1,4 @@
-"""Echoes of small moving objects (drones, birds) over the pulses' footprints.
+"""Echoes of moving objects (drones, birds, walkers, vehicles) over the pulses' footprints.
 
 Pulses whose footprint can touch an object are split into K sub-rays spread over
 the elliptical footprint (full divergence θ_h × θ_v; K grows with the footprint's
@@ -12,13 +12,14 @@ sensor reports, is ``sim/returns.py``'s business.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.geometry.transforms import FloatArray, apply_interpolated_poses
-from dronetrack.sim.birds import Flock
 from dronetrack.sim.patterns import Pulses
 from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.raycast import cast_rays
@@ -28,10 +29,11 @@ from dronetrack.sim.targets import SimTarget
 
 __all__ = [
     "SUBRAY_SPACING_M",
+    "BodyGroup",
     "FrameRays",
-    "bird_echoes",
     "drone_echo",
     "footprint_samples",
+    "group_echoes",
     "subray_count",
 ]
 
@@ -76,6 +78,40 @@ class FrameRays:
     @property
     def half_beam(self) -> float:
         return 0.5 * max(self.sensor.divergence_h, self.sensor.divergence_v)
+
+
+class BodyGroup(Protocol):
+    """Bodies cast together, the nearest one's echo standing for them on a pulse: a flock
+    of birds (``sim/birds.py``), walkers and vehicles (``sim/movers.py``)."""
+
+    @property
+    def bodies(self) -> Sequence[Primitives]:
+        """Each body's shapes, in its own frame."""
+        ...
+
+    @property
+    def radius(self) -> FloatArray:
+        """(B,) a sphere about each body's origin that holds it [m]."""
+        ...
+
+    @property
+    def enter_s(self) -> FloatArray:
+        """(B,) when each body enters the world [s] (−inf: there from the start)."""
+        ...
+
+    def __len__(self) -> int: ...
+
+    def positions(self, t: float) -> FloatArray:
+        """(B, 3) every body's origin at time t."""
+        ...
+
+    def path(self, k: int, times: FloatArray) -> FloatArray:
+        """(N, 3) body k's origin at ``times``."""
+        ...
+
+    def attitude(self, k: int, t: float) -> FloatArray:
+        """(3, 3) world_R_body of body k at time t."""
+        ...
 
 
 def _empty(owner: int) -> TargetEcho:
@@ -178,31 +214,34 @@ def _footprint_echo(
     )
 
 
-def bird_echoes(rays: FrameRays, flock: Flock, first_owner: int) -> TargetEcho:
-    """The birds' echoes, as a drone's (``drone_echo``): the nearest bird echo of each
-    pulse that meets a bird, marked as coming from object ``first_owner + b`` for bird b."""
+def group_echoes(rays: FrameRays, group: BodyGroup, first_owner: int) -> TargetEcho:
+    """A group's echoes, as a drone's (``drone_echo``): the nearest echo of the group's
+    bodies on each pulse that meets one, marked as coming from object
+    ``first_owner + b`` for body b; a body meets the pulses fired from its entry on."""
     sensor, pulses, D = rays.sensor, rays.pulses, rays.D
     n = len(D)
     t0, t1 = float(pulses.t[0]), float(pulses.t[-1])
     tm = 0.5 * (t0 + t1)
-    ends = np.stack([flock.positions(t0), flock.positions(tm), flock.positions(t1)], axis=1)
+    ends = np.stack([group.positions(t0), group.positions(tm), group.positions(t1)], axis=1)
     half_beam = rays.half_beam
     best = np.full(n, np.inf)
     reflectivity, fill, surface = np.zeros(n), np.zeros(n), np.zeros(n)
     owner = np.full(n, -1, dtype=np.int64)
     # Every ray of the frame lies within `spread` of `axis`, about the rays' mean
-    # direction (a spinning head's rays all around: no axis), so a bird outside that
+    # direction (a spinning head's rays all around: no axis), so a body outside that
     # cone is skipped at once.
     axis = np.ones(len(D[::16])) @ D[::16]
     spread = np.pi
     if np.linalg.norm(axis) > 1e-3:
         axis = axis / np.linalg.norm(axis)
         spread = float(np.arccos(np.clip((D @ axis).min(), -1.0, 1.0)))
-    for b in range(len(flock)):
+    for b in range(len(group)):
+        if t1 < group.enter_s[b]:
+            continue
         center = ends[b, 1]
-        # A sphere that holds the bird over the whole frame (its path is straight
-        # between 50 ms steps), plus a margin.
-        radius = flock.radius[b] + np.max(np.linalg.norm(ends[b] - center, axis=1)) * 1.2
+        # A sphere that holds the body over the whole frame (a bird's path is straight
+        # between 50 ms steps, a walker's or a car's nearly so), plus a margin.
+        radius = group.radius[b] + np.max(np.linalg.norm(ends[b] - center, axis=1)) * 1.2
         radius += 0.05
         v = center - rays.o_mean
         dist = float(np.linalg.norm(v))
@@ -216,19 +255,21 @@ def bird_echoes(rays: FrameRays, flock: Flock, first_owner: int) -> TargetEcho:
             if spread < np.pi and off_axis > spread + cone:
                 continue
             idx = np.flatnonzero(D @ (v / dist) >= np.cos(min(cone, np.pi)))
+        if np.isfinite(group.enter_s[b]):
+            idx = idx[pulses.t[idx] >= group.enter_s[b]]
         if len(idx) == 0:
             continue
-        # Rays in the bird's frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
-        Rb = flock.attitude(b, tm)
-        o_b = (rays.orig[idx] - flock.path(b, pulses.t[idx])) @ Rb
+        # Rays in the body's frame at each firing time: o_b = Rᵀ (o − p(t)), d_b = Rᵀ d.
+        Rb = group.attitude(b, tm)
+        o_b = (rays.orig[idx] - group.path(b, pulses.t[idx])) @ Rb
         d_b = D[idx] @ Rb
         miss = np.linalg.norm(np.cross(o_b, d_b), axis=1)
-        near = (miss <= flock.radius[b] + half_beam * np.linalg.norm(o_b, axis=1)) & (
+        near = (miss <= group.radius[b] + half_beam * np.linalg.norm(o_b, axis=1)) & (
             np.einsum("ij,ij->i", o_b, d_b) < 0
         )
         if not near.any():
             continue
-        echo = _footprint_echo(rays, flock.bodies[b], idx[near], o_b[near], d_b[near], Rb, dist)
+        echo = _footprint_echo(rays, group.bodies[b], idx[near], o_b[near], d_b[near], Rb, dist)
         closer = echo.range_m < best[echo.index]
         at = echo.index[closer]
         best[at] = echo.range_m[closer]

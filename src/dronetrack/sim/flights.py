@@ -23,7 +23,8 @@ the observer (``[observer]`` in a scenario), at 10 m altitude.
 
 Every seed 000 and 003 flight starts on the ground below its first waypoint,
 where it waits ``hold`` seconds (the background scan) before it takes off; the
-random manoeuvres and the observer flights start in the air and hold there.
+random manoeuvres, the observer flights and the busy-site flights
+(``sim/site_flights.py``) start in the air and hold there.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import numpy as np
 
 from dronetrack.errors import TrajectoryError
 from dronetrack.sim.group_flights import SWARM_OFFSETS, crossing, swarm_member
+from dronetrack.sim.site_flights import close_hover, site_roam, unscanned
 from dronetrack.sim.trajectories import (
     PiecewiseAcceleration,
     Superposed,
@@ -355,6 +357,20 @@ FLIGHTS: dict[str, Flight] = {
         )
         for k, offset in enumerate(SWARM_OFFSETS)
     },
+    "unscanned": Flight(
+        "waits 80 m out at 88°, 15 m up, then in at 10 m/s to 60°, to 20°, back out to "
+        "70°, across to −50° and away on the home bearing, waiting 2-3 s at each turn",
+        unscanned,
+    ),
+    "site-roam": Flight(
+        "in the air 35 m out on the home bearing, 10 m up, from the start; then random "
+        "manoeuvres (≤ 5 m/s, ≤ 3 m/s²) within ±12 × 12 × 3 m about there",
+        site_roam,
+    ),
+    "close-hover": Flight(
+        "hovers 2.0-2.9 m from a sensor 1.1 m up from the start, wandering ≤ 0.3 m/s",
+        close_hover,
+    ),
     "indoor-horizontal": Flight(
         "seed 000 indoor: 1.2 m left-right at 3 m, 3 s legs, 2 s waits, 3 times",
         _indoor([(3.0, 0.6, 1.2), (3.0, -0.6, 1.2)], 0.6, 3),

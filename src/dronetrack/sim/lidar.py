@@ -23,13 +23,14 @@ With clutter (``sim/clutter.py``) the scene is cast as the wind has moved its
 crowns at the frame's middle time, birds are cast like the drones (each bird where
 it is at the pulse's firing time; of several birds on one pulse the nearest stands
 for them) and take their place among the echoes by range, and the clutter's random
-false alarms are added.
+false alarms are added.  Walkers and vehicles (``sim/movers.py``) are cast as the
+birds are.
 
 Random draws: the world's stream gives three uniforms per pulse (the target's
 detection, the scene's, a false alarm) and the noise of every return, whatever is
-hit; the birds' detections draw from the clutter's stream and the other drones'
-from a stream of their own, so a world without them draws exactly what it did
-before they existed.
+hit; the birds' detections draw from the clutter's stream, the other drones' and
+the walkers' and vehicles' each from a stream of their own, so a world without
+them draws exactly what it did before they existed.
 """
 
 from __future__ import annotations
@@ -44,13 +45,15 @@ from dronetrack.geometry.transforms import FloatArray, apply_interpolated_poses
 from dronetrack.sim.clutter import CLUTTER_BIRD, CLUTTER_NONE, CLUTTER_SWAY, Clutter
 from dronetrack.sim.cubemap import CubeMapIndex, build_cube_map
 from dronetrack.sim.drones import DroneModel
-from dronetrack.sim.echoes import FrameRays, bird_echoes, drone_echo
+from dronetrack.sim.echoes import FrameRays, drone_echo, group_echoes
+from dronetrack.sim.movers import Movers
 from dronetrack.sim.physics import detection_probability, signal_ratio
 from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.raycast import cast_rays
 from dronetrack.sim.returns import (
     FROM_BIRD,
     FROM_DRONE,
+    FROM_MOVER,
     FROM_SCENE,
     FROM_TARGET,
     Scan,
@@ -73,8 +76,9 @@ INDEX_SLACK_M = 0.5  # how far ray origins may wander before the scene is indexe
 
 class LidarSimulator:
     """Casts a sensor's pulses into a scene with moving targets: the target (``drone``
-    on ``trajectory``, there from the start) and ``others``, each from its entry on.
-    The others' detections draw from ``others_rng`` (needed when there are others)."""
+    on ``trajectory``, there from the start) and ``others``, each from its entry on,
+    and ``movers`` (walkers and vehicles).  The others' detections draw from
+    ``others_rng``, the movers' from ``movers_rng`` (each needed when there are any)."""
 
     def __init__(
         self,
@@ -86,6 +90,8 @@ class LidarSimulator:
         clutter: Clutter | None = None,
         others: Sequence[SimTarget] = (),
         others_rng: np.random.Generator | None = None,
+        movers: Movers | None = None,
+        movers_rng: np.random.Generator | None = None,
     ) -> None:
         self.sensor = sensor
         self.scene = scene
@@ -97,11 +103,42 @@ class LidarSimulator:
         if others and others_rng is None:
             raise ValueError("other drones need a random stream of their own")
         self._others_rng = others_rng
+        if movers is not None and len(movers) and movers_rng is None:
+            raise ValueError("walkers and vehicles need a random stream of their own")
+        self.movers = movers
+        self._movers_rng = movers_rng
         self._scene_rho = np.append(scene.prims.reflectivity, 0.0)  # index -1 → no echo
         self._index: CubeMapIndex | None = None
         # With swaying crowns the index allows for how far the wind moves each primitive.
         self._margin = None if clutter is None else clutter.sway_margin()
         self._sways = None if clutter is None else clutter.sway_mask(len(scene.prims))
+
+    def with_objects(
+        self,
+        *,
+        others: Sequence[SimTarget] | None = None,
+        others_rng: np.random.Generator | None = None,
+        movers: Movers | None = None,
+        movers_rng: np.random.Generator | None = None,
+    ) -> LidarSimulator:
+        """This simulator with other drones (``others``, the target's company) or walkers
+        and vehicles instead of its own; what is not given stays as it is."""
+        if others is None:
+            others, others_rng = self.targets[1:], self._others_rng
+        if movers is None:
+            movers, movers_rng = self.movers, self._movers_rng
+        return LidarSimulator(
+            self.sensor,
+            self.scene,
+            self.drone,
+            self.trajectory,
+            self.extinction,
+            self.clutter,
+            others,
+            others_rng,
+            movers,
+            movers_rng,
+        )
 
     def _signal(self, reflectivity: FloatArray, range_m: FloatArray) -> FloatArray:
         s = self.sensor
@@ -151,15 +188,17 @@ class LidarSimulator:
         self, rays: FrameRays
     ) -> tuple[list[TargetEcho], list[int], list[FloatArray | None]]:
         """The frame's object echoes by channel: the target, the birds (the nearest bird
-        of each pulse), the other drones; the source code of each channel, and the
-        uniform draws of those not on the world's stream (None: the target's, drawn
-        later with the pulse's own)."""
+        of each pulse), the other drones, the walkers and vehicles (the nearest of them);
+        the source code of each channel, and the uniform draws of those not on the
+        world's stream (None: the target's, drawn later with the pulse's own)."""
         channels = [drone_echo(rays, self.targets[0], 0)]
         sources = [FROM_TARGET]
         draws: list[FloatArray | None] = [None]
         clutter = self.clutter
+        n_birds = 0
         if clutter is not None and clutter.flock is not None:
-            birds = bird_echoes(rays, clutter.flock, len(self.targets))
+            n_birds = len(clutter.flock)
+            birds = group_echoes(rays, clutter.flock, len(self.targets))
             channels.append(birds)
             sources.append(FROM_BIRD)
             draws.append(clutter.rng.random(len(birds.index)))
@@ -169,6 +208,12 @@ class LidarSimulator:
             channels.append(echo)
             sources.append(FROM_DRONE)
             draws.append(self._others_rng.random(len(echo.index)))
+        if self.movers is not None and len(self.movers):
+            assert self._movers_rng is not None
+            echo = group_echoes(rays, self.movers, len(self.targets) + n_birds)
+            channels.append(echo)
+            sources.append(FROM_MOVER)
+            draws.append(self._movers_rng.random(len(echo.index)))
         return channels, sources, draws
 
     def scan(

@@ -1,6 +1,6 @@
 """From echoes to returns: which echo of a pulse the sensor reports (first return,
 with the detection probability), the sensor's own false alarms, the noise on a
-return, and the objects on one pulse (drones, birds) hiding parts of each other's
+return, and the objects on one pulse (drones, birds, walkers, vehicles) hiding parts of each other's
 footprint.  The pulses and echoes come from ``sim/lidar.py`` and ``sim/echoes.py``;
 this module only decides and perturbs.
 
@@ -29,6 +29,7 @@ __all__ = [
     "FROM_BIRD",
     "FROM_DRONE",
     "FROM_FALSE_ALARM",
+    "FROM_MOVER",
     "FROM_SCENE",
     "FROM_TARGET",
     "PulseEchoes",
@@ -49,6 +50,7 @@ FROM_TARGET = 1  # the target a run is scored on (object 0)
 FROM_BIRD = 2
 FROM_FALSE_ALARM = 3  # the sensor's own, per pulse
 FROM_DRONE = 4  # another drone ([[targets]])
+FROM_MOVER = 5  # a walker or a vehicle ([[walkers]], [[vehicles]])
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,7 +64,8 @@ class Scan:
     hit_target: NDArray[np.bool_]  # (M,) ground truth: the return came from the target
     n_pulses: int
     clutter: NDArray[np.int8] | None = None  # (M,) CLUTTER_* codes, with clutter only
-    # (M,) the object each return came from (drones 0..D−1, then the birds), −1 none
+    # (M,) the object each return came from (drones 0..D−1, then the birds, the walkers
+    # and the vehicles), −1 none
     object_index: NDArray[np.int64] | None = None
 
 

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from dronetrack.errors import ConfigError
 from dronetrack.sim.primitives import Primitives
 from dronetrack.sim.shapes import box, cylinder, ellipsoid, ground
+from dronetrack.sim.trajectories import polar
 
 __all__ = ["SCENE_NAMES", "Scene", "make_scene"]
 
@@ -25,6 +26,7 @@ RHO_HEDGE = 0.45
 RHO_WALL = 0.30
 RHO_INDOOR_WALL = 0.60
 RHO_FLOOR = 0.25
+RHO_METAL = 0.35  # weathered galvanised steel and painted poles [A]
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,6 +151,40 @@ def outdoor_barn(layout_seed: int = 0) -> Scene:
     return Scene("outdoor-barn", Primitives.concat([base.prims, barn]), base.extent, base.swaying)
 
 
+# outdoor-masts' structures, off the home bearing on both sides: (range [m], bearing
+# [deg], height [m]) of each one's foot, nearer than the tree lines behind them.
+MASTS = (
+    (95.0, 66.0, 6.0),  # a lamp post
+    (125.0, 70.0, 12.0),  # a lattice mast, as a 0.4 m pole
+    (100.0, 78.0, 4.0),  # a pole with a sign board at its top
+    (110.0, 50.0, 2.5),  # a cabinet
+    (115.0, -62.0, 10.0),  # a mast
+    (85.0, -72.0, 5.0),  # a pole
+)
+SHED = (150.0, 57.0, 5.0)  # a shed 10 × 8 m whose corner stands out: range, bearing, height
+MASTS_MIN_BEARING_DEG = 50.0  # no structure stands nearer the home bearing
+
+
+def outdoor_masts(layout_seed: int = 0) -> Scene:
+    """``outdoor_field`` with a site's structures a few metres tall (``MASTS``, ``SHED``)
+    beyond 50° either side of the home bearing: poles and masts, a cabinet and a shed."""
+    base = outdoor_field(layout_seed)
+    parts = [base.prims]
+    lamp, mast, sign, cabinet, mast_2, pole = MASTS
+    for (r, bearing, h), radius in ((lamp, 0.1), (mast, 0.2), (mast_2, 0.2), (pole, 0.1)):
+        x, y, _ = polar(r, bearing, 0.0)
+        parts.append(cylinder((x, y, 0.5 * h), radius, h, RHO_METAL))
+    x, y, _ = polar(sign[0], sign[1], 0.0)
+    parts.append(cylinder((x, y, 0.5 * sign[2]), 0.08, sign[2], RHO_METAL))
+    parts.append(box((x, y, sign[2] - 0.6), (0.1, 1.2, 0.8), 0.6, yaw=np.radians(sign[1])))
+    x, y, _ = polar(cabinet[0], cabinet[1], 0.0)
+    parts.append(box((x, y, 0.5 * cabinet[2]), (0.6, 0.8, cabinet[2]), RHO_WALL))
+    x, y, _ = polar(SHED[0], SHED[1], 0.0)
+    parts.append(box((x, y, 0.5 * SHED[2]), (10.0, 8.0, SHED[2]), RHO_BUILDING))
+    # appended after the field's parts: the swaying indices hold
+    return Scene("outdoor-masts", Primitives.concat(parts), base.extent, base.swaying)
+
+
 def empty_field() -> Scene:
     """Only the ground: for tests and range studies."""
     return Scene("empty", ground(RHO_GRASS), (-50.0, -150.0, 250.0, 150.0))
@@ -159,17 +195,27 @@ def sky() -> Scene:
     return Scene("sky", Primitives.empty(), (-50.0, -150.0, 250.0, 150.0))
 
 
-SCENE_NAMES = ("outdoor", "outdoor-barn", "indoor", "indoor-occluded", "empty", "sky")
+SCENE_NAMES = (
+    "outdoor",
+    "outdoor-barn",
+    "outdoor-masts",
+    "indoor",
+    "indoor-occluded",
+    "empty",
+    "sky",
+)
 
 
 def make_scene(name: str, layout_seed: int = 0) -> Scene:
-    """Build a scene by name: ``outdoor``, ``outdoor-barn``, ``indoor``, ``indoor-occluded``,
-    ``empty`` or ``sky``."""
+    """Build a scene by name: ``outdoor``, ``outdoor-barn``, ``outdoor-masts``, ``indoor``,
+    ``indoor-occluded``, ``empty`` or ``sky``."""
     key = name.strip().lower()
     if key == "outdoor":
         return outdoor_field(layout_seed)
     if key == "outdoor-barn":
         return outdoor_barn(layout_seed)
+    if key == "outdoor-masts":
+        return outdoor_masts(layout_seed)
     if key in ("indoor", "indoor-occluded"):
         return indoor_room(partition=key == "indoor-occluded")
     if key == "empty":

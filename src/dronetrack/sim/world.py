@@ -34,6 +34,7 @@ from dronetrack.geometry.transforms import FloatArray, make_pose, rot_z
 from dronetrack.sim.clutter import CLUTTER_NONE, Clutter, ClutterSpec
 from dronetrack.sim.drones import DroneModel
 from dronetrack.sim.lidar import LidarSimulator
+from dronetrack.sim.movers import Movers
 from dronetrack.sim.scene import Scene
 from dronetrack.sim.sensors import SensorModel
 from dronetrack.sim.targets import SimTarget
@@ -164,7 +165,8 @@ class FrameTruth:
     # bird's position at the frame end [m], (B, 3).
     clutter: NDArray[np.int8] | None = None
     bird_positions: FloatArray | None = None
-    # Every drone (the target first) and bird, and the object each point came from.
+    # Every drone (the target first), bird, walker and vehicle, and the object each
+    # point came from.
     objects: ObjectTruth | None = None
 
     @property
@@ -243,20 +245,23 @@ class SimWorld:
         from ``rng`` (a stream of their own, so the world's draws stay as they are)."""
         if self._frames:
             raise InputError("drones are added to a world before its first frame")
-        lidar = self.lidar
-        self.lidar = LidarSimulator(
-            lidar.sensor,
-            lidar.scene,
-            lidar.drone,
-            self.trajectory,
-            lidar.extinction,
-            self.clutter,
-            (*lidar.targets[1:], *others),
-            rng,
-        )
+        self.lidar = self.lidar.with_objects(others=(*self.targets[1:], *others), others_rng=rng)
+
+    def add_movers(self, movers: Movers, rng: np.random.Generator) -> None:
+        """Add walkers and vehicles, before the first frame (once); their detections draw
+        from ``rng`` (a stream of their own, so the world's draws stay as they are)."""
+        if self._frames or self.movers is not None:
+            raise InputError("walkers and vehicles are added to a world once, before its frames")
+        self.lidar = self.lidar.with_objects(movers=movers, movers_rng=rng)
+
+    @property
+    def movers(self) -> Movers | None:
+        """The world's walkers and vehicles, if any."""
+        return self.lidar.movers
 
     def object_truth(self, t: float, object_index: NDArray[np.int64]) -> ObjectTruth:
-        """Every drone's and bird's state at time t, and ``object_index`` per point."""
+        """Every drone's, bird's, walker's and vehicle's state at time t, and
+        ``object_index`` per point."""
         drones = self.targets
         present = np.array([d.present(t) for d in drones])
         positions = np.full((len(drones), 3), np.nan)
@@ -272,6 +277,14 @@ class SimWorld:
             velocities = np.concatenate([velocities, flock.velocities(t)])
             present = np.concatenate([present, np.ones(b, dtype=bool)])
             kinds += ["bird"] * b
+        movers = self.lidar.movers
+        if movers is not None and len(movers):
+            here = movers.present(t)
+            nan = np.where(here[:, None], 0.0, np.nan)
+            positions = np.concatenate([positions, movers.positions(t) + nan])
+            velocities = np.concatenate([velocities, movers.velocities(t) + nan])
+            present = np.concatenate([present, here])
+            kinds += movers.kinds
         return ObjectTruth(
             ids=np.arange(len(kinds), dtype=np.int64),
             kinds=np.array(kinds),
