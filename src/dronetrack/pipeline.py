@@ -39,6 +39,7 @@ from dronetrack.control.choose import (
     candidate_tracks,
     held_track,
     not_static,
+    servable,
 )
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
@@ -242,7 +243,7 @@ class Pipeline:
             return found, confirmed, offered, tracks
         lock = self.acquisition.lock
         if self._held_static(t, tracks):
-            log.info("frame ending %.3f s: the locked target is static; lock given up", t)
+            log.info("frame ending %.3f s: the locked target is no drone's; lock given up", t)
             self.tracker.reset()
             lock.reset()
         offered = self._serve(t, found, tracks, offered)
@@ -302,13 +303,14 @@ class Pipeline:
         return mine
 
     def _held_static(self, t: float, tracks: Tracks | None) -> bool:
-        """Whether the locked target's track has been classed static for ``STATIC_HOLD_S``
+        """Whether the locked target's track has been classed static, or out of the open
+        air (``control.choose.servable``), for ``STATIC_HOLD_S``
         (a track may be classed static for a frame or two as it lifts off or stops)."""
         lock = self.acquisition.lock if self.acquisition is not None else None
         held = -1
         if tracks is not None and lock is not None and lock.locked and lock.estimate is not None:
             held = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
-        if held < 0 or tracks is None or tracks.classes[held] != STATIC:
+        if held < 0 or tracks is None or servable(tracks)[held]:
             self._static_since = None
             return False
         ident = int(tracks.ids[held])

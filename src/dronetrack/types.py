@@ -250,6 +250,9 @@ class Tracks:
     clusters: (K,) the index of the frame's cluster (``Detections``) that updated it,
         −1 when none did; left out: none.
     last_seen: (K,) the time of its last update [s]; left out: its birth.
+    open_air: (K,) whether its life says it is in the open air, not standing on the
+        ground, part of a structure, beyond a drone's reach or larger than a drone
+        (``classify``); left out: True.
     """
 
     ids: NDArray[np.int64]
@@ -264,6 +267,7 @@ class Tracks:
     p_drone: FloatArray = field(default_factory=lambda: np.zeros(0))
     clusters: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     last_seen: FloatArray = field(default_factory=lambda: np.zeros(0))
+    open_air: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def __post_init__(self) -> None:
         k = len(self.ids)
@@ -275,6 +279,8 @@ class Tracks:
             object.__setattr__(self, "classes", np.zeros(k, dtype=np.int64))
         if len(self.p_drone) == 0 and k:
             object.__setattr__(self, "p_drone", np.full(k, 0.5))
+        if len(self.open_air) == 0 and k:
+            object.__setattr__(self, "open_air", np.ones(k, dtype=bool))
         for name, shape, dtype in (
             ("ids", (k,), np.int64),
             ("positions", (k, 3), np.float64),
@@ -288,6 +294,7 @@ class Tracks:
             ("p_drone", (k,), np.float64),
             ("clusters", (k,), np.int64),
             ("last_seen", (k,), np.float64),
+            ("open_air", (k,), np.bool_),
         ):
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 

@@ -9,7 +9,15 @@ import numpy as np
 import pytest
 
 from dronetrack.classify.features import LifeFeatures, TrackLives, observe
-from dronetrack.classify.rules import BIRD, DRONE, STATIC, UNKNOWN, ClassRules, classify
+from dronetrack.classify.rules import (
+    BIRD,
+    DRONE,
+    STATIC,
+    UNKNOWN,
+    ClassRules,
+    classify,
+    in_open_air,
+)
 from dronetrack.errors import ConfigError
 from dronetrack.sim.world import FrameTruth
 from dronetrack.types import TRACK_CLASSES, Detections, Sample, StepResult, Tracks
@@ -209,3 +217,17 @@ def test_the_drone_of_default_is_classed_drone_once_its_track_is_two_seconds_old
     drone = [cls for lab, cls, age in labels.rows if lab == "drone" and age >= 2.0]
     assert len(drone) > 100
     assert collections.Counter(drone)["drone"] == len(drone)
+
+
+def test_a_person_walking_leaves_the_open_air_and_a_drone_lifting_off_stays_in_it() -> None:
+    """On the ground in every observation (a person, 1.75 m tall, walking at 1.4 m/s
+    with the crop's floor cutting off below 1 m): a = 0.7ᵏ falls below 0.2 at the fifth
+    observation.  A drone climbing at 2 m/s from 1.2 m, grounded at first, stays in."""
+    walker = [
+        in_open_air(_life(k * T, np.array([30.0, 0.0, 1.4]), np.array([1.4, 0.0, 0.0]), 0.4))[0]
+        for k in range(8)
+    ]
+    assert walker == [True, True, True, True, False, False, False, False]  # k + 1 obs
+    drone = _life(2.0, np.array([40.0, 5.0, 1.2]), np.array([0.0, 0.0, 2.0]), 0.15)
+    assert in_open_air(drone)[0]
+    assert drone.aloft[0] > 0.9

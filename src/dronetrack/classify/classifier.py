@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.classify.features import BackgroundTest, TrackLives, observe
-from dronetrack.classify.rules import ClassRules, classify
+from dronetrack.classify.rules import ClassRules, classify, in_open_air
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.preprocess.ground import GroundGrid
 from dronetrack.types import Detections, Tracks
@@ -84,4 +84,5 @@ class TrackClassifier:
         )
         life = self.lives.update(t, tracks, obs)
         classes, p_drone = classify(life, self.rules)
-        return replace(tracks, classes=classes, p_drone=p_drone)
+        air = in_open_air(life)
+        return replace(tracks, classes=classes, p_drone=p_drone, open_air=air)

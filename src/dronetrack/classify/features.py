@@ -21,8 +21,12 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
 
 Over a track's life these give its age, how far it ever moved from its first
 position (d_max), the shares of its observations grounded, joined or beyond reach,
-its largest extent, and whether it *hovered*: |v| < v_hover for ``hover_frames``
-updates in a row while in the air, which no bird can (stall speed ≈ 5 m/s for the
+its largest extent, *aloft*: the share of its recent observations not grounded (an
+exponential average over about the last three, a ← (1 − α) a + α [not grounded],
+α = ``ALOFT_ALPHA``, from a = 1: off the ground until seen on it), so a drone that
+lifted off is off the ground again within a few frames while a person stays on it, and
+whether it *hovered*: |v| < v_hover for ``hover_frames`` updates in a row while in the
+air, which no bird can (stall speed ≈ 5 m/s for the
 smallest), or its candidate hovered (``detect.tentative``).
 """
 
@@ -41,6 +45,7 @@ __all__ = ["LifeFeatures", "Observations", "TrackLives", "observe"]
 
 BackgroundTest = Callable[[FloatArray], NDArray[np.bool_]]
 BEYOND_REACH = 1.5  # a drone returns no point beyond this many times its reach
+ALOFT_ALPHA = 0.3
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,6 +136,7 @@ class LifeFeatures:
     extent: FloatArray  # the largest extent seen [m]
     hovered: NDArray[np.bool_]
     min_speed: FloatArray  # its lowest speed over its observed frames after the first [m/s]
+    aloft: FloatArray  # its recent observations' share in the open air
 
 
 class TrackLives:
@@ -154,6 +160,7 @@ class TrackLives:
         self.slow_run = np.empty(n, dtype=np.int64)
         self.hovered = np.empty(n, dtype=bool)
         self.min_speed = np.empty(n)
+        self.aloft = np.empty(n)
 
     def __len__(self) -> int:
         return len(self._row)
@@ -173,6 +180,8 @@ class TrackLives:
             self.moved[r], np.linalg.norm(obs.centroid[u] - self.first_p[r], axis=1)
         )
         self.grounded[r] += obs.grounded[u]
+        air = ~obs.grounded[u]
+        self.aloft[r] = (1.0 - ALOFT_ALPHA) * self.aloft[r] + ALOFT_ALPHA * air
         self.joined[r] += obs.joined[u]
         self.beyond[r] += obs.beyond_reach[u]
         self.extent[r] = np.fmax(self.extent[r], obs.extent[u])
@@ -196,6 +205,7 @@ class TrackLives:
             extent=self.extent[rows].copy(),
             hovered=self.hovered[rows].copy(),
             min_speed=self.min_speed[rows].copy(),
+            aloft=self.aloft[rows].copy(),
         )
 
     def _row_of(self, ident: int, t: float) -> int:
@@ -214,6 +224,7 @@ class TrackLives:
         self.range_m = np.append(self.range_m, np.nan)
         self.hovered = np.append(self.hovered, False)
         self.min_speed = np.append(self.min_speed, np.inf)
+        self.aloft = np.append(self.aloft, 1.0)
         return row
 
     def _forget(self, alive: set[int]) -> None:
@@ -237,6 +248,7 @@ class TrackLives:
             "slow_run",
             "hovered",
             "min_speed",
+            "aloft",
         ):
             setattr(self, name, getattr(self, name)[keep])
         self._row = {i: n for n, i in enumerate(keep_ids)}

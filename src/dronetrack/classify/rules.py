@@ -38,12 +38,13 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES
 
-__all__ = ["ClassRules", "classify"]
+__all__ = ["ClassRules", "classify", "in_open_air"]
 
 UNKNOWN, DRONE, BIRD, STATIC = (
     TRACK_CLASSES.index(c) for c in ("unknown", "drone", "bird", "static")
 )
 
+ALOFT_MIN = 0.2  # five grounded observations in a row bring a = 1 below it (0.7⁵ = 0.17)
 W_HOVERED = 4.0
 W_GROUNDED = -4.0
 W_JOINED = -3.0
@@ -88,6 +89,14 @@ class ClassRules:
             raise ConfigError(
                 f"classify: need 0 ≤ bird_p < drone_p ≤ 1, got {self.bird_p}, {self.drone_p}"
             )
+
+
+def in_open_air(life: LifeFeatures) -> NDArray[np.bool_]:
+    """(K,) whether each track's life says it may be in the open air now: not grounded in
+    nearly all of its recent observations (``aloft`` ≥ ``ALOFT_MIN``).  A person walking
+    is on the ground in every one; a drone flying low over the crop's floor is in some."""
+    out: NDArray[np.bool_] = life.aloft >= ALOFT_MIN
+    return out
 
 
 def classify(

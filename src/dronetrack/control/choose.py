@@ -27,6 +27,7 @@ __all__ = [
     "candidate_tracks",
     "held_track",
     "not_static",
+    "servable",
     "threat",
 ]
 
@@ -56,12 +57,20 @@ def candidate_tracks(candidates: Candidates, found: Detections, tracks: Tracks) 
 
 
 def not_static(candidates: Candidates, found: Detections, tracks: Tracks) -> Candidates:
-    """The candidates whose track is not classed static, in their order."""
+    """The candidates whose track is not classed static and is in the open air (not on
+    the ground, part of a structure, beyond reach or too large: ``Tracks.open_air``),
+    in their order: a person walking or a car driving is no target for the turret."""
     owner = candidate_tracks(candidates, found, tracks)
-    static = np.zeros(len(candidates), dtype=bool)
+    barred = np.zeros(len(candidates), dtype=bool)
     has = owner >= 0
-    static[has] = tracks.classes[owner[has]] == STATIC
-    return candidates.take(np.flatnonzero(~static))
+    barred[has] = ~servable(tracks)[owner[has]]
+    return candidates.take(np.flatnonzero(~barred))
+
+
+def servable(tracks: Tracks) -> NDArray[np.bool_]:
+    """(K,) the tracks the turret may serve: not classed static, in the open air."""
+    out: NDArray[np.bool_] = (tracks.classes != STATIC) & tracks.open_air
+    return out
 
 
 def held_track(tracks: Tracks, position: FloatArray, within: float) -> int:

@@ -14,8 +14,9 @@ outdoors) for as long as it takes to fly through.  Free space is not
 modelled: OctoMap's ray clearing matters for moving scenes, and the seed assumes
 a static one.
 
-With ``free_object_m`` set, a part of the scan that stands free (a 26-connected
-component of occupied voxels that touches no other) and is no larger than that
+With ``free_object_m`` set, a part of the scan that stands free (a component of
+occupied voxels with at least two empty voxels between it and any other: a short
+scan's sparse returns leave one-voxel holes in a wall) and is no larger than that
 (its bounding box's longest edge) is left out of the map: a drone hovering in view
 while the sensor scans (a sensor switched on with the drone up) would otherwise be
 background for good.  What is left out is foreground like anything new: the track
@@ -59,12 +60,16 @@ def occupied_voxels(
     return voxels
 
 
+FREE_GAP = 2  # empty voxels around a free-standing object
+
+
 def free_objects(voxels: NDArray[np.int64], resolution: float, largest: float) -> NDArray[np.bool_]:
     """(N,) the voxels (sorted, distinct keys of edge ``resolution``) of the components
-    that touch no other and whose bounding box's longest edge is at most ``largest`` [m]."""
+    with ``FREE_GAP`` empty voxels or more around them and whose bounding box's longest
+    edge is at most ``largest`` [m]."""
     if len(voxels) == 0:
         return np.zeros(0, dtype=bool)
-    labels = voxel_components(voxels)
+    labels = voxel_components(voxels, reach=FREE_GAP + 1)
     centres = key_centres(voxels, resolution)
     k = int(labels.max()) + 1
     lo = np.full((k, 3), np.inf)

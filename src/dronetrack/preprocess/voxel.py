@@ -23,8 +23,8 @@ __all__ = [
     "dilate_keys",
     "key_centres",
     "neighbour_counts",
-    "voxel_components",
     "unique_keys",
+    "voxel_components",
     "voxel_keys",
 ]
 
@@ -111,9 +111,10 @@ def neighbour_counts(keys: IntArray, support: IntArray) -> IntArray:
     return counts
 
 
-def voxel_components(keys: IntArray) -> IntArray:
-    """(N,) a label per voxel of ``keys`` (sorted, distinct): voxels that touch over the
-    26-neighbourhood, directly or through others, share one (scipy's graph components)."""
+def voxel_components(keys: IntArray, reach: int = 1) -> IntArray:
+    """(N,) a label per voxel of ``keys`` (sorted, distinct): voxels within Chebyshev
+    distance ``reach`` of each other (1: the 26-neighbourhood), directly or through
+    others, share one (scipy's graph components)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -122,7 +123,7 @@ def voxel_components(keys: IntArray) -> IntArray:
         return np.empty(0, dtype=np.int64)
     ix, iy, iz = _unpack(keys)
     rows, cols = [], []
-    for ox, oy, oz in zip(*_offsets(1), strict=True):
+    for ox, oy, oz in zip(*_offsets(reach), strict=True):
         if (ox, oy, oz) <= (0, 0, 0):  # each pair once
             continue
         neighbour = _pack_array(ix + ox, iy + oy, iz + oz)
