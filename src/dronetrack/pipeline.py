@@ -153,6 +153,7 @@ class Pipeline:
         # The background that keeps learning after the scan (``preprocess.learning``).
         self.learning = learning
         self._look: Candidates | None = None  # where the served track is, out of view
+        self._frame_tracks: tuple[Detections | None, Tracks | None] = (None, None)
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
 
@@ -238,6 +239,7 @@ class Pipeline:
         t = frame.end
         found, confirmed = self.acquisition.step(t, points)
         tracks = self._tracks(frame, fg, found, confirmed)
+        self._frame_tracks = (found, tracks)
         offered = confirmed if tracks is None else not_static(confirmed, found, tracks)
         if not isinstance(self.tracker, CandidateStart):
             return found, confirmed, offered, tracks
@@ -254,7 +256,7 @@ class Pipeline:
             lock.reset()
             self.tracker.acquire(other)
         elif not lock.locked:
-            start = lock.reachable(t, offered)
+            start = lock.reachable(t, offered, self._rank(offered))
             if start is not None and len(start) > 0:
                 self.tracker.acquire(start)
         return found, confirmed, offered, tracks
@@ -387,10 +389,22 @@ class Pipeline:
             log.debug("frame ending %.3f s: learnt map %d voxels", frame.end, len(self.learning))
 
     def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
-        """The candidates within the lost target's reach (``detect.lock``)."""
-        if self.acquisition is None:
+        """The candidates within the lost target's reach (``detect.lock``), the likeliest
+        drones first."""
+        if self.acquisition is None or candidates is None:
             return candidates
-        return self.acquisition.lock.reachable(t, candidates)
+        return self.acquisition.lock.reachable(t, candidates, self._rank(candidates))
+
+    def _rank(self, candidates: Candidates) -> FloatArray | None:
+        """Each candidate's track's p_drone (0.5 without one): the turret starts on the
+        likeliest drone, not on whatever the clustering listed first."""
+        found, tracks = self._frame_tracks
+        if found is None or tracks is None or len(candidates) == 0:
+            return None
+        owner = candidate_tracks(candidates, found, tracks)
+        rank = np.full(len(candidates), 0.5)
+        rank[owner >= 0] = tracks.p_drone[owner[owner >= 0]]
+        return rank
 
     def _cues(self, t: float) -> Candidates | None:
         """Tentative tracks worth a look while the tracker is not locked, within reach of

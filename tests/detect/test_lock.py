@@ -204,3 +204,25 @@ def test_a_relock_after_a_long_loss_is_a_new_lock_even_within_reach() -> None:
     book.update(_est(t + 2.0, (110.0, 0.0, 20.0)), None)
     assert not book.continued
     assert not book.hovered
+
+
+def test_the_likeliest_drone_comes_first_before_and_after_a_fix() -> None:
+    """A person walking (p_drone 0.02) listed first by the detect stage, and pausing (it
+    hovered), is put after a drone (p_drone 0.98) that has not hovered yet; candidates of
+    equal rank keep the order of the rules above."""
+    walker, drone, other = (26.0, 10.0, 1.0), (35.0, 0.0, 12.0), (40.0, 5.0, 12.0)
+    cands = _cands((walker, True), (drone, False), (other, False))
+    rank = np.array([0.02, 0.98, 0.5])
+    fresh = LockBook(S)
+    out = fresh.reachable(0.0, cands, rank)
+    assert out is not None
+    np.testing.assert_allclose(out.positions, [drone, other, walker])
+    book = LockBook(S)
+    t = _lock_for(book, 0.0, 1.5, (30.0, 0.0, 5.0))
+    book.update(_est(t, (30.0, 0.0, 5.0), tracked=False), None)
+    out = book.reachable(t + 3.0, cands, rank)
+    assert out is not None
+    np.testing.assert_allclose(out.positions, [drone, other, walker])
+    out = book.reachable(t + 3.0, cands)  # without ranks: the hovered first
+    assert out is not None
+    np.testing.assert_allclose(out.positions[0], walker)

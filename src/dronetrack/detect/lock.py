@@ -45,7 +45,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dronetrack.detect.tentative import ConfirmationSettings, reach, within_reach
+from dronetrack.detect.tentative import ConfirmationSettings, reach
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Candidates, TrackEstimate
 
 __all__ = ["CONTINUE_S", "ESTABLISHED_S", "SAME_TARGET_M", "LockBook"]
@@ -99,16 +100,24 @@ class LockBook:
             near = np.linalg.norm(confirmed.positions - estimate.position, axis=1) <= self.same_m
             self.hovered = bool(np.any(confirmed.hovered[near]))
 
-    def reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
+    def reachable(
+        self, t: float, candidates: Candidates | None, rank: FloatArray | None = None
+    ) -> Candidates | None:
         """The candidates the target of the last established lock could have reached
-        by ``t`` [s], those that hovered first, then the nearest to its fix; before the
-        first established lock, all of them, in their order."""
-        if candidates is None or self.fix is None:
+        by ``t`` [s], the highest ``rank`` first (a drone's likelihood; none: all equal),
+        then those that hovered, then the nearest to its fix; before the first
+        established lock, all of them, the highest rank first, else in their order."""
+        if candidates is None:
             return candidates
+        score = np.zeros(len(candidates)) if rank is None else np.asarray(rank, dtype=float)
+        if self.fix is None:
+            return candidates.take(np.argsort(-score, kind="stable"))
         s = self.settings
-        near = within_reach(candidates, t - self.fix.t, self.fix.position, s.v_max, s.gate_m)
+        gap = np.linalg.norm(candidates.positions - self.fix.position, axis=1)
+        inside = gap <= reach(t - self.fix.t, s.v_max, s.gate_m)  # |c − p_f| ≤ v_max Δt + g
+        near, score = candidates.take(np.flatnonzero(inside)), score[inside]
         d = np.linalg.norm(near.positions - self.fix.position, axis=1)  # |c − p_f|
-        return near.take(np.lexsort((d, ~near.hovered)))
+        return near.take(np.lexsort((d, ~near.hovered, -score)))
 
     def switch(self, confirmed: Candidates) -> Candidates | None:
         """The confirmed candidates to restart the tracker on: while locked on a target

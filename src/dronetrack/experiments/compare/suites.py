@@ -417,6 +417,9 @@ _MULTI_SCENARIOS = (
     "outdoor-swarm",
     "outdoor-clutter",
     "default",
+    "outdoor-unscanned",
+    "site-busy",
+    "mid360-static",
 )
 _LIST.append(
     Suite(
