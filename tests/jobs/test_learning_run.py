@@ -29,3 +29,25 @@ def test_a_run_without_a_scan_learns_the_static_world_and_never_the_drone() -> N
     assert len(learning) > 100
     flown = log.gt[np.all(np.isfinite(log.gt), axis=1)]
     assert not learning.is_background(flown).any()
+
+
+def test_a_static_mid360_switched_on_with_the_drone_in_view_tracks_it() -> None:
+    """``mid360-static`` seed 0: the drone hovers 2-3 m from the sensor through its 1 s
+    scan, people walk around.  The scan leaves the free-standing drone out of the map,
+    the learning map never takes it, and the walkers are not offered: measured 98.3-98.7 %
+    lock-on while visible (seeds 0 and 2; 0 % before, the scan held the drone)."""
+    run = run_simulation(get_scenario("mid360-static").model_copy(update={"seed": 0}))
+    metrics = run.metrics()
+    assert metrics["lock_on_visible_pct"] >= 95.0
+    assert metrics["false_lock_pct"] <= 2.0
+
+
+def test_a_busy_site_without_a_clean_scan_tracks_the_drone_not_the_people() -> None:
+    """``site-busy`` seed 0: the drone in view from the first frame, a 1 s scan, four
+    people walking below it and a car that parks.  Measured 98.0 % lock-on while
+    visible and 2.3 % false locks (1.2 % and 99.5 % with the learning map alone: the
+    tracker took a walker first)."""
+    run = run_simulation(get_scenario("site-busy").model_copy(update={"seed": 0}))
+    metrics = run.metrics()
+    assert metrics["lock_on_visible_pct"] >= 95.0
+    assert metrics["false_lock_pct"] <= 5.0
