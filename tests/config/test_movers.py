@@ -111,3 +111,16 @@ def test_bad_walker_and_vehicle_entries_name_the_entry(
     path.write_text(f'base = "default"\nduration_s = 20.0\n{entry}')
     with pytest.raises(ScenarioError, match=message):
         get_scenario(str(path))
+
+
+def test_a_run_cut_short_leaves_out_the_vehicle_that_would_park_after_it() -> None:
+    """``site-busy``'s car parks 20 s into the flight: ``--duration 10`` leaves it out
+    rather than refusing the run; 30 s keeps it; a file that sets both stays refused."""
+    from dronetrack.config.run import apply_overrides
+
+    busy = get_scenario("site-busy")
+    assert len(busy.vehicles) == 1
+    assert apply_overrides(busy, duration=10.0).vehicles == ()
+    assert apply_overrides(busy, duration=30.0).vehicles == busy.vehicles
+    with pytest.raises(ValueError, match="would never park"):  # pydantic's ValidationError
+        busy.model_validate({**busy.model_dump(), "duration_s": 10.0})

@@ -415,7 +415,8 @@ def apply_overrides(
 
     ``trajectory`` may name several CSV files: the first replaces the target's path,
     each further one adds a drone of the scenario's model (after ``drone``) on it,
-    entering at the start, after any ``[[targets]]`` the scenario has."""
+    entering at the start, after any ``[[targets]]`` the scenario has.  A ``duration``
+    that ends the run before a ``[[vehicles]]`` entry parks leaves that vehicle out."""
     paths = [trajectory] if isinstance(trajectory, Path) else list(trajectory or ())
     data = cfg.model_dump()
     if tracker is not None:
@@ -428,6 +429,8 @@ def apply_overrides(
         data["seed"] = seed
     if duration is not None:
         data["duration_s"] = duration
+        # a run cut short leaves out the vehicles that would only park after its end
+        data["vehicles"] = [v for v in data.get("vehicles", []) if v["arrive_s"] < duration]
     if paths:
         data["trajectory"] = {
             "name": None,

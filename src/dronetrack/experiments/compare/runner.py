@@ -57,12 +57,9 @@ def case_config(
 ) -> ScenarioConfig:
     """The scenario a method runs in a case: the named scenario with the suite's turret
     mode (or scan strategy), the method's tracker, the run's seed.  A run shortened by
-    ``duration`` leaves out the vehicles that would park only after it ends (a scenario
-    file with one is refused: it would never park)."""
+    ``duration`` leaves out the vehicles that would park only after it ends
+    (``apply_overrides``)."""
     base = _scored(get_scenario(case.scenario), suite.min_consecutive, suite.acquisition)
-    if duration is not None:
-        parked = tuple(v for v in base.vehicles if v.arrive_s < duration)
-        base = base.model_copy(update={"vehicles": parked})
     if suite.tracker is not None:  # the methods are scan strategies feeding one tracker
         return apply_overrides(
             base, seed=seed, duration=duration, tracker=suite.tracker, turret_mode=method
