@@ -153,7 +153,6 @@ class Pipeline:
         # The background that keeps learning after the scan (``preprocess.learning``).
         self.learning = learning
         self._look: Candidates | None = None  # where the served track is, out of view
-        self._frame_tracks: tuple[Detections | None, Tracks | None] = (None, None)
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
 
@@ -207,8 +206,10 @@ class Pipeline:
                     t_cmd,
                     estimate,
                     points,
-                    self._look if self._look is not None else self._reachable(frame.end, offered),
-                    self._cues(frame.end),
+                    self._look
+                    if self._look is not None
+                    else self._reachable(frame.end, offered, found, tracks),
+                    self._cues(frame.end, found, tracks),
                 )
                 if steps > 0
                 else None
@@ -239,7 +240,6 @@ class Pipeline:
         t = frame.end
         found, confirmed = self.acquisition.step(t, points)
         tracks = self._tracks(frame, fg, found, confirmed)
-        self._frame_tracks = (found, tracks)
         offered = confirmed if tracks is None else not_static(confirmed, found, tracks)
         if not isinstance(self.tracker, CandidateStart):
             return found, confirmed, offered, tracks
@@ -256,7 +256,7 @@ class Pipeline:
             lock.reset()
             self.tracker.acquire(other)
         elif not lock.locked:
-            start = lock.reachable(t, offered, self._rank(offered))
+            start = lock.reachable(t, offered, _rank(offered, found, tracks))
             if start is not None and len(start) > 0:
                 self.tracker.acquire(start)
         return found, confirmed, offered, tracks
@@ -388,30 +388,25 @@ class Pipeline:
         ):
             log.debug("frame ending %.3f s: learnt map %d voxels", frame.end, len(self.learning))
 
-    def _reachable(self, t: float, candidates: Candidates | None) -> Candidates | None:
+    def _reachable(
+        self,
+        t: float,
+        candidates: Candidates | None,
+        found: Detections | None,
+        tracks: Tracks | None,
+    ) -> Candidates | None:
         """The candidates within the lost target's reach (``detect.lock``), the likeliest
-        drones first."""
+        drones first (``found`` and ``tracks``: the frame's clusters and tracks)."""
         if self.acquisition is None or candidates is None:
             return candidates
-        return self.acquisition.lock.reachable(t, candidates, self._rank(candidates))
+        return self.acquisition.lock.reachable(t, candidates, _rank(candidates, found, tracks))
 
-    def _rank(self, candidates: Candidates) -> FloatArray | None:
-        """Each candidate's track's p_drone (0.5 without one): the turret starts on the
-        likeliest drone, not on whatever the clustering listed first."""
-        found, tracks = self._frame_tracks
-        if found is None or tracks is None or len(candidates) == 0:
-            return None
-        owner = candidate_tracks(candidates, found, tracks)
-        rank = np.full(len(candidates), 0.5)
-        rank[owner >= 0] = tracks.p_drone[owner[owner >= 0]]
-        return rank
-
-    def _cues(self, t: float) -> Candidates | None:
+    def _cues(self, t: float, found: Detections | None, tracks: Tracks | None) -> Candidates | None:
         """Tentative tracks worth a look while the tracker is not locked, within reach of
         the last fix (None: no acquisition, or locked)."""
         if self.acquisition is None or self.acquisition.lock.locked:
             return None
-        return self._reachable(t, self.acquisition.tracks.cues(t))
+        return self._reachable(t, self.acquisition.tracks.cues(t), found, tracks)
 
     def _foreground(self, frame: Frame, flags: list[str]) -> Foreground:
         if len(frame) == 0:
@@ -497,6 +492,19 @@ class Pipeline:
             periods=periods,
             world=fg.world,
         )
+
+
+def _rank(
+    candidates: Candidates, found: Detections | None, tracks: Tracks | None
+) -> FloatArray | None:
+    """Each candidate's track's p_drone (0.5 without one): the turret starts on the
+    likeliest drone, not on whatever the clustering listed first (None: no tracks)."""
+    if found is None or tracks is None or len(candidates) == 0:
+        return None
+    owner = candidate_tracks(candidates, found, tracks)
+    rank = np.full(len(candidates), 0.5)
+    rank[owner >= 0] = tracks.p_drone[owner[owner >= 0]]
+    return rank
 
 
 # A track without a cluster this frame is protected this far around its position [m],

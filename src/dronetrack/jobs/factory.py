@@ -292,15 +292,22 @@ def free_object_m(cfg: PipelineConfig) -> float | None:
     the drone's own track 97.2 → 87.1 % (seed 0) and 98.3 → 82.9 % (seed 1)."""
     b = cfg.background
     short = b.scan_s < b.learn_after_s
-    return b.free_object_m if short and build_learning(cfg, 0.1) is not None else None
+    return b.free_object_m if short and learns(cfg) else None
+
+
+def learns(cfg: PipelineConfig) -> bool:
+    """Whether the background keeps learning: it is on, and so is the track layer that
+    names what it must not learn (``[pipeline.acquisition]``)."""
+    b = cfg.background
+    return b.enabled and b.learn and cfg.acquisition.enabled
 
 
 def build_learning(cfg: PipelineConfig, period: float) -> LearningBackground | None:
     """The background that keeps learning (``preprocess.learning``), when the background
     and the track layer that protects what it must not learn are on."""
-    b = cfg.background
-    if not (b.enabled and b.learn and cfg.acquisition.enabled):
+    if not learns(cfg):
         return None
+    b = cfg.background
     settings = LearningSettings(
         memory_s=b.learn_s,
         share=b.learn_share,

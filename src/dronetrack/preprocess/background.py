@@ -161,11 +161,7 @@ class VoxelBackground:
 
     def is_background(self, points: FloatArray) -> NDArray[np.bool_]:
         """Whether each world point (N, 3) falls in an occupied cell (non-finite: False)."""
-        out = np.zeros(len(points), dtype=bool)
-        ok = finite_mask(points)
-        idx = np.floor(points[ok] / self.cell_size).astype(np.int64)
-        out[ok] = self.cells.contains_index(idx)
-        return out
+        return self.cells.contains_points(points, self.cell_size)
 
     def __len__(self) -> int:
         """Occupied lookup cells (0 before ``build``)."""

@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.preprocess.crop import ball_mask
 from dronetrack.preprocess.voxel import (
     KeySet,
     dilate_keys,
@@ -231,7 +232,7 @@ def _outside_balls(points: FloatArray, centres: FloatArray, radii: FloatArray) -
     """(N,) the points outside every ball (centres (B, 3), radii (B,))."""
     keep = np.ones(len(points), dtype=bool)
     for c, rad in zip(centres, radii, strict=True):
-        keep &= np.sum((points - c) ** 2, axis=1) > rad * rad
+        keep &= ~ball_mask(points, c, float(rad))
     return keep
 
 
@@ -299,13 +300,9 @@ class LearningBackground:
 
     def is_background(self, points: FloatArray) -> NDArray[np.bool_]:
         """(N,) whether each world point falls in (or beside) a learnt voxel."""
-        out = np.zeros(len(points), dtype=bool)
-        if len(self._cells) == 0 or len(points) == 0:
-            return out
-        ok = np.all(np.isfinite(points), axis=1)
-        idx = np.floor(points[ok] / self.settings.resolution).astype(np.int64)
-        out[ok] = self._cells.contains_index(idx)
-        return out
+        if len(self._cells) == 0:
+            return np.zeros(len(points), dtype=bool)
+        return self._cells.contains_points(points, self.settings.resolution)
 
     def is_structure(
         self, points: FloatArray, recent: int = 8, min_hits: int = 2

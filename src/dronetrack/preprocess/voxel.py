@@ -255,6 +255,14 @@ class KeySet:
         idx = np.column_stack(_unpack(np.asarray(keys, dtype=np.int64)))
         return self.contains_index(idx)
 
+    def contains_points(self, points: FloatArray, size: float) -> NDArray[np.bool_]:
+        """Membership of the voxels of edge ``size`` [m] that hold each world point (N, 3),
+        i = ⌊p / size⌋; non-finite points: False."""
+        out = np.zeros(len(points), dtype=bool)
+        ok = np.all(np.isfinite(points), axis=1)
+        out[ok] = self.contains_index(np.floor(points[ok] / size).astype(np.int64))
+        return out
+
     def contains_index(self, idx: IntArray) -> NDArray[np.bool_]:
         """Membership of voxels given by their integer indices (N, 3)."""
         return _contains_many(

@@ -21,11 +21,11 @@ from dronetrack.experiments.bench.pipeline import (
     PERIOD_S,
     PIPELINE_WARMUP,
     AviaFrames,
-    pipeline_config,
+    scanned_pipeline,
+    shifted,
     worst_case_frames,
 )
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.jobs.factory import build_pipeline
 from dronetrack.types import Frame
 
 __all__ = ["CLUTTER", "MULTI_PARTICLES", "MULTI_WARMUP", "OBJECTS", "multi_step_ms"]
@@ -63,10 +63,6 @@ def _with_points(frame: Frame, world: FloatArray) -> Frame:
     )
 
 
-def _shifted(frame: Frame, dt: float) -> Frame:
-    return replace(frame, stamp=frame.stamp + dt, t=frame.t + dt, pose_t=frame.pose_t + dt)
-
-
 def multi_step_ms(
     repeats: int, frames: AviaFrames | None = None, seed: int = 11
 ) -> tuple[FloatArray, int, int]:
@@ -74,20 +70,8 @@ def multi_step_ms(
     ``CLUTTER`` clutter returns a frame, after ``MULTI_WARMUP`` untimed steps; and the
     fewest tracks and clusters of a timed frame.  RuntimeError if the workload is not
     what it claims (fewer than ``OBJECTS`` tracks, the drone not tracked)."""
-    from dronetrack.config.rig import make_turret
-
     frames = worst_case_frames() if frames is None else frames
-    turret = make_turret("widowx")
-    pipe = build_pipeline(
-        pipeline_config(MULTI_PARTICLES),
-        PERIOD_S,
-        turret.mount,
-        (turret.pan.lower, turret.pan.upper),
-        (turret.tilt.lower, turret.tilt.upper),
-        np.random.default_rng(1),
-    )
-    for frame in frames.scan:
-        pipe.step(frame)
+    pipe = scanned_pipeline(MULTI_PARTICLES, frames)
     rng = np.random.default_rng(seed)
     start = _in_front(rng, OBJECTS)
     velocity = rng.uniform(-1.0, 1.0, size=(OBJECTS, 3)) * np.array([1.0, 1.0, 0.2])
@@ -95,7 +79,7 @@ def multi_step_ms(
     out = np.empty(repeats)
     fewest_tracks = fewest_clusters = 1 << 30
     for k in range(repeats + MULTI_WARMUP + PIPELINE_WARMUP):
-        base = _shifted(frames.probe, PERIOD_S * k)
+        base = shifted(frames.probe, PERIOD_S * k)
         objects = start + velocity * (PERIOD_S * k)
         world = np.concatenate(
             [(objects[:, None, :] + blob).reshape(-1, 3), _in_the_air(rng, CLUTTER)]

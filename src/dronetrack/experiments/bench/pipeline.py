@@ -32,6 +32,7 @@ import numpy as np
 from dronetrack.config.pipeline import BackgroundConfig, CropConfig, PipelineConfig, TrackerConfig
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.factory import build_pipeline, build_tracker
+from dronetrack.pipeline import Pipeline
 from dronetrack.types import Frame
 
 if TYPE_CHECKING:
@@ -47,6 +48,8 @@ __all__ = [
     "ground_facing_avia",
     "pipeline_config",
     "pipeline_step_ms",
+    "scanned_pipeline",
+    "shifted",
     "tracker_foreground",
     "tracker_step_ms",
     "worst_case_frames",
@@ -118,7 +121,8 @@ def worst_case_frames() -> AviaFrames:
     return AviaFrames(scan, probe)
 
 
-def _shifted(frame: Frame, dt: float) -> Frame:
+def shifted(frame: Frame, dt: float) -> Frame:
+    """``frame`` ``dt`` [s] later: its stamp, its returns' times and its poses' times."""
     return replace(frame, stamp=frame.stamp + dt, t=frame.t + dt, pose_t=frame.pose_t + dt)
 
 
@@ -137,16 +141,11 @@ def pipeline_config(particles: int) -> PipelineConfig:
     )
 
 
-def pipeline_step_ms(particles: int, repeats: int, frames: AviaFrames | None = None) -> FloatArray:
-    """Wall time [ms] of ``repeats`` pipeline steps on 24,000-point frames.
-
-    After the background scan and ``PIPELINE_WARMUP`` untimed steps; each step gets
-    the probe frame one filter period after the previous one.  Raises RuntimeError
-    if the workload is not what it claims (no foreground, the drone not tracked).
-    """
+def scanned_pipeline(particles: int, frames: AviaFrames) -> Pipeline:
+    """The benchmark's pipeline (``pipeline_config``) on the WidowX, after the background
+    scan of ``frames``; RuntimeError if the scan did not end."""
     from dronetrack.config.rig import make_turret
 
-    frames = worst_case_frames() if frames is None else frames
     turret = make_turret("widowx")
     pipe = build_pipeline(
         pipeline_config(particles),
@@ -160,9 +159,21 @@ def pipeline_step_ms(particles: int, repeats: int, frames: AviaFrames | None = N
         pipe.step(frame)
     if pipe.scanning:
         raise RuntimeError("the pipeline benchmark's background scan did not end")
+    return pipe
+
+
+def pipeline_step_ms(particles: int, repeats: int, frames: AviaFrames | None = None) -> FloatArray:
+    """Wall time [ms] of ``repeats`` pipeline steps on 24,000-point frames.
+
+    After the background scan and ``PIPELINE_WARMUP`` untimed steps; each step gets
+    the probe frame one filter period after the previous one.  Raises RuntimeError
+    if the workload is not what it claims (no foreground, the drone not tracked).
+    """
+    frames = worst_case_frames() if frames is None else frames
+    pipe = scanned_pipeline(particles, frames)
     out = np.empty(repeats)
     for k in range(repeats + PIPELINE_WARMUP):
-        frame = _shifted(frames.probe, PERIOD_S * k)
+        frame = shifted(frames.probe, PERIOD_S * k)
         start = time.perf_counter()
         result = pipe.step(frame)
         if k >= PIPELINE_WARMUP:
