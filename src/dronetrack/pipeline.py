@@ -34,7 +34,6 @@ from numpy.typing import NDArray
 
 from dronetrack.classify.classifier import TrackClassifier
 from dronetrack.control.choose import (
-    STATIC,
     TargetChooser,
     candidate_tracks,
     held_track,
@@ -52,7 +51,7 @@ from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop, ball_mask, box_mask
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
-from dronetrack.preprocess.learning import LearningBackground
+from dronetrack.preprocess.learning import LearningBackground, protected_balls
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.seams import Actuator, Sink, Source
@@ -505,34 +504,6 @@ def _rank(
     rank = np.full(len(candidates), 0.5)
     rank[owner >= 0] = tracks.p_drone[owner[owner >= 0]]
     return rank
-
-
-# A track without a cluster this frame is protected this far around its position [m],
-# on top of the margin: the largest drone the models fly is under 1 m across.
-COASTING_EXTENT_M = 1.0
-
-
-def protected_balls(
-    tracks: Tracks, found: Detections, estimate: TrackEstimate, margin: float
-) -> tuple[FloatArray, FloatArray]:
-    """Centres (B, 3) and radii (B,) of what the learning map must not learn: each track
-    not classed static, around its cluster (radius e/2 + margin, e its largest extent) or,
-    coasting, its position (COASTING_EXTENT_M / 2 + margin); and the turret's target
-    when locked and not on a static track."""
-    keep = tracks.classes != STATIC
-    j = tracks.clusters
-    has = keep & (j >= 0)
-    centres = np.array(tracks.positions, dtype=np.float64)
-    extent = np.full(len(tracks), COASTING_EXTENT_M)
-    centres[has] = found.centroids[j[has]]
-    extent[has] = found.extents[j[has], 0]
-    radii = 0.5 * extent + margin
-    centres, radii = centres[keep], radii[keep]
-    static_lock = bool(np.any(tracks.locked & ~keep))
-    if estimate.tracked and not static_lock and np.all(np.isfinite(estimate.position)):
-        centres = np.vstack([centres, estimate.position[None, :]])
-        radii = np.r_[radii, 0.5 * COASTING_EXTENT_M + margin]
-    return centres, radii
 
 
 def _keep(fg: Foreground, keep: NDArray[np.bool_]) -> Foreground:

@@ -55,8 +55,16 @@ from dronetrack.preprocess.voxel import (
     unique_keys,
     voxel_keys,
 )
+from dronetrack.types import TRACK_CLASSES, Detections, TrackEstimate, Tracks
 
-__all__ = ["LearningBackground", "LearningSettings", "look_cells", "looked_at", "window_update"]
+__all__ = [
+    "LearningBackground",
+    "LearningSettings",
+    "look_cells",
+    "looked_at",
+    "protected_balls",
+    "window_update",
+]
 
 IntArray = NDArray[np.int64]
 MaskArray = NDArray[np.uint64]
@@ -411,3 +419,31 @@ class LearningBackground:
     def _rebuild(self) -> None:
         self._cells = KeySet.of(dilate_keys(self.learnt_keys(), self.settings.inflate))
         self.rebuilds += 1
+
+
+# A track without a cluster this frame is protected this far around its position [m],
+# on top of the margin: the largest drone the models fly is under 1 m across.
+COASTING_EXTENT_M = 1.0
+
+
+def protected_balls(
+    tracks: Tracks, found: Detections, estimate: TrackEstimate, margin: float
+) -> tuple[FloatArray, FloatArray]:
+    """Centres (B, 3) and radii (B,) of what the learning map must not learn: each track
+    not classed static, around its cluster (radius e/2 + margin, e its largest extent) or,
+    coasting, its position (COASTING_EXTENT_M / 2 + margin); and the turret's target
+    when locked and not on a static track."""
+    keep = tracks.classes != TRACK_CLASSES.index("static")
+    j = tracks.clusters
+    has = keep & (j >= 0)
+    centres = np.array(tracks.positions, dtype=np.float64)
+    extent = np.full(len(tracks), COASTING_EXTENT_M)
+    centres[has] = found.centroids[j[has]]
+    extent[has] = found.extents[j[has], 0]
+    radii = 0.5 * extent + margin
+    centres, radii = centres[keep], radii[keep]
+    static_lock = bool(np.any(tracks.locked & ~keep))
+    if estimate.tracked and not static_lock and np.all(np.isfinite(estimate.position)):
+        centres = np.vstack([centres, estimate.position[None, :]])
+        radii = np.r_[radii, 0.5 * COASTING_EXTENT_M + margin]
+    return centres, radii
