@@ -8,7 +8,7 @@ import collections
 import numpy as np
 import pytest
 
-from dronetrack.classify.features import LifeFeatures, TrackLives, observe
+from dronetrack.classify.features import LifeFeatures, TrackLives, nearest_gap, observe
 from dronetrack.classify.rules import (
     BIRD,
     DRONE,
@@ -75,6 +75,41 @@ def test_observations_say_grounded_joined_and_beyond_reach() -> None:
     assert obs.beyond_reach.tolist() == [False, False, True, False]  # 200 m > 1.5 × 130 m
     assert obs.joined.tolist() == [False, False, True, False]  # the probe at x + 0.7 m
     np.testing.assert_allclose(obs.extent, 0.4)
+
+
+def test_the_gap_to_the_nearest_cluster_is_between_their_extents() -> None:
+    # clusters 0.4 m long: 3 m apart centre to centre is a 2.6 m gap; alone is +inf
+    found = _found([[50.0, 0, 10], [53.0, 0, 10], [50.0, 40, 10]], [9.8] * 3)
+    np.testing.assert_allclose(nearest_gap(found, np.array([0, 1, 2])), [2.6, 2.6, 39.6])
+    alone = _found([[50.0, 0, 10]], [9.8])
+    assert nearest_gap(alone, np.array([0])).tolist() == [np.inf]
+
+
+def test_a_cluster_with_a_neighbour_within_the_gap_is_crowded() -> None:
+    # a fragment of a far structure 1.6 m from the next, and a drone 30 m from anything
+    pos = [[150.0, 0, 12], [152.0, 0, 12], [60.0, 20, 15]]
+    tracks = _tracks(pos, [[0, 0, 0]] * 3, [1, 2, 3])
+    obs = observe(tracks, _found(pos, [11.8, 11.8, 14.8]), np.zeros(3), np.zeros(3))
+    assert not obs.crowded.any()  # the feature is off without a gap
+    obs = observe(
+        tracks, _found(pos, [11.8, 11.8, 14.8]), np.zeros(3), np.zeros(3), crowd_gap_m=2.0
+    )
+    assert obs.crowded.tolist() == [True, True, False]
+
+
+def test_a_still_fragment_among_fragments_in_the_air_is_static_not_a_hovering_drone() -> None:
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    pos = [[150.0, 0, 12], [152.0, 0, 12], [60.0, 20, 15]]
+    life = None
+    for k in range(16):  # 1.5 s, all three still in the air, none on the ground
+        tracks = _tracks(pos, [[0, 0, 0]] * 3, [1, 2, 3])
+        found = _found(pos, [11.8, 11.8, 14.8])
+        obs = observe(tracks, found, np.zeros(3), np.zeros(3), reach_m=130.0, crowd_gap_m=2.0)
+        life = lives.update(k * T, tracks, obs)
+    assert life is not None
+    classes, p = classify(life)
+    assert classes.tolist() == [STATIC, STATIC, DRONE]
+    assert p[0] < 0.8 <= p[2]
 
 
 def test_a_track_without_a_cluster_observes_nothing() -> None:

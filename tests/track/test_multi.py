@@ -219,6 +219,22 @@ def test_twenty_objects_among_fifty_clusters_a_frame_keep_twenty_tracks() -> Non
     assert layer.tracks.updates[~objects].max(initial=0) <= 5
 
 
+def test_a_full_layer_keeps_its_established_tracks_over_a_frame_of_births() -> None:
+    # One object tracked for a second, then a frame floods the layer with as many new
+    # objects as it holds: of the tracks all updated this frame, the newest go first.
+    layer = _Layer(max_tracks=4)
+    drone = np.array([[30.0, 5.0, 10.0]])
+    for k in range(10):
+        layer.step(k * T, drone)
+    (first,) = layer.tracks.ids.tolist()
+    crowd = np.array([[60.0 + 5 * i, -20.0, 8.0] for i in range(4)])
+    for k in range(10, 14):
+        layer.step(k * T, np.concatenate([drone, crowd]))
+        assert first in layer.tracks.ids.tolist()
+        assert len(layer.tracks) <= 4
+    assert len(layer.tracks) == 4  # the crowd's births fill the rest
+
+
 def test_the_locked_track_is_the_one_at_a_locked_estimate() -> None:
     layer = _Layer()
     for k in range(3):

@@ -22,7 +22,8 @@ class TrackClassifier:
 
     ``reach_m``: the reach of the drone model the site guards (None: not known, the
     feature is off); ``floor_z``: the crop box's floor [m] (what stands on the ground
-    is cut there); ``hover_speed``, ``hover_frames``: v_hover and K of the hover test.
+    is cut there); ``hover_speed``, ``hover_frames``: v_hover and K of the hover test;
+    ``crowd_gap_m``: g_c of the crowded test (None: off).
     """
 
     def __init__(
@@ -35,6 +36,7 @@ class TrackClassifier:
         hover_frames: int = 3,
         ground_cell_m: float = 5.0,
         ground_every: int = 10,
+        crowd_gap_m: float | None = None,
     ) -> None:
         self.rules = rules if rules is not None else ClassRules()
         self.reach_m = reach_m
@@ -42,6 +44,7 @@ class TrackClassifier:
         self.hover = (hover_speed, hover_frames)
         self.ground_cell_m = ground_cell_m
         self.ground_every = ground_every
+        self.crowd_gap_m = crowd_gap_m
         self.reset()
 
     def reset(self) -> None:
@@ -81,6 +84,7 @@ class TrackClassifier:
             floor_z=self.floor_z,
             reach_m=self.reach_m,
             is_background=is_background,
+            crowd_gap_m=self.crowd_gap_m,
         )
         life = self.lives.update(t, tracks, obs)
         classes, p_drone = classify(life, self.rules)

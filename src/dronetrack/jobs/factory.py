@@ -335,6 +335,9 @@ def build_chooser(cfg: PipelineConfig) -> TargetChooser | None:
 
 
 STILL_PER_SIZE = 2.5  # a static object's clusters stay within this many drone sizes
+# g_c of the crowded test: a neighbour within two clustering radii ε is likelier a
+# fragment of the same object, split by a gap in the sampling, than another object
+CROWD_PER_EPS = 2.0
 
 
 def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | None:
@@ -352,6 +355,7 @@ def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | N
         floor_z=floor_z,
         hover_speed=cfg.acquisition.hover_speed_m_s,
         hover_frames=cfg.acquisition.hover_frames,
+        crowd_gap_m=CROWD_PER_EPS * cfg.acquisition.eps_m,
     )
 
 

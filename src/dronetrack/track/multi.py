@@ -80,7 +80,7 @@ class TrackSettings:
     coast_s: the longest a track lives without an update; stale_s: after this long
     without one, only a confirmed candidate's cluster updates it; birth_sigma_v: the
     velocity's σ at birth; max_tracks: the most tracks kept (the longest unseen die
-    first).
+    first; of equals, the least updated).
     """
 
     sigma_acc: float = 5.0
@@ -435,8 +435,9 @@ class MultiTargetTracker:
         self.cluster = np.concatenate([self.cluster, of[new]])
         self.hovered = np.concatenate([self.hovered, c.hovered])
         excess = len(self) - s.max_tracks
-        if excess > 0:  # the longest unseen die first; of equals, the younger
-            order = np.lexsort((-self.ids, -self.t_update))
+        if excess > 0:  # the longest unseen die first; of equals, the least updated, then
+            # the younger: an established track outlives the births of a cluttered frame
+            order = np.lexsort((self.ids, -self.updates, -self.t_update))
             keep = np.zeros(len(self), dtype=bool)
             keep[order[: s.max_tracks]] = True
             self._drop(keep)
