@@ -10,6 +10,8 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
     joined (≥ half its frames)    −3    a map cell beside or below it: part of a structure
     crowded (≥ half its frames)   −3    another cluster just beside it: a fragment of a
                                         structure the map lacks, not a drone in free space
+                                        (two drones hovering close stay possible: it
+                                        never makes a track static)
     beyond reach (≥ half)         −6    a drone returns nothing there
     larger than a drone           −4    extent > ``max_extent_m``
     moving, never hovered, ≥ 2 s  −2    a bird's flight (a drone that flew fast all along
@@ -20,7 +22,7 @@ Classes, in this order:
 - **static**: its clusters have not moved more than max(``still_m``, its extent,
   ``still_rad`` × its range) from the first, over ``static_after_s`` and
   ``min_observed`` clusters, and something says it is not in the open air (grounded,
-  joined, crowded, beyond reach or too large).  A small object holding still in the open air
+  joined, beyond reach or too large).  A small object holding still in the open air
   is a hovering drone, not a static one.
 - **drone**: p_drone ≥ ``drone_p``;
 - **bird**: p_drone ≤ ``bird_p``, in the air, never slower than ``v_stall``, over
@@ -134,10 +136,7 @@ def classify(
     bird = (p <= rules.bird_p) & ~grounded & (life.min_speed >= rules.v_stall) & ~still & seen
     classes[bird] = BIRD
     static = (
-        still
-        & seen
-        & (life.age >= rules.static_after_s)
-        & (grounded | joined | crowded | beyond | large)
+        still & seen & (life.age >= rules.static_after_s) & (grounded | joined | beyond | large)
     )
     classes[static] = STATIC
     return classes, p
