@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.jobs.simulate import run_simulation
@@ -31,12 +32,18 @@ def test_a_run_without_a_scan_learns_the_static_world_and_never_the_drone() -> N
     assert not learning.is_background(flown).any()
 
 
-def test_a_static_mid360_switched_on_with_the_drone_in_view_tracks_it() -> None:
-    """``mid360-static`` seed 0: the drone hovers 2-3 m from the sensor through its 1 s
-    scan, people walk around.  The scan leaves the free-standing drone out of the map,
-    the learning map never takes it, and the walkers are not offered: measured 98.3-98.7 %
-    lock-on while visible (seeds 0 and 2; 0 % before, the scan held the drone)."""
-    run = run_simulation(get_scenario("mid360-static").model_copy(update={"seed": 0}))
+@pytest.mark.parametrize(
+    "seed", [0, pytest.param(3, marks=pytest.mark.slow), pytest.param(4, marks=pytest.mark.slow)]
+)
+def test_a_static_mid360_switched_on_with_the_drone_in_view_tracks_it(seed: int) -> None:
+    """``mid360-static``: the drone hovers 2-3 m from the sensor through its 1 s scan,
+    people walk around.  The scan leaves the free-standing drone out of the map, the
+    learning map never takes it, and the walkers are not offered: measured 98.0-99.7 %
+    lock-on while visible on seeds 0-4 (0 % before, the scan held the drone).  Seed 3:
+    two false alarms joined the drone to the space beside the sensor until single
+    returns stopped joining parts; seed 4: the drone hovered in a 2 m lookup cell
+    over what the scan saw until the cells near the sensor were made finer."""
+    run = run_simulation(get_scenario("mid360-static").model_copy(update={"seed": seed}))
     metrics = run.metrics()
     assert metrics["lock_on_visible_pct"] >= 95.0
     assert metrics["false_lock_pct"] <= 2.0

@@ -10,7 +10,13 @@ from hypothesis.extra.numpy import arrays
 
 from dronetrack.errors import InputError
 from dronetrack.preprocess import voxel
-from dronetrack.preprocess.background import VoxelBackground
+from dronetrack.preprocess.background import (
+    NEAR_ANGLE,
+    VoxelBackground,
+    free_objects,
+    lookup_level,
+    single_hits,
+)
 from dronetrack.preprocess.voxel import (
     KeySet,
     coarsen_keys,
@@ -138,3 +144,61 @@ def test_lookup_depth_coarsens_like_an_octree() -> None:
 def test_an_unbuilt_model_refuses_lookups() -> None:
     with pytest.raises(InputError, match="not been built"):
         VoxelBackground(1.0).is_background(np.zeros((1, 3)))
+
+
+def _keys(cells: list[tuple[int, int, int]], size: float = 0.5) -> np.ndarray:
+    return unique_keys(voxel_keys((np.array(cells, dtype=float) + 0.5) * size, size))
+
+
+def test_a_small_part_standing_free_is_left_out_and_a_large_one_stays() -> None:
+    drone = [(4, 1, 4), (5, 1, 4), (4, 2, 4)]  # 1 m across at 0.5 m voxels
+    pole = [(10, 0, z) for z in range(8)]  # 4 m tall
+    keys = _keys(drone + pole)
+    free = free_objects(keys, 0.5, 2.0)
+    centres = voxel.key_centres(keys, 0.5)
+    np.testing.assert_array_equal(free, centres[:, 0] < 4.0)
+
+
+def test_single_returns_never_join_a_free_part_to_anything() -> None:
+    """Two false alarms side by side beside a hovering drone make the three one part
+    (2.5 m) until voxels a single return hit stop joining parts: the drone is then
+    free, and so are the false alarms, out of reach of anything that stays; a single
+    return within reach of what stays (the post's sparse top) stays with it."""
+    drone = [(4, 1, 4), (5, 1, 4), (4, 2, 4)]
+    alarms = [(1, 1, 3), (2, 2, 4)]
+    post = [(-3, 1, z) for z in range(6)]  # 3 m tall, 2 m from the first alarm
+    top = [(-3, 1, 7)]  # one return a voxel above the post's top
+    cells = drone + alarms + post + top
+    keys = _keys(cells)
+    returns = np.concatenate([np.repeat(_keys([c]), 1 if c in alarms + top else 3) for c in cells])
+    weak = single_hits(returns, keys)
+    np.testing.assert_array_equal(weak, np.isin(keys, _keys(alarms + top)))
+    assert not free_objects(keys, 0.5, 2.0).any()  # drone and alarms one part, 2.5 m long
+    free = free_objects(keys, 0.5, 2.0, weak)
+    np.testing.assert_array_equal(free, np.isin(keys, _keys(drone + alarms)))
+
+
+def test_the_lookup_level_keeps_cells_within_an_angle_of_the_sensor() -> None:
+    # 0.5 m voxels, depth 2: 0.5 m cells below 4 m, 1 m to 8 m, 2 m beyond
+    r = np.array([0.3, 3.9, 4.0, 7.9, 8.0, 500.0])
+    np.testing.assert_array_equal(lookup_level(r, 0.5, 2), [0, 0, 1, 1, 2, 2])
+    size = 0.5 * 2.0 ** lookup_level(r, 0.5, 2)
+    assert np.all((size <= NEAR_ANGLE * r + 1e-12) | (size == 0.5))
+
+
+def test_near_the_sensor_a_built_model_looks_up_in_finer_cells() -> None:
+    """A wall 1 m below a drone that hovers 3 m from the sensor: its 2 m cell holds
+    the drone's place, the finer cell there does not; far out, the coarse cells rule."""
+    wall = np.array([[x, y, 0.75] for x in np.arange(2.0, 4.0, 0.1) for y in (0.1, 0.3)])
+    bg = VoxelBackground(resolution=0.5, inflate=0, lookup_depth=2)
+    bg.insert(wall)
+    bg.build()
+    assert bg.near_m == pytest.approx(0.5 * 4 / NEAR_ANGLE)
+    drone = np.array([[3.0, 0.2, 1.7]])
+    sensor = np.zeros(3)
+    assert bg.is_background(drone).tolist() == [True]  # the 2 m cell [0, 2) in z
+    assert bg.is_background(drone, sensor).tolist() == [False]
+    assert bg.is_background(drone, np.array([-20.0, 0.2, 1.7])).tolist() == [True]
+    loaded = VoxelBackground.from_cells(bg.cells.keys, 0.5, 0, 2)
+    assert loaded.near_m == 0.0  # a saved model has its coarse cells only
+    assert loaded.is_background(drone, sensor).tolist() == [True]

@@ -10,7 +10,16 @@ hit at least ``min_hits`` times, dilated by ``inflate`` voxels over the
 during the scan: a real surface returns from neighbouring voxels, while one of the
 sensor's random false alarms (about 10⁻⁴ per pulse, a few hundred in a scan) stands
 alone in the sky, where it would hide a drone in its whole lookup cell (4 m
-outdoors) for as long as it takes to fly through.  Free space is not
+outdoors) for as long as it takes to fly through.
+
+Near the sensor the coarse cells are finer: a cell no wider than ``NEAR_ANGLE`` as
+seen from the sensor, level ℓ(r) = clamp(⌊log₂(r θ / s)⌋, 0, depth) at range r (s the
+voxel size, θ the angle).  The coarse lookup covers the holes a scan leaves, which grow
+with range; at 2-3 m from a Mid-360 a 2 m cell (0.5 m voxels two levels up) hid a
+drone hovering over whatever the scan saw below it, and there the scan is dense.
+θ = 0.25 rad keeps seed 000's cells (4 m outdoors, 0.4 m indoors) from 16 m and 1.6 m
+out, nearer than the seed tracks a drone.  A model loaded from a file has its coarse
+cells only and looks up in them at every range.  Free space is not
 modelled: OctoMap's ray clearing matters for moving scenes, and the seed assumes
 a static one.
 
@@ -42,7 +51,7 @@ from dronetrack.preprocess.voxel import (
     voxel_keys,
 )
 
-__all__ = ["VoxelBackground", "free_objects", "occupied_voxels"]
+__all__ = ["VoxelBackground", "free_objects", "lookup_level", "occupied_voxels", "single_hits"]
 
 
 def occupied_voxels(
@@ -61,12 +70,53 @@ def occupied_voxels(
 
 
 FREE_GAP = 2  # empty voxels around a free-standing object
+NEAR_ANGLE = 0.25  # θ [rad]: the widest a lookup cell may look from the sensor
 
 
-def free_objects(voxels: NDArray[np.int64], resolution: float, largest: float) -> NDArray[np.bool_]:
+def lookup_level(ranges: FloatArray, resolution: float, depth: int) -> NDArray[np.int64]:
+    """(N,) the lookup level of a point at each range r [m]: the coarsest ℓ ≤ depth whose
+    cells, s 2^ℓ wide, subtend at most θ: ℓ = clamp(⌊log₂(r θ / s)⌋, 0, depth)."""
+    r = np.maximum(np.asarray(ranges, dtype=np.float64), 1e-9)
+    level = np.floor(np.log2(r * NEAR_ANGLE / resolution))
+    out: NDArray[np.int64] = np.clip(level, 0, depth).astype(np.int64)
+    return out
+
+
+def free_objects(
+    voxels: NDArray[np.int64],
+    resolution: float,
+    largest: float,
+    weak: NDArray[np.bool_] | None = None,
+) -> NDArray[np.bool_]:
     """(N,) the voxels (sorted, distinct keys of edge ``resolution``) of the components
     with ``FREE_GAP`` empty voxels or more around them and whose bounding box's longest
-    edge is at most ``largest`` [m]."""
+    edge is at most ``largest`` [m].
+
+    ``weak`` (N,) marks the voxels a single return hit: they never join the others
+    (in a 1 s scan two false alarms side by side joined a hovering drone to the space
+    beside the sensor, 2.5 m in all).  The others' components are measured without
+    them; the weak ones form their own, and one of those is free if it is small and
+    no voxel that stays lies within reach of it (a far wall sampled once per voxel
+    stays whole)."""
+    if weak is None or not weak.any():
+        return _free_components(voxels, resolution, largest)
+    free = np.zeros(len(voxels), dtype=bool)
+    free[~weak] = _free_components(voxels[~weak], resolution, largest)
+    free[weak] = _free_components(voxels[weak], resolution, largest)
+    stays = ~weak & ~free
+    rows = np.flatnonzero(stays | (weak & free))
+    labels = voxel_components(voxels[rows], reach=FREE_GAP + 1)
+    anchored = np.zeros(int(labels.max(initial=-1)) + 1, dtype=bool)
+    anchored[labels[stays[rows]]] = True
+    loose = weak[rows]
+    free[rows[loose]] &= ~anchored[labels[loose]]
+    return free
+
+
+def _free_components(
+    voxels: NDArray[np.int64], resolution: float, largest: float
+) -> NDArray[np.bool_]:
+    """``free_objects`` without lone voxels."""
     if len(voxels) == 0:
         return np.zeros(0, dtype=bool)
     labels = voxel_components(voxels, reach=FREE_GAP + 1)
@@ -79,6 +129,15 @@ def free_objects(voxels: NDArray[np.int64], resolution: float, largest: float) -
     edge = (hi - lo).max(axis=1) + resolution  # the voxels' extent, end to end
     small: NDArray[np.bool_] = edge[labels] <= largest + 1e-9
     return small
+
+
+def single_hits(keys: NDArray[np.int64], voxels: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """(N,) which of the ``voxels`` (sorted, distinct) exactly one return of ``keys``
+    hit."""
+    s = np.sort(keys)
+    hits = np.searchsorted(s, voxels, side="right") - np.searchsorted(s, voxels, side="left")
+    out: NDArray[np.bool_] = hits == 1
+    return out
 
 
 class VoxelBackground:
@@ -108,11 +167,17 @@ class VoxelBackground:
         self.left_out = 0  # voxels of free-standing small objects left out of the map
         self._chunks: list[NDArray[np.int64]] = []
         self._cells: KeySet | None = None
+        self._finer: tuple[KeySet, ...] = ()  # levels 0 … depth − 1 (built models)
 
     @property
     def cell_size(self) -> float:
         """Edge of the lookup cells [m]: resolution · 2^depth."""
         return self.resolution * float(2**self.lookup_depth)
+
+    @property
+    def near_m(self) -> float:
+        """The range [m] within which a built model looks up in finer cells (0: never)."""
+        return self.cell_size / NEAR_ANGLE if self._finer else 0.0
 
     @property
     def ready(self) -> bool:
@@ -138,11 +203,14 @@ class VoxelBackground:
         self._chunks = []
         voxels = occupied_voxels(keys, self.min_hits, self.min_neighbours)
         if self.free_object_m is not None:
-            free = free_objects(voxels, self.resolution, self.free_object_m)
+            free = free_objects(
+                voxels, self.resolution, self.free_object_m, single_hits(keys, voxels)
+            )
             self.left_out = int(np.count_nonzero(free))
             voxels = voxels[~free]
         grown = dilate_keys(voxels, self.inflate)
         self._cells = KeySet.of(coarsen_keys(grown, self.lookup_depth))
+        self._finer = tuple(KeySet.of(coarsen_keys(grown, lv)) for lv in range(self.lookup_depth))
 
     @classmethod
     def from_cells(
@@ -159,9 +227,32 @@ class VoxelBackground:
         model._cells = KeySet.of(np.asarray(cells, dtype=np.int64))
         return model
 
-    def is_background(self, points: FloatArray) -> NDArray[np.bool_]:
-        """Whether each world point (N, 3) falls in an occupied cell (non-finite: False)."""
-        return self.cells.contains_points(points, self.cell_size)
+    def is_background(
+        self, points: FloatArray, sensor: FloatArray | None = None
+    ) -> NDArray[np.bool_]:
+        """Whether each world point (N, 3) falls in an occupied cell (non-finite: False);
+        with the ``sensor``'s position (3,), in finer cells near it (``near``)."""
+        out = self.cells.contains_points(points, self.cell_size)
+        return out if sensor is None else self.near(points, out, sensor)
+
+    def near(
+        self, points: FloatArray, background: NDArray[np.bool_], sensor: FloatArray
+    ) -> NDArray[np.bool_]:
+        """``background`` (N,), the coarse verdict on each world point (N, 3), with the
+        points within ``near_m`` of the ``sensor`` (3,) looked up again at their level
+        ℓ(r) (``lookup_level``): background only if that finer cell is occupied too."""
+        out = np.array(background, dtype=bool)
+        if not self._finer:
+            return out
+        at = np.flatnonzero(out)
+        r = np.linalg.norm(points[at] - np.asarray(sensor, dtype=np.float64), axis=1)
+        at, r = at[r < self.near_m], r[r < self.near_m]
+        level = lookup_level(r, self.resolution, self.lookup_depth)
+        for lv in np.unique(level[level < self.lookup_depth]):
+            rows = at[level == lv]
+            size = self.resolution * float(2 ** int(lv))
+            out[rows] = self._finer[int(lv)].contains_points(points[rows], size)
+        return out
 
     def __len__(self) -> int:
         """Occupied lookup cells (0 before ``build``)."""

@@ -58,6 +58,11 @@ def extract_foreground(
         shift,
         cell,
     )
+    if background is not None and background.ready and background.near_m > 0:
+        # near the sensor, what the coarse cells call background is looked up in finer ones
+        sensor = frame.poses[-1, :3, 3]
+        bg = verdict == BACKGROUND
+        verdict[bg & ~background.near(world, bg, sensor)] = KEEP
     counts = np.bincount(verdict, minlength=4)
     index = np.flatnonzero(verdict == KEEP)
     return Foreground(
