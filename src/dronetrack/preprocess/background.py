@@ -116,7 +116,7 @@ def free_objects(
 def _free_components(
     voxels: NDArray[np.int64], resolution: float, largest: float
 ) -> NDArray[np.bool_]:
-    """``free_objects`` without lone voxels."""
+    """``free_objects`` of ``voxels`` taken alone (no weak ones among them)."""
     if len(voxels) == 0:
         return np.zeros(0, dtype=bool)
     labels = voxel_components(voxels, reach=FREE_GAP + 1)
