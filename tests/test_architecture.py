@@ -218,6 +218,7 @@ def _write_bag(path: Path) -> None:
 
 
 @pytest.mark.parametrize("config", [None, "site.toml", "based"])
+@pytest.mark.slow
 def test_track_of_a_recording_loads_no_simulator_module(tmp_path: Path, config: str | None) -> None:
     """``dronetrack track`` in a fresh interpreter, with no configuration, a site file, and
     a file based on a named scenario: it tracks, and ``sys.modules`` holds no

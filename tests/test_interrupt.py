@@ -68,6 +68,7 @@ def test_ctrl_c_stops_simulate_after_the_frame_and_keeps_it(
     _check_interrupted_run(out, capsys.readouterr().err)
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_track_after_the_frame_and_keeps_it(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -161,6 +162,7 @@ def _dronetrack(*args: str) -> subprocess.Popen[str]:
     )
 
 
+@pytest.mark.slow
 def test_ctrl_c_from_a_terminal_stops_simulate(tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = _dronetrack("simulate", "--duration", "120", "--out", str(out))
@@ -176,6 +178,7 @@ def test_ctrl_c_from_a_terminal_stops_simulate(tmp_path: Path) -> None:
     assert json.loads((out / "metrics.json").read_text())["frames"] == len(kept)
 
 
+@pytest.mark.slow
 def test_ctrl_c_from_a_terminal_stops_a_sweep_and_it_resumes(tmp_path: Path) -> None:
     """Every line of results.jsonl stays whole, the interrupted runs are not recorded
     as failed, the workers stop, and the same command then finishes the grid."""

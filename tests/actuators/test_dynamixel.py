@@ -193,6 +193,7 @@ def test_a_wrong_or_absent_servo_is_named(model: int | None, problem: str) -> No
     assert problem in message
 
 
+@pytest.mark.slow
 def test_servos_at_another_baud_rate_are_one_error_naming_the_rate_tried() -> None:
     with PtyServoLink(turret_bus(1, 2, ManualClock()), lifetime=30.0) as link:
         begin = time.monotonic()
@@ -274,6 +275,7 @@ def test_the_turret_never_leaves_its_limits(
 # -- failures and closing ---------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_an_unplugged_servo_raises_device_error_within_the_timeout(rig: Rig) -> None:
     rig.bus.set_online(2, False)
     start = time.monotonic()
@@ -285,6 +287,7 @@ def test_an_unplugged_servo_raises_device_error_within_the_timeout(rig: Rig) -> 
     assert rig.link.device in str(info.value)
 
 
+@pytest.mark.slow
 def test_a_closed_emulator_raises_device_error_within_the_timeout(rig: Rig) -> None:
     rig.link.close()
     for call in (rig.turret.state, lambda: rig.turret.command(TurretCommand(0.0, 0.1, 0.1))):
@@ -388,6 +391,7 @@ def _read_until_it_fails(turret: DynamixelTurret) -> None:
         time.sleep(0.01)
 
 
+@pytest.mark.slow
 def test_a_silent_servo_ends_the_polling_with_its_id() -> None:
     """Three sync reads in a row without an answer (each the SDK's 34 ms time-out, and
     the pings that name the servo): readings raises within 1 s, naming servo 2."""
@@ -410,6 +414,7 @@ def test_without_a_poller_readings_reads_there_and_then() -> None:
         assert before <= state.stamp <= time.monotonic()
 
 
+@pytest.mark.slow
 def test_a_read_waits_for_its_answer_without_spinning(rig: Rig) -> None:
     """A sync read that gets no answer waits out the SDK's time-out (2 × 16 ms + 2 ms
     per packet) in select, not in a busy loop: this thread's CPU time is a small part

@@ -177,6 +177,7 @@ def test_a_refusal_is_a_device_error_naming_the_unit_and_the_command() -> None:
     )
 
 
+@pytest.mark.slow
 def test_a_reply_that_never_comes_is_a_device_error_in_bounded_time() -> None:
     clock = ManualClock()
     silent: set[str] = set()

@@ -113,6 +113,7 @@ def test_goals_out_and_angles_in(
     np.testing.assert_allclose(got, [[0.5, -0.2], [0.6, -0.3], [0.6, -0.3]], atol=1e-6)
 
 
+@pytest.mark.slow
 def test_a_silent_turret_is_a_device_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     domain = loopback_dds(tmp_path, monkeypatch)
     from dronetrack.actuators.ros2_turret import Ros2Turret

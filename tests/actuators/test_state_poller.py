@@ -86,6 +86,7 @@ def test_one_miss_is_tolerated() -> None:
     assert poller.reads + poller.misses == script.calls  # every call counted once
 
 
+@pytest.mark.slow
 def test_misses_in_a_row_end_polling_with_the_readers_error() -> None:
     script = Script(fail_from=4)
     poller = _poller(script, 200.0)
@@ -114,6 +115,7 @@ def test_no_fresh_reading_in_time_is_a_device_error() -> None:
         poller.stop()
 
 
+@pytest.mark.slow
 def test_stop_ends_the_thread_and_take_then_fails() -> None:
     poller = _poller(Script(), 100.0)
     poller.start()

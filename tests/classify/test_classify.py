@@ -244,6 +244,7 @@ def test_in_clutter_the_drone_is_classed_drone_and_birds_almost_never() -> None:
     assert counts[("bird", "drone")] / bird <= 0.02
 
 
+@pytest.mark.slow
 def test_the_drone_of_default_is_classed_drone_once_its_track_is_two_seconds_old() -> None:
     """``default`` seed 0, 25 s (the first 15 s of flight after the scan): every frame of
     the drone's track after 2 s of life is classed drone (it took off hovering)."""

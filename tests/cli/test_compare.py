@@ -89,6 +89,7 @@ def test_a_case_runs_the_method_the_seed_and_the_turret_mode() -> None:
     assert cfg.pipeline.controller.mode == "fixed"
 
 
+@pytest.mark.slow
 def test_lockstep_runs_equal_single_runs() -> None:
     """Sharing the world changes nothing: each tracker's log is the one it gets alone."""
     cfg = case_config(
@@ -96,7 +97,8 @@ def test_lockstep_runs_equal_single_runs() -> None:
     )
     kinds = ("pf-delta", "ekf-dogru")
     trackers = [cfg.pipeline.tracker.model_copy(update={"kind": k}) for k in kinds]
-    together = run_lockstep(cfg, trackers, init_on_clean_view=True)
+    assert cfg.pipeline.evaluation.init_on_clean_view  # the suite's start, in the config
+    together = run_lockstep(cfg, trackers)
     for kind, shared in zip(kinds, together, strict=True):
         alone = run_simulation(
             cfg.model_copy(
@@ -105,8 +107,7 @@ def test_lockstep_runs_equal_single_runs() -> None:
                         update={"tracker": trackers[kinds.index(kind)]}
                     )
                 }
-            ),
-            init_on_clean_view=True,
+            )
         )
         a, b = shared.log.arrays(), alone.log.arrays()
         for col in ("est_x", "est_y", "est_z", "gt_x", "n_points", "pan_rad"):
@@ -125,6 +126,7 @@ def test_unknown_method_in_a_suite_is_an_error() -> None:
         run_suite(get_suite("seed000-outdoor"), 1, methods=["pf-nope"])
 
 
+@pytest.mark.slow
 def test_compare_writes_the_table_contract(tmp_path: Path) -> None:
     out = tmp_path / "cmp"
     code = run(

@@ -46,6 +46,7 @@ def _client(ip: str) -> LivoxClient:
     return LivoxClient(LivoxEndpoint(ip, None, 0, 0, 0), discover_s=0.1)
 
 
+@pytest.mark.slow
 def test_emulate_prints_its_devices_streams_the_scenario_and_exits_0(tmp_path: Path) -> None:
     with _emulator(tmp_path, flight_s=0.5) as emu:
         lidar, turret_line = emu.lines
@@ -94,6 +95,7 @@ def _finish(emu: Emulator, within_s: float) -> tuple[int, str]:
     return rc, emu.proc.stderr.read().decode() if emu.proc.stderr else ""
 
 
+@pytest.mark.slow
 def test_emulate_exits_0_by_itself_when_the_host_stops_before_the_end(tmp_path: Path) -> None:
     # 0.5 s scan + 0.5 s flight + 0.2 s tail from the start, then 2 s while the host
     # closes: about 3.2 s after the start
@@ -109,6 +111,7 @@ def test_emulate_exits_0_by_itself_when_the_host_stops_before_the_end(tmp_path: 
     assert "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_emulate_serves_a_host_that_starts_again_after_the_stream(tmp_path: Path) -> None:
     slices = math.ceil((0.5 + 0.5 + 0.2) / AVIA_SLICE_S)
     with _emulator(tmp_path, flight_s=0.5) as emu:
@@ -126,6 +129,7 @@ def test_emulate_serves_a_host_that_starts_again_after_the_stream(tmp_path: Path
     assert len(np.loadtxt(emu.truth, delimiter=",", skiprows=1)) == slices + 1
 
 
+@pytest.mark.slow
 def test_emulate_without_a_host_gives_up_after_its_wait(tmp_path: Path) -> None:
     with emulator(tmp_path, str(_scenario(tmp_path, 0.5)), "--wait-s", "1") as emu:
         rc, err = _finish(emu, within_s=15.0)
@@ -151,6 +155,7 @@ def test_emulate_refuses_a_serial_link_another_emulator_holds(
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.slow
 def test_emulate_stopped_by_a_signal_exits_130_and_keeps_the_truth(
     tmp_path: Path, signum: signal.Signals
 ) -> None:

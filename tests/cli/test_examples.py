@@ -56,6 +56,7 @@ def test_the_trajectory_replaces_a_scenarios_flight(tmp_path: Path) -> None:
     assert _metrics(out)["frames"] == 30
 
 
+@pytest.mark.slow
 def test_the_site_configuration_replays_a_recording(tmp_path: Path) -> None:
     bag = tmp_path / "flight.bag"
     assert run(["record", "--duration", "4", "--out", str(bag)]) == 0
@@ -92,6 +93,7 @@ def test_each_grid_runs_as_many_runs_as_its_comment_says(name: str) -> None:
         assert count == runs
 
 
+@pytest.mark.slow
 def test_the_three_drones_scenario_adds_two_drones_as_its_comments_say(tmp_path: Path) -> None:
     path = EXAMPLES / "three_drones.toml"
     cfg = load_scenario_file(path, SCENARIOS)

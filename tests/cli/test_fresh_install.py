@@ -12,6 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from dronetrack.cli.output import COMPILING
 
 # The worst pipeline step of the default scenario with compiled kernels is 3-6 ms
@@ -37,6 +39,7 @@ def _fresh(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow
 def test_bench_runs_with_an_empty_kernel_cache(tmp_path: Path) -> None:
     out = tmp_path / "bench"
     done = _fresh(tmp_path, "bench", "--quick", "--replay-seconds", "8", "--out", str(out))
@@ -47,6 +50,7 @@ def test_bench_runs_with_an_empty_kernel_cache(tmp_path: Path) -> None:
     assert data["replay_x_realtime"] > 0
 
 
+@pytest.mark.slow
 def test_first_run_compiles_before_the_timed_loop(tmp_path: Path) -> None:
     out = tmp_path / "run"
     done = _fresh(tmp_path, "simulate", "--duration", "3", "--out", str(out))

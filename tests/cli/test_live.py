@@ -111,6 +111,7 @@ def test_bad_options_are_one_error_line(
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.slow
 def test_a_recording_plays_at_wall_clock_speed(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -157,6 +158,7 @@ def servos() -> Iterator[tuple[ServoBus, PtyServoLink]]:
     link.close()
 
 
+@pytest.mark.slow
 def test_a_lidar_that_falls_silent_is_one_error_line_and_the_folder_is_kept(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -188,6 +190,7 @@ def test_a_lidar_that_falls_silent_is_one_error_line_and_the_folder_is_kept(
     assert len(_rows(out / "frames.csv")) >= 5
 
 
+@pytest.mark.slow
 def test_a_lidar_that_sends_nothing_to_the_host_ip_given_names_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -212,6 +215,7 @@ def test_a_lidar_that_sends_nothing_to_the_host_ip_given_names_it(
     assert re.search(told + routed, lines[0])
 
 
+@pytest.mark.slow
 def test_sigterm_holds_the_turret_keeps_the_files_and_exits_130(
     tmp_path: Path, servos: tuple[ServoBus, PtyServoLink]
 ) -> None:
@@ -251,6 +255,7 @@ def test_sigterm_holds_the_turret_keeps_the_files_and_exits_130(
     assert abs(bus.value(1, ADDR.GOAL_POSITION) - bus.value(1, ADDR.PRESENT_POSITION)) <= 50
 
 
+@pytest.mark.slow
 def test_a_turret_at_another_baud_rate_is_one_error_line_naming_the_rate(
     tmp_path: Path,
     servos: tuple[ServoBus, PtyServoLink],
@@ -415,6 +420,7 @@ def test_info_of_the_servos(
     assert "ID 2 (tilt)" in lines[0]
 
 
+@pytest.mark.slow
 def test_the_foxglove_port_prints_its_address_and_the_sdks_log_is_a_warning_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -63,6 +63,7 @@ from emulated_rig import (
 EMULATOR_END_S = 15.0
 
 
+@pytest.mark.slow
 def test_info_beside_a_running_live_is_refused_and_both_end_by_themselves(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -109,6 +110,7 @@ def test_info_beside_a_running_live_is_refused_and_both_end_by_themselves(
     assert emulate_err.count("sampling started") == 1  # info started nothing
 
 
+@pytest.mark.slow
 def test_live_against_the_emulated_rig_tracks_as_the_simulation_does(tmp_path: Path) -> None:
     scenario = without_false_alarms(tmp_path, "default")
     with emulator(tmp_path, scenario, "--seed", "0", "--duration", FLIGHT_S) as emu:
@@ -119,6 +121,7 @@ def test_live_against_the_emulated_rig_tracks_as_the_simulation_does(tmp_path: P
     assert_tracks_as_simulated(got, want)
 
 
+@pytest.mark.slow
 def test_live_against_an_emulated_mid360_over_sdk2_tracks_as_the_simulation_does(
     tmp_path: Path,
 ) -> None:
@@ -153,6 +156,7 @@ def test_live_against_an_emulated_upright_vlp16_tracks_as_the_simulation_does(
     _against_simulate(tmp_path, scenario, "Velodyne VLP-16, UDP")
 
 
+@pytest.mark.slow
 def test_live_against_an_emulated_vlp16_on_its_side_tracks_as_the_simulation_does(
     tmp_path: Path,
 ) -> None:

@@ -22,6 +22,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from dronetrack.cli.main import run
 from dronetrack.control.plans import sweep
@@ -55,6 +56,7 @@ def _live(scenario: Path, emu_ip: str, turret: str, out: Path, *extra: str) -> i
     return run([*args, *extra, "--out", str(out)])
 
 
+@pytest.mark.slow
 def test_a_sweep_moves_the_emulated_ptu_as_the_strategy_says(tmp_path: Path) -> None:
     scenario = tmp_path / "sweep.toml"
     scenario.write_text(SWEEP_SCENARIO)

@@ -39,6 +39,7 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return bag
 
 
+@pytest.mark.slow
 def test_live_over_dds_tracks_as_track_does(
     flight: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -95,6 +96,7 @@ def test_bad_ros2_lidar_is_one_error_line(
     assert problem in err[0]
 
 
+@pytest.mark.slow
 def test_live_publishes_its_estimate_on_ros2(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

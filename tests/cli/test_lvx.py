@@ -34,6 +34,7 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return lvx
 
 
+@pytest.mark.slow
 def test_the_lvx_holds_the_bags_points(flight: Path) -> None:
     """Frame by frame the same returns: positions within the packets' millimetre (√3 · 0.5
     mm), times within 2.5 firings of 4.167 µs (the grid's rounding and a shared firing)."""
@@ -52,6 +53,7 @@ def test_the_lvx_holds_the_bags_points(flight: Path) -> None:
     assert frames == 300
 
 
+@pytest.mark.slow
 def test_track_of_the_lvx_gives_the_bags_metrics(
     flight: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

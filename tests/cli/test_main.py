@@ -158,6 +158,7 @@ def test_bad_numbers_and_usage(
     assert "\n" not in err
 
 
+@pytest.mark.slow
 def test_console_script_exit_code_and_no_traceback(tmp_path: Path) -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "dronetrack", "pattern", "nosuch", "--out", str(tmp_path / "x.csv")],

@@ -120,6 +120,7 @@ def test_a_bad_grid_value_names_the_grid_file_the_key_and_the_value(
     assert not out.exists()  # nothing ran
 
 
+@pytest.mark.slow
 def test_track_writes_the_frame_period_as_typed(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

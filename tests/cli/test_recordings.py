@@ -18,6 +18,7 @@ def _metrics(folder: Path) -> dict[str, object]:
     return result
 
 
+@pytest.mark.slow
 def test_record_then_track_gives_the_simulated_metrics(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -60,6 +61,7 @@ def test_record_then_track_gives_the_simulated_metrics(
     assert len(commands) > 100  # the turret is commanded every frame, scan included
 
 
+@pytest.mark.slow
 def test_track_options_without_ground_truth(tmp_path: Path) -> None:
     """A PointCloud2 recording in ROS 2 MCAP, replayed with another tracker and a
     background from its first seconds; without ground truth there are no accuracy metrics."""
@@ -158,6 +160,7 @@ def test_bad_input_is_one_line_and_exit_2(
     assert len(err.splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_viewer_files_from_simulate_and_track(tmp_path: Path) -> None:
     from rerun.chunk import RrdReader  # the rerun extra is part of the test install
 

@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from dronetrack.cli.main import run
 
@@ -29,6 +30,7 @@ def _line(path: Path, y: float) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_two_drones_run_end_to_end_and_rerun_from_their_config(tmp_path: Path) -> None:
     first = tmp_path / "first"
     args = ["simulate", "outdoor-two-drones", "--duration", "20", "--out", str(first)]

@@ -102,6 +102,7 @@ def test_each_drones_figures_score_the_turrets_estimate_against_it() -> None:
     assert drones[1]["visible_frames"] == 30
 
 
+@pytest.mark.slow
 def test_drone_0s_own_figures_are_the_runs_single_target_figures() -> None:
     """A simulated run: the figures of drone 0 in ``drones`` are computed as the run's
     own (coverage, acquisition, lock-on) are, against the same truth."""

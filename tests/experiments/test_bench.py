@@ -45,6 +45,7 @@ def _check_stats(row: dict[str, float], where: str) -> None:
     assert row["mean"] <= row["max"], where
 
 
+@pytest.mark.slow
 def test_quick_bench_writes_every_measurement(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

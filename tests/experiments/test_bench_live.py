@@ -33,6 +33,7 @@ def _count(value: Any) -> bool:
     return isinstance(value, int) and value >= 0
 
 
+@pytest.mark.slow
 def test_quick_live_bench_writes_every_figure(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -76,6 +77,7 @@ def test_quick_live_bench_writes_every_figure(
     assert out.count("met") + out.count("MISSED") >= len(LIVE_TARGETS)
 
 
+@pytest.mark.slow
 def test_quick_live_bench_of_a_vlp16_with_a_fixed_sensor(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -96,6 +98,7 @@ def test_quick_live_bench_of_a_vlp16_with_a_fixed_sensor(
     assert data["live_soak"] is None
 
 
+@pytest.mark.slow
 def test_quick_live_bench_over_ros2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

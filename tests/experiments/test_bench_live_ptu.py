@@ -16,6 +16,7 @@ from dronetrack.errors import ConfigError
 from dronetrack.experiments.bench import LiveSettings
 
 
+@pytest.mark.slow
 def test_quick_live_bench_with_the_ptu(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     args = ["bench", "--live", "--quick", "--soak-s", "0", "--turret", "ptu"]
     assert run([*args, "--ptu-baud", "38400", "--out", str(tmp_path)]) == 0

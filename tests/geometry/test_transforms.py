@@ -100,6 +100,7 @@ def test_interpolated_poses_hit_samples_and_midpoints() -> None:
 
 @settings(max_examples=25)
 @given(st.integers(0, 2**32 - 1))
+@pytest.mark.slow
 def test_apply_interpolated_poses_matches_matrices(seed: int) -> None:
     g = np.random.default_rng(seed)
     ts = np.sort(g.uniform(0, 1, 6))

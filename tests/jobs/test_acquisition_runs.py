@@ -28,6 +28,7 @@ def _metrics(name: str, seed: int = 0) -> dict[str, Any]:
     return run_simulation(cfg).metrics()
 
 
+@pytest.mark.slow
 def test_a_drone_entering_from_the_side_is_acquired_within_a_second() -> None:
     m = _metrics("outdoor-enter")
     assert m["acquire_s"] is not None
@@ -37,6 +38,7 @@ def test_a_drone_entering_from_the_side_is_acquired_within_a_second() -> None:
 
 
 @pytest.mark.parametrize("name", ["outdoor-escape", "outdoor-hide"])
+@pytest.mark.slow
 def test_a_lost_drone_is_found_again_within_a_second_of_its_return(name: str) -> None:
     """Seeds 0-4, as ``compare --suite acquisition --runs 5``: every loss re-acquired
     within 1 s, and lock-on ≥ 97 % on the mean of the runs.  A single run sits within
@@ -68,6 +70,7 @@ def test_a_far_drone_crossed_by_the_search_gets_a_look_and_is_acquired() -> None
     assert m["false_lock_pct"] <= 1.0
 
 
+@pytest.mark.slow
 def test_a_drone_flying_in_from_beyond_reach_is_acquired_within_a_second_of_reach() -> None:
     """``outdoor-incoming`` seeds 0-4, the first 8 s of flight (the drone comes within
     the Avia's 130 m reach about 4.3 s in, and every run locks on by 7 s): the issue's
@@ -101,6 +104,7 @@ def test_a_lone_false_return_in_the_scan_no_longer_hides_the_climbing_drone() ->
     assert m["reacquire_max_s"] is None or m["reacquire_max_s"] <= 1.0
 
 
+@pytest.mark.slow
 def test_after_a_long_loss_the_candidate_nearest_the_fix_is_taken_not_a_bird() -> None:
     """``outdoor-clutter`` seed 2: the drone is lost at the far end for 6 s; a bird
     80 m closer in was the best-detected candidate and was locked for 15.4 % of the
@@ -114,6 +118,7 @@ def test_after_a_long_loss_the_candidate_nearest_the_fix_is_taken_not_a_bird() -
 
 
 @pytest.mark.parametrize("seed", [1, 8])
+@pytest.mark.slow
 def test_a_lock_on_the_drone_is_never_carried_onto_a_bird(seed: int) -> None:
     """``outdoor-clutter``: the issue asks that a locked tracker stay on the drone.  The
     false locks left are birds taken while the drone was out of the detection area

@@ -122,6 +122,7 @@ def _reference(spec: object, start: tuple[float, float], goal: tuple[float, floa
     return lambda s: (float(np.interp(s, t, pan)), float(np.interp(s, t, tilt)))
 
 
+@pytest.mark.slow
 def test_a_goal_moves_the_simulated_turret_with_its_dynamics() -> None:
     slices: list[Frame] = []
     rig = emulated_rig(short(flight_s=2.5), any_ports=True, on_slice=lambda f, t: slices.append(f))
@@ -130,7 +131,7 @@ def test_a_goal_moves_the_simulated_turret_with_its_dynamics() -> None:
         turret = DynamixelTurret(rig.serial_device, turret=spec)
         try:
             at_rest = turret.state()
-            # Before sampling the clock stands: a goal waits, the turret holds.
+            # Without a goal the turret holds its start pose, before sampling and after.
             client.open(timeout_s=3.0)
             time.sleep(0.2)
             start = turret.state()
@@ -229,3 +230,63 @@ def test_a_mid360_scenario_streams_sdk2_packets_at_its_rate() -> None:
     assert dev.packets_sent == 42 * rig.slices
     assert rig.slices == math.ceil(emulated_seconds(cfg) / rig.slice_s)
     assert max(lead) <= 0.5e-3  # a packet spans 95 · 5 µs
+
+
+# XM430-W350 control table (ROBOTIS e-Manual, Protocol 2.0): torque enable (1 byte),
+# goal position and present position (4 bytes each, 4096 ticks a turn).
+XM_TORQUE_ENABLE, XM_GOAL_POSITION, XM_PRESENT_POSITION = 64, 116, 132
+
+
+def test_the_servos_move_before_any_lidar_host_samples() -> None:
+    """Ping, torque on, a goal 300 ticks away, with the official DYNAMIXEL SDK and no
+    LiDAR host: the servo moves to its goal, as a real XM430 does; the scenario, once a
+    host samples, starts from where the turret is."""
+    sdk = pytest.importorskip("dynamixel_sdk")
+    slices: list[Frame] = []
+    rig = emulated_rig(short(flight_s=0.5), any_ports=True, on_slice=lambda f, t: slices.append(f))
+    with rig:
+        start_pose = rig.turret_at(time.monotonic())
+        port = sdk.PortHandler(rig.serial_device)
+        assert port.openPort()
+        assert port.setBaudRate(1_000_000)
+        packets = sdk.PacketHandler(2.0)
+        try:
+            model, result, error = packets.ping(port, 1)
+            assert (model, result, error) == (1020, sdk.COMM_SUCCESS, 0)  # an XM430-W350
+            start, result, error = packets.read4ByteTxRx(port, 1, XM_PRESENT_POSITION)
+            assert (result, error) == (sdk.COMM_SUCCESS, 0)
+            assert packets.write1ByteTxRx(port, 1, XM_TORQUE_ENABLE, 1)[0] == sdk.COMM_SUCCESS
+            goal = start + 300  # 26.4°
+            assert packets.write4ByteTxRx(port, 1, XM_GOAL_POSITION, goal)[0] == sdk.COMM_SUCCESS
+            seen = []
+            for _ in range(200):  # 200 reads 10 ms apart: 2 s at most
+                present, result, error = packets.read4ByteTxRx(port, 1, XM_PRESENT_POSITION)
+                assert (result, error) == (sdk.COMM_SUCCESS, 0)
+                seen.append(present)
+                if abs(present - goal) <= 1:
+                    break
+                time.sleep(0.01)
+        finally:
+            port.closePort()
+        assert not rig.started.is_set()  # no host ever sampled
+        # it moved to the goal, never back, past it by at most a tick (the sim's braking)
+        assert abs(seen[-1] - goal) <= 1
+        assert len(seen) > 2  # the move took several reads: it was not a jump
+        assert np.all(np.diff(seen) >= 0)
+        assert max(seen) <= goal + 1
+        moved_pose = rig.turret_at(time.monotonic())
+        assert moved_pose[1] == start_pose[1]  # the tilt servo had no goal
+        with sdk1_client(rig) as client:
+            client.open(timeout_s=3.0)
+            for _ in read_until_finished(client, rig, limit_s=5.0):
+                pass
+    assert rig.started.is_set()
+    assert slices
+    # the first slice's sensor points where the servo went, not to the start pose
+    spec = rig.world.plant.spec
+    x_first = slices[0].poses[0, :3, 0]
+    x_moved, x_start = sensor_poses(
+        np.array([moved_pose[0], start_pose[0]]), np.array([start_pose[1]] * 2), spec.mount
+    )[:, :3, 0]
+    assert math.acos(min(1.0, float(x_first @ x_moved))) < 2 * spec.pan.resolution
+    assert math.acos(min(1.0, float(x_first @ x_start))) > 0.4

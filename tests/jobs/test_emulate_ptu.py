@@ -8,6 +8,7 @@ import math
 import time
 
 import numpy as np
+import pytest
 
 from dronetrack.actuators.ptu import PtuTurret
 from dronetrack.actuators.ptu_line import open_line
@@ -22,6 +23,7 @@ from dronetrack.types import TurretCommand
 TAU = 10.0 / 9600.0
 
 
+@pytest.mark.slow
 def test_a_ptu_scenarios_goals_move_the_simulated_turret_with_its_dynamics() -> None:
     cfg = get_scenario("default")  # a 0.5 s scan, 2.5 s of flight, the PTU-E46
     background = cfg.pipeline.background.model_copy(update={"scan_s": 0.5})
@@ -85,3 +87,36 @@ def test_a_ptu_scenarios_goals_move_the_simulated_turret_with_its_dynamics() -> 
     assert np.all(np.abs(rates) <= omega * 1.1)
     assert rig.ptu.refused == 0
     assert math.isclose(rig.ptu.axes["P"].resolution_arcsec, 46.44)
+
+
+def test_the_ptu_moves_before_any_lidar_host_samples() -> None:
+    """No LiDAR host: a goal sent to the emulated PTU moves it there, as a real unit's."""
+    cfg = get_scenario("default")
+    cfg = cfg.model_copy(update={"duration_s": 0.5, "turret": TurretConfig(model="ptu-e46")})
+    rig = emulated_rig(cfg, any_ports=True)
+    spec = rig.world.plant.spec
+    with rig:
+        ptu = PtuTurret(open_line(parse_ptu_uri(rig.turret_uri)), turret=spec, poll_hz=0)
+        try:
+            start = ptu.state()
+            goal = (start.pan + 0.4, start.tilt - 0.25)
+            ptu.command(TurretCommand(0.0, *goal))
+            states = []
+            for _ in range(100):  # 100 reads, each two queries at 9600 baud: ≤ 2 s
+                states.append(ptu.state())
+                if np.allclose([states[-1].pan, states[-1].tilt], goal, atol=spec.pan.resolution):
+                    break
+        finally:
+            ptu.close()
+    assert not rig.started.is_set()
+    got = np.array([[s.pan, s.tilt] for s in states])
+    np.testing.assert_allclose(got[-1], goal, atol=spec.pan.resolution)
+    assert len(states) > 2  # it moved through reads, not in a jump
+    # towards the goal, past it by at most the simulated turret's own braking error
+    alone = TurretPlant(spec, pan=start.pan, tilt=start.tilt)
+    alone.command(TurretCommand(0.0, *goal))
+    _, pan, tilt = alone.advance(3.0)
+    q = spec.pan.resolution
+    assert np.all(got[:, 0] <= pan.max() + q)
+    assert np.all(got[:, 1] >= tilt.min() - q)
+    assert np.all(np.diff(got[: len(got) // 2], axis=0) * [1, -1] >= -q)

@@ -15,6 +15,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from dronetrack.jobs.kernels import PIPELINE_WARM_UPS, compiled_signatures, dispatchers, warm_up
 
@@ -74,6 +75,7 @@ CHECK = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_nothing_compiles_inside_a_run(tmp_path: Path) -> None:
     from dronetrack.cli.main import run
 

@@ -35,6 +35,7 @@ def test_a_run_without_a_scan_learns_the_static_world_and_never_the_drone() -> N
 @pytest.mark.parametrize(
     "seed", [0, pytest.param(3, marks=pytest.mark.slow), pytest.param(4, marks=pytest.mark.slow)]
 )
+@pytest.mark.slow
 def test_a_static_mid360_switched_on_with_the_drone_in_view_tracks_it(seed: int) -> None:
     """``mid360-static``: the drone hovers 2-3 m from the sensor through its 1 s scan,
     people walk around.  The scan leaves the free-standing drone out of the map, the
@@ -49,6 +50,7 @@ def test_a_static_mid360_switched_on_with_the_drone_in_view_tracks_it(seed: int)
     assert metrics["false_lock_pct"] <= 2.0
 
 
+@pytest.mark.slow
 def test_a_busy_site_without_a_clean_scan_tracks_the_drone_not_the_people() -> None:
     """``site-busy`` seed 0: the drone in view from the first frame, a 1 s scan, four
     people walking below it and a car that parks.  Measured 98.0 % lock-on while

@@ -78,6 +78,7 @@ class _Each:
         self.action(self.frames)
 
 
+@pytest.mark.slow
 def test_a_live_run_scans_tracks_and_commands_the_servos(rig: Rig) -> None:
     """1 s of scan and 1 s of tracking at 10 Hz: frames ending 0.1 … 1.0 s scan, those
     ending 1.1 … 2.0 s are logged (or counted as dropped), each with its latency, and
@@ -107,6 +108,7 @@ def test_a_live_run_scans_tracks_and_commands_the_servos(rig: Rig) -> None:
     assert abs(held - rig.bus.value(1, ADDR.PRESENT_POSITION)) <= 50  # ≤ 4.4°: stopping
 
 
+@pytest.mark.slow
 def test_the_start_up_heap_is_hidden_from_the_collector_while_the_loop_runs(rig: Rig) -> None:
     """``realtime.frozen_heap``: while frames are processed, the objects alive before the
     devices opened (modules, kernels, the pipeline: tens of thousands) sit in the
@@ -121,6 +123,7 @@ def test_the_start_up_heap_is_hidden_from_the_collector_while_the_loop_runs(rig:
     assert gc.get_freeze_count() == 0
 
 
+@pytest.mark.slow
 def test_a_slow_pipeline_drops_whole_frames_and_counts_them(rig: Rig) -> None:
     """0.25 s of work a frame against 0.1 s frames, with room for 2 queued: frames go
     whole, and every frame of the run is either logged or counted as dropped."""
@@ -134,6 +137,7 @@ def test_a_slow_pipeline_drops_whole_frames_and_counts_them(rig: Rig) -> None:
     assert result.metrics()["frames_dropped"] == result.frames_dropped
 
 
+@pytest.mark.slow
 def test_a_silent_lidar_ends_the_run_with_its_name(rig: Rig) -> None:
     """The device stops sending after 5 frames: the run ends within the 1 s stall time
     with a device error naming it, and keeps the frames done."""
@@ -150,6 +154,7 @@ def test_a_silent_lidar_ends_the_run_with_its_name(rig: Rig) -> None:
     assert result.metrics()["error"] == str(result.error)
 
 
+@pytest.mark.slow
 def test_a_servo_that_stops_answering_ends_the_run_with_its_id(rig: Rig) -> None:
     """The pan servo goes silent after frame 5.  The turret's poller misses three sync
     reads in a row (the SDK's 34 ms time-out each) and the run ends with a device error
@@ -175,6 +180,7 @@ def test_a_servo_that_stops_answering_ends_the_run_with_its_id(rig: Rig) -> None
     assert ended - unplugged[0] < 1.0
 
 
+@pytest.mark.slow
 def test_the_truth_scores_the_run(rig: Rig, tmp_path: Path) -> None:
     """A target held at 10.5 m ahead of the fixed sensor, in the grid's middle: every
     tracking frame has its truth, range and returns on it (within 0.325 m: the

@@ -149,6 +149,7 @@ def test_info_of_a_vlp16(capsys: pytest.CaptureFixture[str]) -> None:
     assert 0.5 * 753.5 * 0.9 <= packets <= 0.5 * 753.5 * 1.1 + 5
 
 
+@pytest.mark.slow
 def test_info_of_a_port_nobody_sends_to_is_one_error_line(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

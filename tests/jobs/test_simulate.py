@@ -48,6 +48,7 @@ def _metrics(name: str, turret: str | None = None) -> dict[str, Any]:
     return _run(name, turret).metrics()
 
 
+@pytest.mark.slow
 def test_the_turret_tracks_further_and_longer_than_a_fixed_sensor() -> None:
     moving = _metrics("default")
     fixed = _metrics("default", "fixed")
@@ -67,6 +68,7 @@ def test_the_turret_tracks_further_and_longer_than_a_fixed_sensor() -> None:
     assert moving["max_tracking_distance_m"] >= fixed["max_tracking_distance_m"]
 
 
+@pytest.mark.slow
 def test_fog_cuts_the_reach_as_in_the_field_test() -> None:
     sunny = _metrics("field-sunny")["max_tracking_distance_m"]
     foggy = _metrics("field-foggy")["max_tracking_distance_m"]
@@ -75,6 +77,7 @@ def test_fog_cuts_the_reach_as_in_the_field_test() -> None:
 
 
 @pytest.mark.parametrize("name", ["indoor-horizontal", "indoor-vertical"])
+@pytest.mark.slow
 def test_indoor_slow_patterns_reach_centimetre_accuracy(name: str) -> None:
     m = _metrics(name)
     assert m["rmse_m"] < 0.06
@@ -88,6 +91,7 @@ def test_indoor_slow_patterns_reach_centimetre_accuracy(name: str) -> None:
     assert err[locked:].max() < 0.25
 
 
+@pytest.mark.slow
 def test_lost_and_found_recaptures_within_a_second() -> None:
     a = _run("indoor-lost-and-found").log.arrays()
     visible = a["n_target_points"] > 0
@@ -127,6 +131,7 @@ def test_the_drone_sets_the_measurement_noise(drone: str) -> None:
     assert resolve_run(ScenarioConfig.model_validate(data)).pipeline.tracker.sigma_m == 0.33
 
 
+@pytest.mark.slow
 def test_a_filter_coasting_past_the_last_return_does_not_extend_the_reach() -> None:
     """seed 003's EKF predicts on for up to 2 s after its last centroid and stays
     within 4 m of the drone for a while; those frames used no measurement and do not

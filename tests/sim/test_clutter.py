@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
@@ -141,6 +142,7 @@ def _leaks(clutter: ClutterSpec | None, seed: int) -> tuple[float, int]:
     return float(np.mean(leaks)), swaying
 
 
+@pytest.mark.slow
 def test_swaying_crowns_leak_through_a_background_map_that_holds_them_still() -> None:
     """Without noise a still crown returns from where the scan saw it, so a fine map
     (0.25 m voxels inflated by one) drops every return: measured 0 points per frame for

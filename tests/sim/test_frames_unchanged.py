@@ -52,6 +52,7 @@ def frames_digest(name: str, n_frames: int) -> str:
 
 
 @pytest.mark.parametrize("name", list(BEFORE))
+@pytest.mark.slow
 def test_a_scenario_without_other_drones_gives_the_frames_it_gave_before(name: str) -> None:
     n_frames, before = BEFORE[name]
     assert frames_digest(name, n_frames) == before

@@ -63,6 +63,7 @@ def _points_in(ax: Axes, box: Bbox) -> int:
 
 # an outdoor scene 300 m wide, and a room 8 m wide
 @pytest.mark.parametrize("scenario", ["default", "indoor-horizontal"])
+@pytest.mark.slow
 def test_preview_labels_lie_on_the_figure(
     scenario: str, tmp_path: Path, keep_figures: Callable[[], Figure]
 ) -> None:

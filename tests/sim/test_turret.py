@@ -173,3 +173,39 @@ def test_one_axis_command_needs_an_axis_and_a_finite_angle() -> None:
         plant.command_axis("roll", 0.0, 0.1)
     with pytest.raises(ConfigError, match="finite"):
         plant.command_axis("tilt", 0.0, math.nan)
+
+
+@given(
+    shift=st.floats(-50.0, 50.0),
+    cut=st.floats(0.001, 0.6),
+    profile=st.sampled_from(["widowx", "ptu-e46"]),
+)
+def test_a_rebased_plant_moves_as_before_on_its_new_clock(
+    shift: float, cut: float, profile: str
+) -> None:
+    """A goal in hand and one still queued: rebasing the plant's clock by Δ at any moment
+    of the move changes nothing but the times, as if the clock had always read t + Δ."""
+    spec = make_turret(profile)
+    ref, moved = TurretPlant(spec), TurretPlant(spec)
+    for plant in (ref, moved):
+        plant.command_axis("pan", 0.0, 0.6)
+        plant.command_axis("tilt", 0.05, -0.3)  # still queued at small cuts
+        plant.advance(cut)
+    moved.rebase(cut + shift)
+    assert moved.time == cut + shift
+    t_ref, pan_ref, tilt_ref = ref.advance(cut + 1.0)
+    t_mov, pan_mov, tilt_mov = moved.advance(cut + shift + 1.0)
+    np.testing.assert_allclose(t_mov - shift, t_ref, atol=1e-9)
+    np.testing.assert_allclose(pan_mov, pan_ref, atol=1e-9)
+    np.testing.assert_allclose(tilt_mov, tilt_ref, atol=1e-9)
+
+
+def test_a_plant_is_at_rest_once_its_goal_is_reached_and_none_is_queued() -> None:
+    plant = TurretPlant(make_turret("widowx"))
+    assert plant.at_rest
+    plant.command_axis("pan", 0.0, 0.3)
+    assert not plant.at_rest  # queued
+    plant.advance(0.1)
+    assert not plant.at_rest  # moving
+    plant.advance(2.0)
+    assert plant.at_rest

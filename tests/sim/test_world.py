@@ -126,6 +126,7 @@ def test_frames_carry_integration_time_and_pose_samples() -> None:
     assert frame.line.max() == 5
 
 
+@pytest.mark.slow
 def test_frame_times_do_not_drift() -> None:
     world = _world(scene="sky")
     for _ in range(1000):

@@ -47,6 +47,7 @@ def flights(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 @pytest.mark.parametrize("fmt", ["ros1", "ros2-mcap", "ros2-sqlite3"])
+@pytest.mark.slow
 def test_a_recording_is_read_by_its_content_not_its_name(
     fmt: str, flights: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -77,6 +78,7 @@ def test_record_without_a_suffix_writes_a_ros1_bag_that_reads_back(
 @pytest.mark.parametrize(
     ("suffix", "kind"), [(".bag", "ros1"), (".mcap", "mcap"), (".db3", "sqlite3")]
 )
+@pytest.mark.slow
 def test_the_suffix_chooses_the_container(suffix: str, kind: str, tmp_path: Path) -> None:
     path = tmp_path / f"flight{suffix}"
     assert run(["record", "--duration", "0.5", "--out", str(path)]) == 0
@@ -153,6 +155,7 @@ def test_record_takes_the_options_of_simulate(tmp_path: Path) -> None:
     assert cfg["pipeline"]["controller"]["mode"] == "fixed"
 
 
+@pytest.mark.slow
 def test_record_takes_a_config_file(tmp_path: Path) -> None:
     bag = tmp_path / "site.bag"
     site = str(EXAMPLES / "site.toml")
@@ -165,6 +168,7 @@ def test_record_takes_a_config_file(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("fmt", "name"), [("ros1", "c.bag"), ("ros2-mcap", "c.mcap"), ("ros2-sqlite3", "folder")]
 )
+@pytest.mark.slow
 def test_compressed_recordings_read_back_the_same(
     fmt: str, name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

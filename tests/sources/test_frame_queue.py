@@ -29,6 +29,7 @@ def test_a_failed_stream_raises_once_its_frames_are_taken() -> None:
         q.get()
 
 
+@pytest.mark.slow
 def test_a_waiting_get_wakes_for_a_frame_and_for_a_stop() -> None:
     stop = threading.Event()
     q: FrameQueue[str] = FrameQueue(2, stop)

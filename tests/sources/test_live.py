@@ -85,6 +85,7 @@ def test_a_slow_consumer_loses_whole_frames_never_parts_of_them() -> None:
     assert source.frames_dropped + source.frames_delivered <= 15
 
 
+@pytest.mark.slow
 def test_a_silent_device_ends_the_run_with_its_name() -> None:
     with avia(2.0, stall_s=0.3) as (client, dev):
         source = LiveSource(client, MountGeometry(), period_s=0.1)
@@ -131,6 +132,7 @@ class _Keep:
         self.results.append((sample, result))
 
 
+@pytest.mark.slow
 def test_the_run_loop_measures_the_latency_to_the_command() -> None:
     """latency: the frame's last packet's arrival to its command; at least the stage's
     20 ms of work, and the turret's readings place the sensor at its pan."""
@@ -164,6 +166,7 @@ class _SkyBands:
                              end_ns=(c + 1) * 10_000_000)  # fmt: skip
 
 
+@pytest.mark.slow
 def test_a_frame_is_handed_on_at_its_end_not_at_the_next_return() -> None:
     """The sky's firings (zero range) complete a frame: each frame is handed on as
     its last packet arrives, not 60 ms later with the next return (measured here, from
@@ -343,6 +346,7 @@ def test_the_truth_in_the_sensors_time_base_is_shifted_to_the_runs_clock() -> No
         assert s.truth.target_position[0] == pytest.approx(5.0 + s.frame.end, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_a_stop_request_ends_the_wait_for_a_frame(monkeypatch: pytest.MonkeyPatch) -> None:
     """Ctrl-C or SIGTERM while no frame is complete: the iteration ends at once."""
     import dronetrack.sources.frame_queue as frame_queue

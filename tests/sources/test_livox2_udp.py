@@ -266,6 +266,7 @@ SPHERICAL_TOL_M = 0.0005 + 11.2 * math.radians(0.005) * math.sqrt(2)
 @pytest.mark.parametrize(
     ("data_type", "tol_m"), [(None, 1e-9), (2, 0.005 + 1e-9), (3, SPHERICAL_TOL_M)]
 )
+@pytest.mark.slow
 def test_every_point_arrives_once_with_its_time(data_type: int | None, tol_m: float) -> None:
     source = GridSource(DT, 1.0, stride=3)
     k = source.firing_indices()
@@ -316,6 +317,7 @@ def test_lost_packets_are_counted_from_udp_cnt() -> None:
         np.testing.assert_array_equal(batch.t_ns, kept * DT)
 
 
+@pytest.mark.slow
 def test_a_device_that_stops_sending_raises_device_error_within_1_5_s() -> None:
     with linked(GridSource(DT, 5.0)) as (client, dev):
         client.open(timeout_s=2.0)
@@ -328,6 +330,7 @@ def test_a_device_that_stops_sending_raises_device_error_within_1_5_s() -> None:
         assert 0.9 < time.monotonic() - t0 < 1.5
 
 
+@pytest.mark.slow
 def test_a_dead_keep_alive_raises_device_error() -> None:
     with linked(GridSource(DT, 5.0), heartbeat_period_s=0.1, heartbeat_timeout_s=0.5) as (
         client,
@@ -342,6 +345,7 @@ def test_a_dead_keep_alive_raises_device_error() -> None:
         assert client.heartbeats_missed >= 3  # 0.5 s of queries every 0.1 s, none answered
 
 
+@pytest.mark.slow
 def test_close_stops_sampling_and_is_idempotent() -> None:
     with linked(GridSource(DT, 5.0)) as (client, dev):
         with client:
@@ -359,6 +363,7 @@ def test_close_stops_sampling_and_is_idempotent() -> None:
 @pytest.mark.parametrize(
     ("taken", "what"), [("cmd_port", "commands"), ("point_port", "point data")]
 )
+@pytest.mark.slow
 def test_a_second_client_on_a_taken_port_is_refused_and_the_first_runs_on(
     taken: str, what: str
 ) -> None:
@@ -374,6 +379,7 @@ def test_a_second_client_on_a_taken_port_is_refused_and_the_first_runs_on(
         assert dev.hosts == hosts  # the second configured nothing
 
 
+@pytest.mark.slow
 def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:
     silent = EmulatedLivox2(
         GridSource(DT, 1.0), discovery_port=0, cmd_port=0, push_port=0, point_port=0
@@ -488,6 +494,7 @@ def test_query_info_asks_for_the_documented_keys_and_names_a_refusal() -> None:
     assert struct.pack("<HH7H", 7, 0, *INFO_KEYS) in asked
 
 
+@pytest.mark.slow
 def test_query_info_without_an_answer_is_none_and_the_link_stays_alive() -> None:
     with hand_built_device(None) as port:
         client = _connected(port)

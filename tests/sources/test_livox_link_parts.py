@@ -44,6 +44,7 @@ def test_the_packet_queue_keeps_the_newest_and_counts_the_dropped() -> None:
     assert queue.empty()
 
 
+@pytest.mark.slow
 def test_an_empty_queue_waits_checking_and_wakes_on_a_packet() -> None:
     queue = PacketQueue(10)
     checks: list[float] = []
@@ -65,6 +66,7 @@ def test_an_empty_queue_waits_checking_and_wakes_on_a_packet() -> None:
         queue.take(1.0, stalled)
 
 
+@pytest.mark.slow
 def test_acks_go_to_their_caller_once_and_the_unclaimed_are_bounded() -> None:
     box = AckBox(keep=2)
     box.put(7, b"seven")

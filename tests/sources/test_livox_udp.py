@@ -85,6 +85,7 @@ def test_discovery_handshake_and_heartbeat(dev_type: int) -> None:
 
 
 @pytest.mark.parametrize("dev_type", [7, 1])
+@pytest.mark.slow
 def test_every_point_arrives_once_with_its_time(dev_type: int) -> None:
     source = GridSource(DT[dev_type], 1.0, stride=3)
     k = source.firing_indices()
@@ -127,6 +128,7 @@ def test_lost_packets_are_counted_from_the_timestamp_gaps() -> None:
         assert_points_are(batch, kept, 7)
 
 
+@pytest.mark.slow
 def test_a_device_that_stops_sending_raises_device_error_within_1_5_s() -> None:
     with linked(GridSource(DT[7], 5.0)) as (client, dev):
         client.open(timeout_s=2.0)
@@ -147,6 +149,7 @@ def test_a_device_that_stops_sending_raises_device_error_within_1_5_s() -> None:
         ("127.0.0.9", r" \(this host reaches 127\.0\.0\.1 from 127\.0\.0\.1\)"),
     ],
 )
+@pytest.mark.slow
 def test_no_point_packet_at_all_names_a_given_host_address(
     host: str | None, why: str | None
 ) -> None:
@@ -165,6 +168,7 @@ def test_no_point_packet_at_all_names_a_given_host_address(
         assert re.search(rf"{sent}{why}: check --host-ip \(the URI's host=\)$", message)
 
 
+@pytest.mark.slow
 def test_a_dead_heartbeat_raises_device_error() -> None:
     with linked(GridSource(DT[7], 5.0), heartbeat_period_s=0.1, heartbeat_timeout_s=0.5) as (
         client,
@@ -179,6 +183,7 @@ def test_a_dead_heartbeat_raises_device_error() -> None:
         assert client.heartbeats_missed >= 3  # 0.5 s of beats every 0.1 s, none answered
 
 
+@pytest.mark.slow
 def test_close_is_clean_and_idempotent() -> None:
     with linked(GridSource(DT[7], 5.0)) as (client, dev):
         with client:
@@ -196,6 +201,7 @@ def test_close_is_clean_and_idempotent() -> None:
             _ = client.data_port
 
 
+@pytest.mark.slow
 def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:
     silent = EmulatedLivox(GridSource(DT[7], 1.0), device_port=0)  # bound, never started
     try:
@@ -211,6 +217,7 @@ def test_a_device_that_does_not_answer_fails_open_within_its_timeout() -> None:
 
 
 @pytest.mark.parametrize(("taken", "what"), [("cmd_port", "commands"), ("data_port", "point data")])
+@pytest.mark.slow
 def test_a_second_client_on_a_taken_port_is_refused_and_the_first_runs_on(
     taken: str, what: str
 ) -> None:

@@ -39,6 +39,7 @@ def _wait(cond: object, timeout_s: float) -> None:
         time.sleep(0.01)
 
 
+@pytest.mark.slow
 def test_frames_of_a_custommsg_topic_with_their_static_pose(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -85,6 +86,7 @@ def test_frames_of_a_custommsg_topic_with_their_static_pose(
     assert source.frames_dropped == 0
 
 
+@pytest.mark.slow
 def test_a_silent_publisher_is_a_device_error(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -109,6 +111,7 @@ def test_a_silent_publisher_is_a_device_error(
         sub.close()
 
 
+@pytest.mark.slow
 def test_no_publisher_names_what_the_domain_has(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

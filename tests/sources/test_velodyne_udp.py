@@ -190,6 +190,7 @@ def _send_later(tx: socket.socket, packet: bytes, to: tuple[str, int], times: in
     return thread
 
 
+@pytest.mark.slow
 def test_a_silent_port_fails_open_within_its_timeout() -> None:
     with _client() as c:
         started = time.monotonic()
@@ -200,6 +201,7 @@ def test_a_silent_port_fails_open_within_its_timeout() -> None:
         assert 0.25 < time.monotonic() - started < 2.0
 
 
+@pytest.mark.slow
 def test_on_loopback_the_client_reads_what_the_sensor_sends_until_it_falls_silent() -> None:
     packet = vlp16_packet(steady_azimuths(9000, 20), POINTS, stamp_us=STAMP_US)
     with _client(stall_s=0.3) as c, _sender() as tx:

@@ -67,22 +67,6 @@ INDOOR = PipelineConfig(
     # A 4 m "correct" radius would cover most of the room: score within 0.3 m.
     evaluation=EvaluationConfig(correct_radius_m=0.3),
 )
-WALK = PipelineConfig(
-    # Seed 003's filter box: above head height, within 20 m.
-    crop=CropConfig(min_m=(-20.0, -20.0, 1.8), max_m=(20.0, 20.0, 6.0)),
-    background=BackgroundConfig(
-        resolution_m=0.2, scan_s=2.0, scan_pan_deg=(-10.0, 10.0), scan_tilt_deg=(0.0, 0.0)
-    ),
-    tracker=TrackerConfig(
-        v_max=2.0,
-        a_max=2.0,
-        s_diag=0.6,
-        cylinder_center_m=(0.0, 0.0, 1.8),
-        cylinder_radius_m=20.0,
-        cylinder_height_m=4.0,
-    ),
-    controller=ControllerConfig(mode="fixed", home_m=(10.0, 0.0, 2.3)),
-)
 AGGRESSIVE = PipelineConfig(
     crop=CropConfig(min_m=(2.0, -15.0, 1.5), max_m=(30.0, 15.0, 15.0)),
     background=BackgroundConfig(

@@ -74,7 +74,6 @@ __all__ = [
 
 HEADER = b"\xff\xff\xfd\x00"  # three header bytes and the reserved byte
 BROADCAST_ID = 0xFE
-MAX_ID = 0xFC
 # The longest LEN accepted: the official SDK's packet buffer is 1 KiB.
 MAX_LENGTH = 1024
 

@@ -46,7 +46,6 @@ __all__ = [
 Bytes = bytes | bytearray | memoryview
 I64 = NDArray[np.int64]
 U8 = NDArray[np.uint8]
-MAX_STAMP_NS = 1 << 62  # stamps beyond this could overflow int64 once point offsets are added
 
 # IMU sample (both SDKs): gyro x, y, z [rad/s], acc x, y, z [g], float32
 IMU_RECORD = np.dtype(

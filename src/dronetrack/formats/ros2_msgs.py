@@ -42,7 +42,6 @@ __all__ = [
     "encode_path",
     "encode_point_stamped",
     "encode_points",
-    "encode_string",
     "encode_tf",
     "ros2_typestore",
 ]
@@ -91,10 +90,6 @@ def _decode(raw: bytes | memoryview, msg_type: str) -> Any:
         return ros2_typestore().deserialize_cdr(bytes(raw), msg_type)
     except Exception as exc:  # rosbags raises many kinds on bad bytes
         raise DecodeError(f"a bad {msg_type}: {exc}") from None
-
-
-def encode_string(text: str) -> bytes:
-    return _cdr(ros2_typestore().types[STRING](data=text), STRING)
 
 
 def encode_point_stamped(stamp_ns: int, frame_id: str, p: FloatArray) -> bytes:

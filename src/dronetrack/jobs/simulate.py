@@ -60,16 +60,15 @@ def run_simulation(
     cfg: ScenarioConfig,
     progress: Progress | None = None,
     *,
-    init_on_clean_view: bool = False,
     sinks: Sequence[Sink] = (),
     compiling: CompileProgress | None = None,
     log_sink: LogSink | None = None,
 ) -> RunResult:
     """Run the scenario closed-loop; ``cfg`` is resolved first (see ``resolve_run``).
 
-    ``init_on_clean_view``: a tracker that can be initialised on a position (the
-    Kalman filters) is, once, on the centroid of the first frame whose foreground
-    holds only the drone's points, as seed 000 did for its EKF baselines.
+    With ``[pipeline.evaluation] init_on_clean_view``, a tracker that can be initialised
+    on a position (the Kalman filters) is, once, on the centroid of the first frame whose
+    foreground holds only the drone's points, as seed 000 did for its EKF baselines.
     ``sinks`` see every frame, the background scan's too, after the run's own log.
     ``compiling`` follows the kernels' warm-up before the first frame (see
     ``run_lockstep``); ``log_sink`` gets the log after each tracking frame is added.
@@ -78,7 +77,6 @@ def run_simulation(
         cfg,
         [cfg.pipeline.tracker],
         progress,
-        init_on_clean_view=init_on_clean_view,
         sinks=[sinks],
         compiling=compiling,
         log_sink=log_sink,
@@ -90,7 +88,6 @@ def run_lockstep(
     trackers: Sequence[TrackerConfig],
     progress: Progress | None = None,
     *,
-    init_on_clean_view: bool = False,
     sinks: Sequence[Sequence[Sink]] | None = None,
     compiling: CompileProgress | None = None,
     log_sink: LogSink | None = None,
@@ -145,7 +142,9 @@ def run_lockstep(
         own: list[Sink] = [log]
         if k == 0 and mode == "truth":
             own.insert(0, TruthAimer(world, lead.latency_s))
-        if init_on_clean_view and isinstance(pipe.tracker, PositionStart):
+        if configs[k].pipeline.evaluation.init_on_clean_view and isinstance(
+            pipe.tracker, PositionStart
+        ):
             own.append(CleanViewStart(pipe.tracker, configs[k].drone.model, period))
         own.extend(sinks[k] if sinks is not None else ())
         logs.append(log)

@@ -12,9 +12,8 @@ from dronetrack.sources.revolutions import RevolutionAssembler
 from dronetrack.sources.stream_sample import sample_stream
 from dronetrack.sources.velodyne_udp import VelodyneClient
 
-__all__ = ["VELODYNE_SCHEME", "probe_velodyne", "velodyne_client", "velodyne_frames"]
+__all__ = ["probe_velodyne", "velodyne_client", "velodyne_frames"]
 
-VELODYNE_SCHEME = "velodyne://"
 OPEN_TIMEOUT_S = 5.0
 
 

@@ -90,6 +90,22 @@ class _Axis:
     def pointing(self) -> float:
         return _quantise(self.theta, self.spec.resolution)
 
+    @property
+    def at_rest(self) -> bool:
+        """Holding a position goal it has reached (to 1 nrad, at 1 nrad/s), with nothing
+        queued."""
+        return (
+            not self.pending
+            and self.mode == "position"
+            and abs(self.omega) < 1e-9
+            and abs(self.theta - self.ref) < 1e-9
+        )
+
+    def shift(self, delta: float) -> None:
+        """Move the axis's time base by ``delta`` [s] (its move and queued goals with it)."""
+        self.move_t0 += delta
+        self.pending = [(t + delta, mode, ref) for t, mode, ref in self.pending]
+
 
 @nb.njit(cache=True)
 def _quantise(theta: float, q: float) -> float:
@@ -208,6 +224,22 @@ class TurretPlant:
         self.time = float(t_end)
         self.last_path = (times, out["pan"], out["tilt"])
         return times, out["pan"], out["tilt"]
+
+    @property
+    def at_rest(self) -> bool:
+        """Both axes hold a position goal they have reached, with nothing queued: advancing
+        changes nothing but the time."""
+        return self._pan.at_rest and self._tilt.at_rest
+
+    def rebase(self, t: float) -> None:
+        """Make the present time ``t`` [s], keeping the state (angles, rates, the move in
+        hand and the queued goals, each moved with the clock): a turret that moved before
+        a run's clock started carries on from where it is at the run's time 0."""
+        delta = t - self.time
+        self._pan.shift(delta)
+        self._tilt.shift(delta)
+        self.time = float(t)
+        self.last_path = None
 
     def state(self) -> TurretState:
         """The measured joint state now."""

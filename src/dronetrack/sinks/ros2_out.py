@@ -56,9 +56,8 @@ from dronetrack.sinks.view import (
 )
 from dronetrack.sources.dds import DdsDomain
 
-__all__ = ["PUBLISH_CHOICES", "TOPICS", "Ros2Publisher", "track_markers"]
+__all__ = ["TOPICS", "Ros2Publisher", "track_markers"]
 
-PUBLISH_CHOICES = ("ros2",)
 TOPICS = {
     "estimate": ("/dronetrack/estimate", POINT_STAMPED),
     "track": ("/dronetrack/track", PATH),

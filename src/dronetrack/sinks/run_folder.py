@@ -26,7 +26,6 @@ __all__ = [
     "json_safe",
     "prepare_output_file",
     "prepare_run_dir",
-    "write_frames_csv",
     "write_metrics",
     "write_plots",
 ]
@@ -173,15 +172,6 @@ def prepare_output_file(path: Path, option: str) -> Path:
     except OSError as err:
         raise ConfigError(f"{option} {path}: cannot write it ({err.strerror})") from None
     return path
-
-
-def write_frames_csv(log: TrackLog, path: Path) -> None:
-    """One row per frame: the FRAME_COLUMNS contract, then ``flags``, then EXTRA_COLUMNS."""
-    writer = FramesCsvWriter(path)
-    try:
-        writer.write(log)
-    finally:
-        writer.close()
 
 
 def _number(v: float) -> str:

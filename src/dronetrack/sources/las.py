@@ -50,7 +50,6 @@ __all__ = ["LasPoints", "LasRecording", "read_las"]
 
 log = logging.getLogger(__name__)
 
-LAS_SUFFIXES = (".las", ".laz")
 _CHUNK_POINTS = 1_000_000
 
 

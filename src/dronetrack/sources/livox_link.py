@@ -26,8 +26,7 @@ time.
 The parts live in modules of their own: the device URI (``livox_uri``), the sockets
 (``livox_net``), the queues between the threads (``livox_queues``), the keep-alive's
 clock (``livox_keepalive``), the commands (``livox_commands``) and the decoded
-points' order (``livox_points``); the names this module exported before are still
-importable from it.
+points' order (``livox_points``).
 """
 
 from __future__ import annotations
@@ -43,25 +42,13 @@ from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.livox_commands import LivoxCommands
 from dronetrack.sources.livox_net import (
     MAX_DATAGRAM,
-    POLL_S,
     is_local_address,
     route_source_ip,
     udp_socket,
 )
-from dronetrack.sources.livox_points import hits_in_time_order
 from dronetrack.sources.livox_queues import PacketQueue
-from dronetrack.sources.livox_uri import parse_device_uri
 
-__all__ = [
-    "MAX_DATAGRAM",
-    "POLL_S",
-    "LinkOptions",
-    "LivoxLink",
-    "hits_in_time_order",
-    "parse_device_uri",
-    "route_source_ip",
-    "udp_socket",
-]
+__all__ = ["LinkOptions", "LivoxLink"]
 
 
 class LinkOptions(TypedDict, total=False):

@@ -193,6 +193,7 @@ def test_shortened_runs_of_a_suite_without_paper_figures_name_no_seed() -> None:
     assert "seed" not in warning
 
 
+@pytest.mark.slow
 def test_a_short_run_of_a_case_scores_as_simulate_does() -> None:
     """``default`` seed 0, 14 s of flight: the runner's figures are metrics.json's of the
     same run, and the drone's track after 2 s of life is classed drone (over the whole

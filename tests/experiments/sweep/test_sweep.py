@@ -46,6 +46,7 @@ def _check_results(out: Path, n: int) -> list[dict[str, object]]:
     return rows
 
 
+@pytest.mark.slow
 def test_local_sweep_resumes_and_reports(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -79,6 +80,7 @@ def test_local_sweep_resumes_and_reports(
         assert (out / name).exists()
 
 
+@pytest.mark.slow
 def test_sweep_on_a_dask_cluster(tmp_path: Path) -> None:
     from distributed import LocalCluster
 
@@ -116,6 +118,7 @@ def _descendants(pid: int) -> dict[int, int]:
     return below
 
 
+@pytest.mark.slow
 def test_a_killed_worker_loses_no_finished_result(tmp_path: Path) -> None:
     grid, out = _grid(tmp_path, duration=2.0, runs=2), tmp_path / "out"
     results = out / "results.jsonl"
@@ -173,6 +176,7 @@ def test_a_killed_worker_loses_no_finished_result(tmp_path: Path) -> None:
         (["sweep-report", "{tmp}"], "no results.jsonl"),
     ],
 )
+@pytest.mark.slow
 def test_bad_input_is_one_line_and_exit_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
 ) -> None:
@@ -197,6 +201,7 @@ def test_missing_dask_gives_the_install_hint(
     assert err == "error: --scheduler needs dask.distributed: pip install 'dronetrack[dask]'"
 
 
+@pytest.mark.slow
 def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path: Path) -> None:
     """The sweep itself is killed after its first result; running it again finishes the
     grid without repeating or losing anything."""
@@ -229,6 +234,7 @@ def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path: Path) -> None:
     _check_results(out, 8)
 
 
+@pytest.mark.slow
 def test_a_sweep_over_a_recording_replays_it(tmp_path: Path) -> None:
     bag = tmp_path / "flight.bag"
     assert run(["record", "--out", str(bag), "--duration", "2", "--seed", "3"]) == 0

@@ -170,6 +170,7 @@ def test_sampling_without_a_host_is_refused(host: tuple[socket.socket, socket.so
         assert not dev.sampling
 
 
+@pytest.mark.slow
 def test_the_device_drops_a_host_that_sends_no_heartbeat(
     host: tuple[socket.socket, socket.socket],
 ) -> None:
@@ -209,6 +210,7 @@ def test_points_take_the_nearest_firing_and_one_per_firing(
             data.recv(2048)
 
 
+@pytest.mark.slow
 def test_close_stops_the_device_within_a_bounded_time() -> None:
     dev = _device(7).start()
     t0 = time.monotonic()

@@ -265,6 +265,7 @@ def test_malformed_frames_get_no_reply_and_are_counted(
         assert _ask(cmd, dev.address, good)[:3] == (5, 0x0101, 1)  # still answering
 
 
+@pytest.mark.slow
 def test_close_stops_the_device_within_a_bounded_time() -> None:
     dev = _device().start()
     t0 = time.monotonic()

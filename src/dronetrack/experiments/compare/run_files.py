@@ -1,6 +1,8 @@
 """A suite's per-run files: ``results.jsonl`` (every run's metrics, and for the suites
-that score every object its ``drones``, ``mot`` and ``classes``) and ``confusion.md``
-(each case's class confusion matrix, summed over the runs)."""
+that score every object its ``drones``, ``mot`` and ``classes``), ``confusion.md``
+(each case's class confusion matrix, summed over the runs) and each run's resolved
+configuration, ``configs/<case>/<method>/run<r>.toml``: ``dronetrack simulate --config``
+of it is that run (``results.jsonl``'s ``config`` and ``command``)."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from dronetrack.config.run import dump_scenario
 from dronetrack.eval.classes import row_percentages
 from dronetrack.experiments.compare.ranking import format_number
 from dronetrack.experiments.compare.runner import RunMetrics
@@ -20,8 +23,10 @@ from dronetrack.sinks.run_folder import json_safe
 from dronetrack.types import TRACK_CLASSES
 
 __all__ = [
+    "CONFIGS_DIR",
     "CONFUSION_FILE",
     "RESULTS_FILE",
+    "config_path",
     "confusion_markdown",
     "summed_confusion",
     "write_run_files",
@@ -29,21 +34,29 @@ __all__ = [
 
 RESULTS_FILE = "results.jsonl"
 CONFUSION_FILE = "confusion.md"
+CONFIGS_DIR = "configs"
 
 
-def result_line(suite: Suite, result: RunMetrics) -> dict[str, Any]:
-    """One run's line of results.jsonl."""
+def config_path(out_dir: Path, result: RunMetrics) -> Path:
+    """Where run ``result``'s configuration goes in a suite's folder ``out_dir``."""
+    return out_dir / CONFIGS_DIR / result.case / result.method / f"run{result.run}.toml"
+
+
+def result_line(suite: Suite, result: RunMetrics, config: Path | None = None) -> dict[str, Any]:
+    """One run's line of results.jsonl; ``config``: where its configuration was written."""
     case = next(c for c in suite.cases if c.label == result.case)
-    return {
+    line: dict[str, Any] = {
         "suite": suite.name,
         "case": result.case,
         "scenario": case.scenario,
         "method": result.method,
         "run": result.run,
         "seed": result.run,
-        "metrics": result.metrics,
-        **result.objects,
     }
+    if config is not None:
+        line["config"] = str(config)
+        line["command"] = f"dronetrack simulate --config {config}"
+    return {**line, "metrics": result.metrics, **result.objects}
 
 
 def summed_confusion(
@@ -125,13 +138,23 @@ def write_run_files(
     duration: float | None,
     methods: Sequence[str],
 ) -> list[Path]:
-    """Write results.jsonl and, where the runs have classes, confusion.md; return the
-    paths written."""
+    """Write each run's configuration, results.jsonl and, where the runs have classes,
+    confusion.md; return the paths of the last two written."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    configs: list[Path | None] = []
+    for r in results:
+        if r.config is None:
+            configs.append(None)
+            continue
+        where = config_path(out_dir, r)
+        where.parent.mkdir(parents=True, exist_ok=True)
+        where.write_text(dump_scenario(r.config))
+        configs.append(where)
     path = out_dir / RESULTS_FILE
     with path.open("w") as fh:
-        for r in results:
-            fh.write(json.dumps(json_safe(result_line(suite, r)), allow_nan=False) + "\n")
+        for r, written_to in zip(results, configs, strict=True):
+            line = result_line(suite, r, written_to)
+            fh.write(json.dumps(json_safe(line), allow_nan=False) + "\n")
     written = [path]
     text = confusion_markdown(suite, results, runs=runs, duration=duration, methods=methods)
     if text is not None:

@@ -50,6 +50,8 @@ class RunMetrics:
     metrics: dict[str, float]
     # metrics.json's drones, mot and classes of the run, for the suites that score them
     objects: dict[str, Any] = field(default_factory=dict)
+    # the run's resolved configuration: ``simulate --config`` of it is the same run
+    config: ScenarioConfig | None = None
 
 
 def case_config(
@@ -59,7 +61,7 @@ def case_config(
     mode (or scan strategy), the method's tracker, the run's seed.  A run shortened by
     ``duration`` leaves out the vehicles that would park only after it ends
     (``apply_overrides``)."""
-    base = _scored(get_scenario(case.scenario), suite.min_consecutive, suite.acquisition)
+    base = _scored(get_scenario(case.scenario), suite)
     if suite.tracker is not None:  # the methods are scan strategies feeding one tracker
         return apply_overrides(
             base, seed=seed, duration=duration, tracker=suite.tracker, turret_mode=method
@@ -69,12 +71,17 @@ def case_config(
     )
 
 
-def _scored(cfg: ScenarioConfig, min_consecutive: int, acquisition: bool) -> ScenarioConfig:
-    """``cfg`` with the suite's scoring rule in its evaluation section and its choice of
-    acquisition, so a method's run scores the same in ``simulate`` of its configuration
-    as in the table."""
-    evaluation = cfg.pipeline.evaluation.model_copy(update={"min_consecutive": min_consecutive})
-    acquire = cfg.pipeline.acquisition.model_copy(update={"enabled": acquisition})
+def _scored(cfg: ScenarioConfig, suite: Suite) -> ScenarioConfig:
+    """``cfg`` with the suite's scoring rule and start on a clean view in its evaluation
+    section and its choice of acquisition, so a method's run scores the same in
+    ``simulate`` of its configuration as in the table."""
+    evaluation = cfg.pipeline.evaluation.model_copy(
+        update={
+            "min_consecutive": suite.min_consecutive,
+            "init_on_clean_view": suite.init_on_clean_view,
+        }
+    )
+    acquire = cfg.pipeline.acquisition.model_copy(update={"enabled": suite.acquisition})
     pipeline = cfg.pipeline.model_copy(update={"evaluation": evaluation, "acquisition": acquire})
     return cfg.model_copy(update={"pipeline": pipeline})
 
@@ -119,7 +126,6 @@ def run_suite(
                     cfgs[0],
                     [c.pipeline.tracker for c in cfgs],
                     _progress(progress, what),
-                    init_on_clean_view=suite.init_on_clean_view,
                     sinks=[[ForegroundCollector(f)] for f in foregrounds] if memory else None,
                 )
             else:
@@ -133,7 +139,6 @@ def run_suite(
                         run_simulation(
                             cfg,
                             _progress(progress, f"{what}, {m}"),
-                            init_on_clean_view=suite.init_on_clean_view,
                             sinks=[logger] if logger is not None else (),
                         )
                     )
@@ -150,7 +155,7 @@ def run_suite(
                 values = run_metrics(suite, sim, objects)
                 if memory:
                     values["memory_mb"] = tracker_memory_mb(sim.config, fg)
-                out.append(RunMetrics(case.label, m, r, values, objects))
+                out.append(RunMetrics(case.label, m, r, values, objects, sim.config))
     return out
 
 

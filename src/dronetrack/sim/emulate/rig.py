@@ -26,9 +26,14 @@ plant's pointing at the scenario time of the read, interpolated in the path the 
 took (``TurretTimeline``), the same path the slices' sensor poses came from; present
 velocity is the slope of that path over ±10 ms.  While sampling, the plant runs ahead
 of the clock by at most a slice (the slices move it); a read the slices have not
-reached yet gets the newest pointing.  Before the first start the turret holds its
-start pose (goals wait for the clock); after the stream ends, or after a stop, reads
-move the plant on to their own time.  The profile velocity and acceleration the host
+reached yet gets the newest pointing.  Before the first start of sampling the servos
+move as real ones do, on an idle clock from the rig's start (s = s₀ + τ − τ_start,
+s₀ the world's start time): a goal acts after the axis's latency and reads follow
+the move, so a host can drive the turret before its LiDAR samples.  At the first
+start the plant's clock is set back to s₀ with its state kept (angles, rates and
+queued goals), and the run carries on from where the turret is.  After the stream
+ends, or after a stop, reads move the plant on to their own time; a plant at rest
+jumps there rather than integrating the wait.  The profile velocity and acceleration the host
 writes are kept in the control table but do not change the simulated dynamics, which
 are the scenario's turret preset's.  Protocol errors are the servo emulator's
 (``servos``).  A PTU (``ptu``) drives the same two joints: a ``PP``/``TP`` goal is
@@ -233,6 +238,8 @@ class EmulatedRig:
         self.starts = 0
         self._lock = threading.RLock()
         self._anchor: float | None = None
+        self._clock = clock
+        self._idle_from = clock()  # τ_start: the idle clock's origin (reset by start)
         self._make_world = make_world
         self._truth: IO[str] | None = None
         self.timeline = TurretTimeline()
@@ -246,6 +253,7 @@ class EmulatedRig:
                     f"device's block of {self.slice_s} s"
                 )
             self._fresh = True
+            self._t_start = self.world.plant.time  # s₀
             self._reset_timeline()
             self._open_truth()
         except BaseException:
@@ -271,6 +279,8 @@ class EmulatedRig:
         the device drives the turret itself) and start the device; if either fails, the
         rig is closed."""
         if not self._running:
+            if self._anchor is None:
+                self._idle_from = self._clock()
             try:
                 if self._servos and self.ptu is not None:
                     self.link = PtyPtuLink(self.ptu, self.serial_link, baud=self.ptu_baud)
@@ -332,10 +342,10 @@ class EmulatedRig:
         return (time.monotonic() if t is None else t) - anchor
 
     def _stamp(self, t: float) -> float:
-        """The scenario time of a servo exchange at ``t``: the plant's own time before
-        the clock starts (goals wait for it), never before 0."""
+        """The scenario time of a servo exchange at ``t``: on the idle clock before the
+        first start of sampling, s₀ + (t − τ_start); never before 0 after it."""
         if self._anchor is None:
-            return self.world.plant.time
+            return self._t_start + max(t - self._idle_from, 0.0)
         return max(t - self._anchor, 0.0)
 
     # -- the turret ---------------------------------------------------------------------
@@ -345,9 +355,15 @@ class EmulatedRig:
         self.timeline.reset(self.world.plant.time, state.pan, state.tilt)
 
     def _catch_up(self, s: float) -> None:
-        """Between streams (after a stop or the end), move the plant on to s."""
+        """Outside a stream (before the first, between two, after the last), move the
+        plant on to s; at rest, it only moves its clock there."""
         plant = self.world.plant
-        if self._anchor is None or self.device.sampling or not s > plant.time + plant.dt:
+        if self.device.sampling or not s > plant.time + plant.dt:
+            return
+        if plant.at_rest:
+            state = plant.state()
+            plant.rebase(s)
+            self.timeline.add(np.array([s]), np.array([state.pan]), np.array([state.tilt]))
             return
         plant.advance(s)
         if plant.last_path is not None:
@@ -408,6 +424,10 @@ class EmulatedRig:
                 self._reset_timeline()
                 if self.truth_rows:
                     self._open_truth()
+            elif self.world.plant.time != self._t_start:
+                # the servos moved on the idle clock: the run starts where they are
+                self.world.plant.rebase(self._t_start)
+                self._reset_timeline()
             self._fresh = False
             self._anchor = self.device.stream_start
             self.starts += 1
