@@ -198,6 +198,8 @@ class Pipeline:
                 self.acquisition.lock.update(estimate, offered)
             if tracks is not None:
                 tracks = tracks.with_locked(estimate, SAME_TARGET_M)
+                if self.acquisition is not None and self.acquisition.objects is not None:
+                    self.acquisition.objects.note_lock(tracks, estimate)
             if steps > 0:
                 self._learn(frame, fg.world, seen, found, tracks, estimate)
             command = (

@@ -8,7 +8,13 @@ import collections
 import numpy as np
 import pytest
 
-from dronetrack.classify.features import LifeFeatures, TrackLives, nearest_gap, observe
+from dronetrack.classify.features import (
+    LifeFeatures,
+    TrackLives,
+    nearest_gap,
+    observe,
+    view_floor,
+)
 from dronetrack.classify.rules import (
     BIRD,
     DRONE,
@@ -67,12 +73,12 @@ def test_observations_say_grounded_joined_and_beyond_reach() -> None:
         np.zeros(3),
         ground,
         floor_z=1.0,
-        reach_m=130.0,
+        limit_m=195.0,
         is_background=near_wall,
     )
     # in the air; bottom 0.3 m over a 0.2 m ground; in the air far out; cut by the floor
     assert obs.grounded.tolist() == [False, True, False, True]
-    assert obs.beyond_reach.tolist() == [False, False, True, False]  # 200 m > 1.5 × 130 m
+    assert obs.beyond_reach.tolist() == [False, False, True, False]  # 200 m > 195 m
     assert obs.joined.tolist() == [False, False, True, False]  # the probe at x + 0.7 m
     np.testing.assert_allclose(obs.extent, 0.4)
 
@@ -104,7 +110,7 @@ def test_a_still_fragment_among_fragments_in_the_air_is_no_hovering_drone() -> N
     for k in range(16):  # 1.5 s, all three still in the air, none on the ground
         tracks = _tracks(pos, [[0, 0, 0]] * 3, [1, 2, 3])
         found = _found(pos, [11.8, 11.8, 14.8])
-        obs = observe(tracks, found, np.zeros(3), np.zeros(3), reach_m=130.0, crowd_gap_m=2.0)
+        obs = observe(tracks, found, np.zeros(3), np.zeros(3), limit_m=195.0, crowd_gap_m=2.0)
         life = lives.update(k * T, tracks, obs)
     assert life is not None
     classes, p = classify(life)
@@ -113,6 +119,45 @@ def test_a_still_fragment_among_fragments_in_the_air_is_no_hovering_drone() -> N
     assert classes.tolist() == [UNKNOWN, UNKNOWN, DRONE]
     assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(-1.0)))
     assert p[2] > 0.95
+
+
+def test_the_view_floor_is_the_lowest_elevation_in_each_azimuth_sector() -> None:
+    sensor = np.array([0.0, 0.0, 1.0])
+    # ground 9 m out at −7° (tan 7° × 8.14 = 1.0) ahead; a wall point behind, level
+    ahead = [8.144, 0.0, 0.0]
+    behind = [-10.0, 0.1, 1.0]
+    floor = view_floor(np.array([ahead, [20.0, 0.0, 5.0], behind]), sensor, sectors=4)
+    # sectors of 90° from −180°: behind (α = 179.4°) is sector 3, ahead (0°) sector 2
+    np.testing.assert_allclose(floor[2], np.radians(-7.0), atol=1e-4)
+    np.testing.assert_allclose(floor[3], 0.0, atol=1e-12)
+    assert np.isnan(floor[:2]).all()
+    assert np.isnan(view_floor(np.empty((0, 3)), sensor)).all()
+
+
+def test_a_person_cut_off_by_the_view_floor_is_no_hovering_drone() -> None:
+    """A Mid-360 1.1 m up sees nothing below 7° down: a person standing 4 m away is seen
+    from 0.6 m up, legs cut off, holding still like a hovering drone.  Cut, it is not
+    in the open air: unknown.  A drone hovering 2 m up beside it is seen whole."""
+    sensor = np.array([0.0, 0.0, 1.136])
+    bottom = sensor[2] - np.tan(np.radians(7.0)) * np.hypot(4.0, 0.5)  # 0.64 m up
+    ground = np.array([[12.0, 0.0, 0.0], [12.0, 3.0, 0.0]])  # the floor, seen farther out
+    floor = view_floor(ground, sensor)
+    pos = [[4.0, 0.5, 1.2], [3.0, 2.0, 2.2]]
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    life = None
+    for k in range(31):
+        tracks = _tracks(pos, [[0, 0, 0]] * 2, [1, 2])
+        found = _found(pos, [bottom + 0.005, 2.0])
+        obs = observe(tracks, found, sensor, np.full(2, np.nan), floor=floor)
+        assert obs.cut.tolist() == [True, False]
+        life = lives.update(k * T, tracks, obs)
+    assert life is not None
+    classes, p = classify(life)
+    assert classes.tolist() == [UNKNOWN, DRONE]
+    assert p[0] == pytest.approx(0.5)
+    # without the floor the person would hover in the open air
+    obs = observe(tracks, found, sensor, np.full(2, np.nan))
+    assert not obs.cut.any()
 
 
 def test_a_track_without_a_cluster_observes_nothing() -> None:
@@ -136,7 +181,7 @@ def _life(seconds: float, position: np.ndarray, velocity: np.ndarray, low: float
         p = position + velocity * k * T
         tracks = _tracks([list(p)], [list(velocity)], [7])
         found = _found([list(p)], [p[2] - low])
-        obs = observe(tracks, found, np.zeros(3), np.zeros(1), floor_z=1.0, reach_m=130.0)
+        obs = observe(tracks, found, np.zeros(3), np.zeros(1), floor_z=1.0, limit_m=195.0)
         life = lives.update(k * T, tracks, obs)
     assert life is not None
     return life

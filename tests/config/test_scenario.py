@@ -49,6 +49,10 @@ def test_the_reach_follows_the_sensor_the_drone_and_the_air(tmp_path: Path) -> N
     assert SCENARIOS["outdoor-incoming"].pipeline.evaluation.reach_m == 130.0
     assert SCENARIOS["field-foggy"].pipeline.evaluation.reach_m is None
     assert SCENARIOS["indoor-horizontal"].pipeline.evaluation.reach_m is None
+    # beyond this the drone returns no point: what returns there is no drone
+    limits = {n: SCENARIOS[n].pipeline.evaluation.limit_m for n in ("default", "mid360-static")}
+    assert limits == {"default": 195.0, "mid360-static": 50.0}
+    assert SCENARIOS["field-foggy"].pipeline.evaluation.limit_m is None
     assert apply_overrides(default, seed=4).pipeline.evaluation.reach_m == 130.0
     for change in ({"visibility": 100.0}, {"drone": "f550"}, {"sensor": "mid360"}):
         assert apply_overrides(default, **change).pipeline.evaluation.reach_m is None

@@ -16,6 +16,7 @@ from dronetrack.track.multi import (
     MultiTargetTracker,
     TrackSettings,
     associate,
+    close_pairs,
     cv_predict,
     cv_process_noise,
     cv_update,
@@ -272,6 +273,8 @@ def test_bad_settings_are_refused() -> None:
         TrackSettings(gate_probability=1.0)
     with pytest.raises(ConfigError, match="max_tracks"):
         TrackSettings(max_tracks=0)
+    with pytest.raises(ConfigError, match="merge_m"):
+        TrackSettings(merge_s=-1.0)
 
 
 def test_empty_inputs_leave_no_track() -> None:
@@ -279,3 +282,67 @@ def test_empty_inputs_leave_no_track() -> None:
     snap = tracks.step(0.1, Detections.empty(), Candidates.empty())
     assert len(snap) == 0
     assert snap.covariances.shape == (0, 6, 6)
+
+
+def test_tracks_within_the_clustering_radius_for_a_second_are_one_object() -> None:
+    """Two tracks that close follow one object (two objects within ε give one cluster):
+    after ``merge_s`` the one with fewer updates ends and the older identity stays; a
+    cluster that close to a track starts none."""
+    layer = _Layer(merge_m=1.0, merge_s=1.0)
+    v = np.array([5.0, 0.0, 0.0])
+
+    def at(t: float) -> np.ndarray:
+        return np.array([40.0, 0.0, 20.0]) + v * t
+
+    for k in range(10):  # one object, one cluster: track 1
+        layer.step(k * T, at(k * T - 0.5 * T)[None, :])
+    assert layer.tracks.ids.tolist() == [1]
+    for k in range(10, 40):  # its cluster splits in two pieces 0.6 m apart
+        c = at(k * T - 0.5 * T)
+        half = np.array([0.0, 0.3, 0.0])
+        layer.step(k * T, np.stack([c + half, c - half]))
+        assert layer.tracks.ids.tolist() == [1]  # no track is born on a piece
+    # a second object flies in beside it (2.5 m away), then closes to 0.5 m: its own
+    # track until the two have been within 1 m for a second
+    ids_seen = []
+    for k in range(40, 80):
+        c = at(k * T - 0.5 * T)
+        off = 2.5 if k < 50 else 0.5
+        layer.step(k * T, np.stack([c, c + np.array([0.0, off, 0.0])]))
+        ids_seen.append(layer.tracks.ids.tolist())
+    assert ids_seen[8] == [1, 2]  # confirmed beside it
+    closed_at = 50  # within 1 m from the frame k = 50 on
+    together = [ids for k, ids in zip(range(40, 80), ids_seen, strict=True) if k > closed_at]
+    assert together[int(1.0 / T) - 2] == [1, 2]  # not yet a second together
+    assert together[-1] == [1]  # then one object, the older identity
+
+
+def test_close_pairs_are_the_pairs_within_the_radius() -> None:
+    p = np.array([[0.0, 0, 0], [0.9, 0, 0], [3.0, 0, 0], [3.0, 1.0, 0]])
+    assert close_pairs(p, 1.0).tolist() == [[0, 1], [2, 3]]
+    assert close_pairs(p, 0.5).tolist() == []
+    assert close_pairs(np.empty((0, 3)), 1.0).shape == (0, 2)
+
+
+def _follow(lock: bool) -> list[list[int]]:
+    """An object at 5 m/s whose cluster jumps 3 m sideways at 1 s (beyond its track's
+    gates) and goes on from there; with ``lock`` the turret's tracker holds it throughout
+    and says so after each frame.  The identities after each frame."""
+    layer = _Layer()
+    seen = []
+    for k in range(30):
+        t = k * T
+        p = np.array([40.0 + 5.0 * t, 0.0, 20.0]) + (np.array([0.0, 3.0, 0.0]) if k >= 10 else 0)
+        layer.step(t, (p - [2.5 * T, 0, 0])[None, :])
+        seen.append(layer.tracks.ids.tolist())
+        if lock:
+            estimate = TrackEstimate(t, p, np.array([5.0, 0.0, 0.0]), True, 0.2)
+            layer.tracks.note_lock(layer.tracks.snapshot(estimate), estimate)
+    return seen
+
+
+def test_the_lock_carries_its_track_over_a_jump_the_track_missed() -> None:
+    alone, held = _follow(lock=False), _follow(lock=True)
+    assert alone[9] == held[9] == [1]
+    assert 2 in alone[-1]  # without the lock: a new identity where the cluster went
+    assert all(ids == [1] for ids in held[1:])  # with it: the same track, restarted there

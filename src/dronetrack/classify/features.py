@@ -16,27 +16,38 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
   space, while a far structure that the map lacks breaks into fragments a little more
   than ε apart (on ``outdoor-unscanned`` the drone's cluster had such a neighbour in
   0.1 % of frames, the structures' fragments in 84 %);
-- *beyond reach*: r > 1.5 × the reach of the drone model the site guards (the reach
-  is where a drone on the axis still returns points in 80 % of frames; at 1.15 ×
-  it is 26 %, and beyond 1.5 × none was seen: what returns there is larger or
-  brighter than a drone);
+- *cut*: its bottom lies at the floor of the sensor's view in its direction,
+  ε(z_lo) ≤ ε_floor(α) + δ: the elevation from the sensor of its lowest point
+  against the lowest elevation of the frame's other returns in its 5° azimuth sector
+  and the two beside it (``view_floor``; the object hides the floor behind it; δ = 1°,
+  a few times the sensors' angular sampling).  What is below
+  it is out of view, so nothing says it is in the open air: a person 3 m from a
+  Mid-360 1.1 m up is seen from 0.8 m up (the view's floor is 7° down), legs cut
+  off, like a small object holding still in the air;
+- *beyond reach*: r > r_lim, the range beyond which the drone model the site guards
+  returns no point to the sensor (``[pipeline.evaluation] limit_m``, measured per
+  sensor and drone: 195 m for an Avia and a Phantom 4, 1.5 × its reach, where a drone
+  on the axis still returns points in 80 % of frames; 50 m for a Mid-360): what
+  returns there is larger or brighter than a drone;
 - its speed |v| (the track's filter), and how far its clusters' centroids have moved
   from the first one (the measurements, not the filter's state: a filter that follows
   a far object's jittering centroid gains a velocity and carries the state away).
 
 Over a track's life these give its age, how far it ever moved from its first
-position (d_max), the shares of its observations grounded, joined, crowded or beyond
-reach, its largest extent, *aloft*: the share of its recent observations not grounded (an
+position (d_max), the shares of its observations grounded, joined, crowded, cut or
+beyond reach, its largest extent, *aloft*: the share of its recent observations not grounded (an
 exponential average over about the last three, a ← (1 − α) a + α [not grounded],
 α = ``ALOFT_ALPHA``, from a = 1: off the ground until seen on it), so a drone that
 lifted off is off the ground again within a few frames while a person stays on it, and
 whether it *hovered*: |v| < v_hover for ``hover_frames`` updates in a row while in the
-air, which no bird can (stall speed ≈ 5 m/s for the
-smallest), or its candidate hovered (``detect.tentative``).
+air (neither grounded nor cut), which no bird can (stall speed ≈ 5 m/s for the
+smallest), or its candidate hovered (``detect.tentative``) and a cluster of it that is
+neither grounded nor cut updated it.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -46,11 +57,12 @@ from numpy.typing import NDArray
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Detections, Tracks
 
-__all__ = ["LifeFeatures", "Observations", "TrackLives", "observe"]
+__all__ = ["LifeFeatures", "Observations", "TrackLives", "observe", "view_floor"]
 
 BackgroundTest = Callable[[FloatArray], NDArray[np.bool_]]
-BEYOND_REACH = 1.5  # a drone returns no point beyond this many times its reach
 ALOFT_ALPHA = 0.3
+VIEW_SECTORS = 72  # azimuth sectors of the view's floor, 5° each
+CUT_MARGIN_RAD = math.radians(1.0)  # δ of the cut test
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,6 +79,29 @@ class Observations:
     beyond_reach: NDArray[np.bool_]
     extent: FloatArray
     crowded: NDArray[np.bool_]
+    cut: NDArray[np.bool_]
+
+
+def view_floor(points: FloatArray, sensor: FloatArray, sectors: int = VIEW_SECTORS) -> FloatArray:
+    """(sectors,) the lowest elevation [rad] of ``points`` (N, 3) seen from ``sensor`` in
+    each azimuth sector (sector k: α ∈ [−π + 2πk/S, −π + 2π(k+1)/S)); NaN where none."""
+    d = np.asarray(points, dtype=np.float64) - sensor
+    h = np.hypot(d[:, 0], d[:, 1])
+    keep = np.isfinite(d).all(axis=1) & (h > 0)  # none straight above or below it
+    d, h = d[keep], h[keep]
+    lowest = np.full(sectors, np.inf)
+    if len(d):
+        # α = atan2(dy, dx); the least tan ε = dz / √(dx² + dy²) (tan rises with ε)
+        np.minimum.at(lowest, _sector(d, sectors), d[:, 2] / h)
+    floor: FloatArray = np.where(np.isfinite(lowest), np.arctan(lowest), np.nan)
+    return floor
+
+
+def _sector(d: FloatArray, sectors: int) -> NDArray[np.intp]:
+    """The azimuth sector of each offset ``d`` (N, 3) from the sensor."""
+    k = np.floor((np.arctan2(d[:, 1], d[:, 0]) + np.pi) * sectors / (2.0 * np.pi))
+    out: NDArray[np.intp] = k.astype(np.intp) % sectors
+    return out
 
 
 def observe(
@@ -79,13 +114,15 @@ def observe(
     ground_margin: float = 0.5,
     floor_margin: float = 0.3,
     probe_margin: float = 0.5,
-    reach_m: float | None = None,
+    limit_m: float | None = None,
     is_background: BackgroundTest | None = None,
     crowd_gap_m: float | None = None,
+    floor: FloatArray | None = None,
 ) -> Observations:
     """This frame's observations of each track (see the module docstring); ``ground``
     (K,) is g under each track (NaN: unknown), ``sensor`` (3,) the sensor's position,
-    ``crowd_gap_m`` g_c (None: the feature is off)."""
+    ``crowd_gap_m`` g_c (None: the feature is off), ``floor`` the view's floor
+    (``view_floor`` of the frame's other returns; None: the cut test is off)."""
     k = len(tracks)
     j = tracks.clusters
     updated = tracks.updated & (j >= 0)
@@ -101,8 +138,8 @@ def observe(
     rng = np.full(k, np.nan)
     rng[idx] = np.linalg.norm(c - sensor, axis=1)
     beyond = np.zeros(k, dtype=bool)
-    if reach_m is not None:
-        beyond[idx] = rng[idx] > BEYOND_REACH * reach_m
+    if limit_m is not None:
+        beyond[idx] = rng[idx] > limit_m
     joined = np.zeros(k, dtype=bool)
     if is_background is not None and len(idx):
         joined[idx] = _touches_background(c, low, ext, probe_margin, is_background)
@@ -113,8 +150,19 @@ def observe(
     crowded = np.zeros(k, dtype=bool)
     if crowd_gap_m is not None and len(idx):
         crowded[idx] = nearest_gap(found, j[idx]) <= crowd_gap_m
+    cut = np.zeros(k, dtype=bool)
+    if floor is not None and len(idx):
+        d = np.column_stack([c[:, :2], low]) - sensor  # the cluster's bottom
+        elevation = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
+        # ε(z_lo) ≤ min(ε_floor over its sector and the two beside it) + δ: the object
+        # hides the view's floor behind it in its own sector (False where none: NaN)
+        sec, n = _sector(d, len(floor)), len(floor)
+        near = np.fmin(np.fmin(floor[(sec - 1) % n], floor[sec]), floor[(sec + 1) % n])
+        cut[idx] = elevation <= near + CUT_MARGIN_RAD
     speed = np.linalg.norm(tracks.velocities, axis=1)
-    return Observations(updated, centroid, rng, speed, grounded, joined, beyond, extent, crowded)
+    return Observations(
+        updated, centroid, rng, speed, grounded, joined, beyond, extent, crowded, cut
+    )
 
 
 def nearest_gap(found: Detections, which: NDArray[np.int64]) -> FloatArray:
@@ -158,6 +206,7 @@ class LifeFeatures:
     joined: FloatArray
     beyond_reach: FloatArray
     crowded: FloatArray
+    cut: FloatArray
     extent: FloatArray  # the largest extent seen [m]
     hovered: NDArray[np.bool_]
     min_speed: FloatArray  # its lowest speed over its observed frames after the first [m/s]
@@ -181,6 +230,7 @@ class TrackLives:
         self.joined = np.empty(n, dtype=np.int64)
         self.beyond = np.empty(n, dtype=np.int64)
         self.crowded = np.empty(n, dtype=np.int64)
+        self.cut = np.empty(n, dtype=np.int64)
         self.extent = np.empty(n)
         self.range_m = np.empty(n)
         self.slow_run = np.empty(n, dtype=np.int64)
@@ -211,15 +261,17 @@ class TrackLives:
         self.joined[r] += obs.joined[u]
         self.beyond[r] += obs.beyond_reach[u]
         self.crowded[r] += obs.crowded[u]
+        self.cut[r] += obs.cut[u]
         self.extent[r] = np.fmax(self.extent[r], obs.extent[u])
         self.range_m[r] = np.fmax(self.range_m[r], obs.range_m[u])
         later = self.observed[r] > 1  # a track's first velocity is the birth's guess
         self.min_speed[r[later]] = np.minimum(self.min_speed[r[later]], obs.speed[u][later])
         # hovered: |v| < v_hover for K updates in a row, in the air
-        slow = (obs.speed[u] < self.hover_speed) & ~obs.grounded[u] & later
+        seen_free = ~obs.grounded & ~obs.cut & u
+        slow = (obs.speed[u] < self.hover_speed) & seen_free[u] & later
         self.slow_run[r] = np.where(slow, self.slow_run[r] + 1, 0)
         self.hovered[r] |= self.slow_run[r] >= self.hover_frames
-        self.hovered[rows] |= tracks.hovered
+        self.hovered[rows] |= tracks.hovered & seen_free
         n = np.maximum(self.observed[rows], 1)
         return LifeFeatures(
             age=t - self.first_t[rows],
@@ -230,6 +282,7 @@ class TrackLives:
             joined=self.joined[rows] / n,
             beyond_reach=self.beyond[rows] / n,
             crowded=self.crowded[rows] / n,
+            cut=self.cut[rows] / n,
             extent=self.extent[rows].copy(),
             hovered=self.hovered[rows].copy(),
             min_speed=self.min_speed[rows].copy(),
@@ -246,7 +299,7 @@ class TrackLives:
         self.last_t = np.append(self.last_t, t)
         self.first_p = np.concatenate([self.first_p, np.full((1, 3), np.nan)])
         self.moved = np.append(self.moved, 0.0)
-        for name in ("observed", "grounded", "joined", "beyond", "crowded", "slow_run"):
+        for name in ("observed", "grounded", "joined", "beyond", "crowded", "cut", "slow_run"):
             setattr(self, name, np.append(getattr(self, name), 0))
         self.extent = np.append(self.extent, np.nan)
         self.range_m = np.append(self.range_m, np.nan)
@@ -272,6 +325,7 @@ class TrackLives:
             "joined",
             "beyond",
             "crowded",
+            "cut",
             "extent",
             "range_m",
             "slow_run",

@@ -5,7 +5,9 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
 
     ln(p / (1 − p)) = Σ_i w_i · [feature i holds]
 
-    hovered in the air            +4    no bird can fly below its stall speed
+    hovered in the air            +4    no bird can fly below its stall speed (not when
+                                        the view's floor cuts it in half its frames:
+                                        what is below it is not seen)
     grounded (≥ half its frames)  −4    its bottom is the ground or the crop floor
     joined (≥ half its frames)    −3    a map cell beside or below it: part of a structure
     crowded (≥ half its frames)   −3    another cluster just beside it: a fragment of a
@@ -112,6 +114,7 @@ def classify(
     grounded = life.grounded >= 0.5
     joined = life.joined >= 0.5
     crowded = life.crowded >= 0.5
+    cut = life.cut >= 0.5
     beyond = life.beyond_reach >= 0.5
     extent = np.nan_to_num(life.extent, nan=0.0)
     large = extent > rules.max_extent_m
@@ -122,7 +125,7 @@ def classify(
     seen = life.observed >= rules.min_observed
     flying = ~still & ~life.hovered & (life.age >= rules.bird_after_s) & seen
     logit = (
-        W_HOVERED * (life.hovered & ~grounded)
+        W_HOVERED * (life.hovered & ~grounded & ~cut)
         + W_GROUNDED * grounded
         + W_JOINED * joined
         + W_CROWDED * crowded

@@ -281,6 +281,10 @@ class EvaluationConfig(StrictModel):
     # A drone flying in from beyond reach draws single returns from a passing search out
     # there, which acquire_s counts from (see the README's acquisition figures).
     reach_m: float | None = Field(None, gt=0)
+    # The range beyond which the drone returns no point to the sensor [m]: what returns
+    # there is larger or brighter than a drone (the classes' beyond-reach test).  Set
+    # with reach_m for the pairs measured (config/run.py's RETURN_LIMIT_M).
+    limit_m: float | None = Field(None, gt=0)
     # Seed 000's start of its Kalman-filter baselines: a tracker that can be started on a
     # position (the Kalman filters) is, once, on the centroid of the first frame whose
     # foreground holds only the drone's points (simulation only: it needs the truth).

@@ -351,7 +351,7 @@ def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | N
     s_diag = cfg.tracker.s_diag if cfg.tracker.s_diag is not None else 0.4
     return TrackClassifier(
         ClassRules(still_m=STILL_PER_SIZE * s_diag),
-        reach_m=cfg.evaluation.reach_m,
+        limit_m=cfg.evaluation.limit_m,
         floor_z=floor_z,
         hover_speed=cfg.acquisition.hover_speed_m_s,
         hover_frames=cfg.acquisition.hover_frames,
@@ -393,6 +393,7 @@ def build_acquisition(
         gate_m=cfg.gate_m,
         coast_s=tracks.coast_s,
         max_tracks=tracks.max_tracks,
+        merge_m=cfg.eps_m,  # two objects closer than ε give one cluster
     )
     return Acquisition(detector, TentativeTracks(settings), MultiTargetTracker(objects))
 

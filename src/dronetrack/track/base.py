@@ -74,6 +74,11 @@ class ObjectTracker(Protocol):
         """The tracks as they stand, the one at a locked ``estimate`` marked locked."""
         ...
 
+    def note_lock(self, tracks: Tracks, estimate: TrackEstimate) -> None:
+        """The turret's tracker after a frame: the track it holds (``tracks.locked``)
+        and its estimate."""
+        ...
+
     def reset(self) -> None:
         """Forget every track."""
         ...

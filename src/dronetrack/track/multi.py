@@ -31,9 +31,29 @@ would otherwise carry it off (``default`` seed 0: a duplicate of the drone's tra
 jumped 24 m to a stray return and wandered 60 m away for 4 s, holding the drone's
 hover).  A matched track is updated (Joseph form, ``track.kalman``).  A track is **born** on
 a confirmed candidate of the detect stage (M-of-N, ``detect.tentative``) whose
-cluster no track took; it starts at the candidate's centroid with the tentative
-track's velocity.  A track **dies** ``coast_s`` after its last update.  Identities are
-consecutive integers from 1, never reused in a run.
+cluster no track took and lies farther than ``merge_m`` from every track (closer, it
+is a piece of that track's object: see below); it starts at the candidate's centroid
+with the tentative track's velocity.  A track **dies** ``coast_s`` after its last
+update, or when it has followed another track's object: two tracks whose positions
+have stayed within ``merge_m`` of each other for ``merge_s`` are one object, as the
+clustering joins any two returns closer than its ε (``merge_m`` = ε in a run), so two
+objects that close give one cluster, never two.  The one with fewer updates ends (of
+equals, the younger), and the object keeps the identity it had longest.  (On ``outdoor-clutter``
+a drone 60 m out, its cluster now and then split or missed, kept two tracks 0.5-0.9 m
+apart for 20 s, which took its cluster in turn.)  ``merge_s`` (1 s) keeps apart two
+objects that cross: at 2 m/s between them they are within 1 m of each other for
+1 s at most.  Identities are consecutive integers from 1, never reused in a run.
+
+**The lock carries an identity.**  The turret's tracker follows one object with its
+own filter (``note_lock``: after each frame its estimate and the track it holds, or,
+while it stays locked, the one it held last).
+When the held track misses a frame's cluster and a track would be born within
+``SAME_TARGET_M`` (2 m) of the lock's estimate predicted to the frame, the held track
+takes that cluster instead: it restarts there, as a birth would, but keeps its
+identity and its life (a hover seen earlier says it is a drone).  A Kalman track on a
+drone 60 m out with few returns can lose it for a frame while the particle filter
+holds it (``outdoor-clutter`` seed 0: a new identity each time, classed bird, as a
+drone flying fast that never hovered).
 
 Why global nearest neighbour and not JPDA: the candidates of one frame lie metres
 apart at the ranges we track (a drone's returns form one cluster within ε = 1 m), so
@@ -58,10 +78,13 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
 
+LockNote = tuple[int, FloatArray, FloatArray, float]  # held id, estimate p, v, its time
+
 __all__ = [
     "MultiTargetTracker",
     "TrackSettings",
     "associate",
+    "close_pairs",
     "cv_predict",
     "cv_process_noise",
     "cv_update",
@@ -80,7 +103,8 @@ class TrackSettings:
     coast_s: the longest a track lives without an update; stale_s: after this long
     without one, only a confirmed candidate's cluster updates it; birth_sigma_v: the
     velocity's σ at birth; max_tracks: the most tracks kept (the longest unseen die
-    first; of equals, the least updated).
+    first; of equals, the least updated); merge_m, merge_s: two tracks this close for
+    this long follow one object.
     """
 
     sigma_acc: float = 5.0
@@ -93,6 +117,8 @@ class TrackSettings:
     stale_gate_m: float = 5.0
     birth_sigma_v: float = 5.0
     max_tracks: int = 64
+    merge_m: float = 1.0
+    merge_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("sigma_acc", "sigma_meas", "v_max", "coast_s", "stale_s", "birth_sigma_v"):
@@ -101,6 +127,10 @@ class TrackSettings:
         if not 0.0 < self.gate_probability < 1.0:
             raise ConfigError(
                 f"tracks: gate_probability must be in (0, 1), got {self.gate_probability}"
+            )
+        if self.merge_m < 0 or self.merge_s < 0:
+            raise ConfigError(
+                f"tracks: need merge_m ≥ 0 and merge_s ≥ 0, got {self.merge_m}, {self.merge_s}"
             )
         if self.gate_m < 0 or self.max_tracks < 1:
             raise ConfigError(
@@ -284,6 +314,13 @@ def _gate_kernel(
     return cost
 
 
+def close_pairs(p: FloatArray, radius: float) -> NDArray[np.intp]:
+    """(M, 2) the index pairs i < j of positions ``p`` (K, 3) within ``radius`` [m]."""
+    d = np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)
+    i, j = np.nonzero(np.triu(d <= radius, k=1))
+    return np.column_stack([i, j]).astype(np.intp)
+
+
 def associate(cost: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """The feasible pairs (rows, cols) of the minimum-cost assignment of ``cost``."""
     if cost.size == 0:
@@ -319,6 +356,8 @@ class MultiTargetTracker:
         self.settings = settings
         self._gate = settings.gate
         self._next_id = 1
+        self._together: dict[tuple[int, int], float] = {}  # (id, id) → close since [s]
+        self._lock: LockNote | None = None
         self.reset()
 
     def reset(self) -> None:
@@ -334,6 +373,8 @@ class MultiTargetTracker:
         self.updated = np.empty(0, dtype=bool)  # updated in the last step
         self.cluster = np.empty(0, dtype=np.intp)  # cluster index of that update (-1: none)
         self.hovered = np.empty(0, dtype=bool)  # a candidate of it hovered (detect.tentative)
+        self._together = {}
+        self._lock = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -380,11 +421,85 @@ class MultiTargetTracker:
         self.updates[rows] += 1
         self._note_hover(confirmed, of)
         self._drop(t_z - self.t_update <= s.coast_s)
+        self._drop(~self._duplicates(t_z))
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True
         self._births(t_z, confirmed, found, of, taken)
         self._predict(t)
         return self.snapshot()
+
+    def note_lock(self, tracks: Tracks, estimate: TrackEstimate) -> None:
+        """The turret's tracker after a frame: the track it holds (``tracks.locked``, none
+        when the estimate is not locked; while it stays locked, the track it held last)
+        and its estimate."""
+        held = np.flatnonzero(tracks.locked)
+        last = self._lock
+        self._lock = None
+        if not estimate.tracked:
+            return
+        p, v = np.asarray(estimate.position).copy(), np.asarray(estimate.velocity).copy()
+        if len(held):
+            self._lock = (int(tracks.ids[held[0]]), p, v, float(estimate.t))
+        elif last is not None and np.any(self.ids == last[0]):
+            # still locked, the track it held left behind: the lock keeps its identity
+            self._lock = (last[0], p, v, float(estimate.t))
+
+    def _hand_over(
+        self, t: float, c: Candidates, clusters: NDArray[np.intp], R: FloatArray
+    ) -> NDArray[np.bool_]:
+        """(B,) which of the births ``c`` (their clusters ``clusters``, measurement noises
+        ``R``) the held track takes (see the module docstring): at most one, the nearest
+        to the lock's estimate predicted to ``t``, p_L = p + v (t − t_L), within
+        SAME_TARGET_M, if the held track missed this frame.  It restarts there as a
+        birth would, keeping its identity, its age, its updates and its hover."""
+        taken = np.zeros(len(c), dtype=bool)
+        if self._lock is None or len(c) == 0:
+            return taken
+        ident, p, v, t_lock = self._lock
+        row = np.flatnonzero(self.ids == ident)
+        if len(row) == 0 or self.updated[row[0]]:
+            return taken
+        gap = np.linalg.norm(c.positions - (p + v * max(t - t_lock, 0.0)), axis=1)
+        i = int(np.argmin(gap))
+        if gap[i] > SAME_TARGET_M:
+            return taken
+        k = int(row[0])
+        self.x[k] = np.concatenate([c.positions[i], c.velocities[i]])
+        self.P[k] = 0.0
+        self.P[k, :3, :3] = R[i]
+        self.P[k, 3:, 3:] = self.settings.birth_sigma_v**2 * np.eye(3)
+        self.t[k] = self.t_update[k] = t
+        self.p_update[k] = c.positions[i]
+        self.updates[k] += 1
+        self.updated[k] = True
+        self.cluster[k] = clusters[i]
+        self.hovered[k] |= bool(c.hovered[i])
+        taken[i] = True
+        return taken
+
+    def _duplicates(self, t: float) -> NDArray[np.bool_]:
+        """(K,) the tracks that end as duplicates at ``t``: of each pair within ``merge_m``
+        since ``merge_s`` ago (``close_pairs``), the one with fewer updates, of equals
+        the younger; the pairs' clocks are kept from frame to frame."""
+        s = self.settings
+        out = np.zeros(len(self), dtype=bool)
+        pairs = close_pairs(self.x[:, :3], s.merge_m) if len(self) > 1 else ()
+        if not len(pairs):
+            self._together = {}
+            return out
+        ids = self.ids
+        now = {(int(ids[i]), int(ids[j])) for i, j in pairs}
+        self._together = {key: self._together.get(key, t) for key in now}
+        row = {int(k): n for n, k in enumerate(ids)}
+        for (a, b), since in sorted(self._together.items()):
+            if t - since < s.merge_s:
+                continue
+            i, j = row[a], row[b]
+            if out[i] or out[j]:
+                continue
+            # a < b: on equal updates the younger, b, ends
+            out[j if self.updates[i] >= self.updates[j] else i] = True
+        return out
 
     def _predict(self, t: float) -> None:
         """Every track's state at ``t`` (none goes back in time)."""
@@ -412,11 +527,21 @@ class MultiTargetTracker:
     ) -> None:
         s = self.settings
         new = np.flatnonzero((of >= 0) & ~taken[np.maximum(of, 0)])
+        if len(new) and len(self):
+            gap = np.linalg.norm(
+                found.centroids[of[new], None, :] - self.x[None, :, :3], axis=2
+            ).min(axis=1)
+            new = new[gap > s.merge_m]
+        if len(new) == 0:
+            return
+        c = confirmed.take(new)
+        R = measurement_noise(found, s.sigma_meas)[of[new]]
+        born = ~self._hand_over(t, c, of[new], R)
+        new, R = new[born], R[born]
         if len(new) == 0:
             return
         k = len(new)
         c = confirmed.take(new)
-        R = measurement_noise(found, s.sigma_meas)[of[new]]
         x = np.concatenate([c.positions, c.velocities], axis=1)
         P = np.zeros((k, 6, 6))
         P[:, :3, :3] = R

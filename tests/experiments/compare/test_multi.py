@@ -12,6 +12,8 @@ from typing import Any
 import pytest
 
 from dronetrack.cli.main import run
+from dronetrack.config.run import dump_scenario
+from dronetrack.config.scenarios import get_scenario
 from dronetrack.experiments.compare.run_files import confusion_markdown, summed_confusion
 from dronetrack.experiments.compare.runner import (
     RunMetrics,
@@ -41,7 +43,9 @@ def test_the_suite_runs_the_named_scenarios_with_their_own_chooser() -> None:
     for case in MULTI.cases:
         cfg = case_config(case, "pf-delta", MULTI, seed=1, duration=5.0)
         assert cfg.pipeline.acquisition.enabled
-        assert cfg.pipeline.controller.mode == "tracking"
+        # the scenario's own turret: tracking, but for the static Mid-360
+        want = "fixed" if case.scenario == "mid360-static" else "tracking"
+        assert cfg.pipeline.controller.mode == want
         assert (cfg.seed, cfg.duration_s) == (1, 5.0)
         chooser[case.label] = cfg.pipeline.choose.enabled
         # a shortened run leaves out the vehicles that would park after it
@@ -210,3 +214,16 @@ def test_a_short_run_of_a_case_scores_as_simulate_does() -> None:
     assert m["drone_as_drone_pct"] >= 95.0
     assert m["never_acquired"] == 0.0
     assert m["acquire_max_s"] <= 1.0  # the issue's "acquired ≤ 1 s after it is in view"
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_each_case_is_its_scenario_as_named(seed: int) -> None:
+    """A row of the multi suite is ``simulate SCENARIO --seed r``: the configuration of
+    each case is the named scenario's, its turret mode included (the static Mid-360
+    of mid360-static stays still)."""
+    for case in MULTI.cases:
+        ours = case_config(case, "pf-delta", MULTI, seed, None)
+        named = get_scenario(case.scenario).model_copy(update={"seed": seed})
+        assert dump_scenario(ours) == dump_scenario(named), case.label
+    static = case_config(MULTI.cases[-1], "pf-delta", MULTI, seed, None)
+    assert (static.name, static.pipeline.controller.mode) == ("mid360-static", "fixed")

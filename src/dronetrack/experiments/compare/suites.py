@@ -24,7 +24,8 @@ class Case:
 
     label: str  # as the paper names it
     scenario: str  # a named scenario
-    turret: str  # controller mode: truth, fixed, or a seed 003 scan strategy
+    # controller mode: truth, fixed, or a seed 003 scan strategy; None: the scenario's own
+    turret: str | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -426,13 +427,14 @@ _LIST.append(
         name="multi",
         title="Several objects: every drone, the multi-object figures and the classes",
         methods=("pf-delta",),
-        cases=tuple(Case(name, name, "tracking") for name in _MULTI_SCENARIOS),
+        cases=tuple(Case(name, name, None) for name in _MULTI_SCENARIOS),
         metrics=MULTI_METRICS,
         lockstep=False,
         acquisition=True,
         groups=_MULTI_GROUPS,
         note=(
-            "Each scenario as it is named, the turret tracking with acquisition on, the "
+            "Each scenario as it is named, with its own turret mode (tracking; the "
+            "static Mid-360 of mid360-static held still) and acquisition on, the "
             "turret shared among the drones where the scenario turns [pipeline.choose] "
             "on (outdoor-two-drones, outdoor-swarm).  A run where a figure does not "
             "exist (no drone acquired, no static track) leaves it out of the mean."
