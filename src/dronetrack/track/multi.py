@@ -424,7 +424,7 @@ class MultiTargetTracker:
         self._drop(~self._duplicates(t_z))
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True
-        self._births(t_z, confirmed, found, of, taken)
+        self._births(t_z, confirmed, found, of, taken, R)
         self._predict(t)
         return self.snapshot()
 
@@ -524,7 +524,11 @@ class MultiTargetTracker:
         found: Detections,
         of: NDArray[np.intp],
         taken: NDArray[np.bool_],
+        R_all: FloatArray,
     ) -> None:
+        """Start tracks on the confirmed candidates whose clusters (``of``) no track took
+        (``taken``) and lie beyond ``merge_m`` of every track, but the one the lock's
+        track takes (``_hand_over``); ``R_all`` is every cluster's measurement noise."""
         s = self.settings
         new = np.flatnonzero((of >= 0) & ~taken[np.maximum(of, 0)])
         if len(new) and len(self):
@@ -534,14 +538,12 @@ class MultiTargetTracker:
             new = new[gap > s.merge_m]
         if len(new) == 0:
             return
-        c = confirmed.take(new)
-        R = measurement_noise(found, s.sigma_meas)[of[new]]
-        born = ~self._hand_over(t, c, of[new], R)
-        new, R = new[born], R[born]
+        c, R = confirmed.take(new), R_all[of[new]]
+        born = np.flatnonzero(~self._hand_over(t, c, of[new], R))
+        new, R, c = new[born], R[born], c.take(born)
         if len(new) == 0:
             return
         k = len(new)
-        c = confirmed.take(new)
         x = np.concatenate([c.positions, c.velocities], axis=1)
         P = np.zeros((k, 6, 6))
         P[:, :3, :3] = R
