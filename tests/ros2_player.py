@@ -22,8 +22,8 @@ from pathlib import Path
 
 from rosbags.highlevel import AnyReader
 
-from dronetrack.formats.livox import livox_typestore
-from dronetrack.formats.ros2_idl import IDL_TYPES
+from dronetrack.formats.ros.idl import IDL_TYPES
+from dronetrack.formats.ros.livox_msg import livox_typestore
 
 STATIC = "/tf_static"
 POINTS = ("sensor_msgs/msg/PointCloud2", "livox_ros_driver2/msg/CustomMsg")

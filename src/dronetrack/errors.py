@@ -14,6 +14,7 @@ __all__ = [
     "InputError",
     "MissingExtraError",
     "RecordingError",
+    "RunInterruptedError",
     "ScenarioError",
     "SensorError",
     "TrajectoryError",
@@ -59,3 +60,8 @@ class DeviceError(DronetrackError):
 
 class MissingExtraError(DronetrackError):
     """An optional dependency is not installed; the message says which extra to install."""
+
+
+class RunInterruptedError(DronetrackError):
+    """A run that Ctrl-C (or SIGTERM) stopped, after it wrote what it had; the message
+    ends the ``interrupted`` line, and the command line exits 130."""

@@ -15,7 +15,7 @@ import pytest
 from rosbags.typesys import get_types_from_msg
 
 from dronetrack.errors import ConfigError, DeviceError
-from dronetrack.formats.ros2_msgs import JOINT_STATE, encode_joint_state
+from dronetrack.formats.ros.msgs import JOINT_STATE, encode_joint_state
 from dronetrack.types import TurretCommand
 from ros2_helpers import loopback_dds
 
@@ -29,7 +29,7 @@ class ServoNode:
     def __init__(self, domain_id: int, command: str, msg_type: str, states: str) -> None:
         from rosbags.typesys import Stores, get_typestore
 
-        from dronetrack.sources.dds import DdsDomain
+        from dronetrack.sources.ros2.dds import DdsDomain
 
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
         self.ts.register(get_types_from_msg(GROUP_MSG, "interbotix_xs_msgs/msg/JointGroupCommand"))

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dronetrack.actuators.dynamixel import axis_tick_limits, probe_servos
+from dronetrack.actuators.dynamixel.turret import axis_tick_limits, probe_servos
 from dronetrack.actuators.turrets import (
     FixedSensor,
     LimitGuard,

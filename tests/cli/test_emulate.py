@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.actuators.dynamixel import DynamixelTurret
+from dronetrack.actuators.dynamixel.turret import DynamixelTurret
 from dronetrack.cli.main import run
 from dronetrack.errors import DeviceError
 from dronetrack.sim.emulate.servos import PtyServoLink, turret_bus
-from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
+from dronetrack.sources.livox.sdk1 import LivoxClient, LivoxEndpoint
 from emulated_rig import Emulator, emulator
 from livox_helpers import read_for
 

@@ -463,8 +463,8 @@ def _free_tcp_port() -> int:
 
 def test_the_live_foxglove_server_advertises_the_runs_topics() -> None:
     pytest.importorskip("foxglove")
-    from dronetrack.sinks.foxglove_live import FoxgloveServer
-    from dronetrack.sinks.foxglove_out import TOPICS
+    from dronetrack.sinks.foxglove.live import FoxgloveServer
+    from dronetrack.sinks.foxglove.mcap_file import TOPICS
 
     server = FoxgloveServer(0)
     try:

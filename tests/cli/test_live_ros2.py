@@ -109,8 +109,8 @@ def test_live_publishes_its_estimate_on_ros2(
 
     from rosbags.typesys import Stores, get_typestore
 
-    from dronetrack.formats.ros2_msgs import MARKER_ARRAY, POINT_STAMPED
-    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.formats.ros.msgs import MARKER_ARRAY, POINT_STAMPED
+    from dronetrack.sources.ros2.dds import DdsDomain
 
     domain = loopback_dds(tmp_path, monkeypatch)
     scenario = 'base = "default"\nseed = 0\n[pipeline.background]\nscan_s = 1.0\n'

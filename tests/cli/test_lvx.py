@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from dronetrack.cli.main import run
-from dronetrack.sources.recordings import open_recording
+from dronetrack.sources.recordings.opener import open_recording
 from lvx_files import mid40_lvx
 
 SITE = Path(__file__).parents[2] / "examples" / "site.toml"

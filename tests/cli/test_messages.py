@@ -175,7 +175,7 @@ def test_a_note_on_standard_error_is_one_line_in_a_pipe(
     # standard error is a pipe here, 80 columns wide: the note is longer than that and
     # must stay one line for a log file or a grep (a terminal wraps it on screen)
     from dronetrack.cli.output import print_kernel_note
-    from dronetrack.jobs.kernels import KernelWarmUp
+    from dronetrack.pipeline.kernels import KernelWarmUp
 
     monkeypatch.setenv("COLUMNS", WIDTH)
     print_kernel_note(KernelWarmUp(seconds=7.2, compiled=21))

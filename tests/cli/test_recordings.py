@@ -95,7 +95,7 @@ def test_track_options_without_ground_truth(tmp_path: Path) -> None:
 
 
 def test_track_without_ground_truth_has_no_accuracy_metrics(tmp_path: Path) -> None:
-    from sources.test_bag import _write_pc2_bag
+    from sources.recordings.test_bag import _write_pc2_bag
 
     xyz = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)]
     rng = np.random.default_rng(3)
@@ -333,7 +333,7 @@ def test_sensor_pose_on_a_bag_with_tf_is_a_warning(
 def test_period_on_a_bag_without_point_times_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from sources.test_bag import _write_pc2_bag
+    from sources.recordings.test_bag import _write_pc2_bag
 
     xyz = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)]
     path = tmp_path / "points"

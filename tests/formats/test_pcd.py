@@ -15,8 +15,8 @@ from dronetrack.errors import DecodeError, InputError, RecordingError
 from dronetrack.formats.lzf import lzf_compress_literal, lzf_decompress
 from dronetrack.formats.pcd import decode_pcd, encode_pcd, parse_pcd_header, read_pcd, write_pcd
 from dronetrack.geometry.transforms import make_pose
-from dronetrack.sources.pcd_folder import PcdRecording, cloud_frame, folder_times
-from dronetrack.sources.recording import ReplayOptions
+from dronetrack.sources.recordings.pcd import PcdRecording, cloud_frame, folder_times
+from dronetrack.sources.recordings.recording import ReplayOptions
 
 XYZI = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4")])
 

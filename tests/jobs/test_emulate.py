@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.actuators.dynamixel import DynamixelTurret
+from dronetrack.actuators.dynamixel.turret import DynamixelTurret
 from dronetrack.config.run import ScenarioConfig
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.geometry.mount import sensor_poses
@@ -24,9 +24,9 @@ from dronetrack.sim.emulate.rig import EmulatedRig
 from dronetrack.sim.turret import TurretPlant
 from dronetrack.sim.world import FrameTruth
 from dronetrack.sources.assembly import PointBatch
-from dronetrack.sources.livox2_udp import Livox2Client, Livox2Endpoint
-from dronetrack.sources.livox_link import LivoxLink
-from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
+from dronetrack.sources.livox.link import LivoxLink
+from dronetrack.sources.livox.sdk1 import LivoxClient, LivoxEndpoint
+from dronetrack.sources.livox.sdk2 import Livox2Client, Livox2Endpoint
 from dronetrack.types import Frame, TurretCommand
 
 LOOP = "127.0.0.1"

@@ -10,14 +10,14 @@ import time
 import numpy as np
 import pytest
 
-from dronetrack.actuators.ptu import PtuTurret
-from dronetrack.actuators.ptu_line import open_line
-from dronetrack.actuators.ptu_uri import parse_ptu_uri
+from dronetrack.actuators.ptu.line import open_line
+from dronetrack.actuators.ptu.turret import PtuTurret
+from dronetrack.actuators.ptu.uri import parse_ptu_uri
 from dronetrack.config.run import TurretConfig
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.jobs.emulate import emulated_rig
 from dronetrack.sim.turret import TurretPlant
-from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
+from dronetrack.sources.livox.sdk1 import LivoxClient, LivoxEndpoint
 from dronetrack.types import TurretCommand
 
 TAU = 10.0 / 9600.0

@@ -19,7 +19,7 @@ from dronetrack.jobs.lidar_model import (
     recording_lidar,
 )
 from dronetrack.jobs.replay import recording_config
-from dronetrack.sources.recordings import open_recording
+from dronetrack.sources.recordings.opener import open_recording
 from lvx_files import mid40_lvx
 
 SITE = Path(__file__).parents[2] / "examples" / "site.toml"

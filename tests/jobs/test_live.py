@@ -19,7 +19,7 @@ from dronetrack.config.run import ScenarioConfig, apply_overrides
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.formats.dynamixel import ADDR
-from dronetrack.jobs.live import LiveSetup, live_config, run_live
+from dronetrack.jobs.live.run import LiveSetup, live_config, run_live
 from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
 from dronetrack.sim.emulate.servos import PtyServoLink, ServoBus, turret_bus
 from dronetrack.types import Sample, StepResult

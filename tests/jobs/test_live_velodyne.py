@@ -14,13 +14,13 @@ from dronetrack.cli.main import run
 from dronetrack.config.run import SensorConfig, apply_overrides
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError, DeviceError
-from dronetrack.jobs.live import LiveSetup, live_config, open_point_stream, run_live
-from dronetrack.jobs.velodyne import velodyne_frames
+from dronetrack.jobs.live.run import LiveSetup, live_config, open_point_stream, run_live
+from dronetrack.jobs.live.velodyne import velodyne_frames
 from dronetrack.sim.emulate.livox_stream import PointChunk
 from dronetrack.sim.emulate.velodyne import EmulatedVelodyne
 from dronetrack.sim.spinning import vlp16_pattern
 from dronetrack.sources.revolutions import RevolutionAssembler
-from dronetrack.sources.velodyne_udp import VelodyneClient
+from dronetrack.sources.velodyne.client import VelodyneClient
 from dronetrack.types import Sample, StepResult
 
 LOOP = "127.0.0.1"

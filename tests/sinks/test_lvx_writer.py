@@ -12,10 +12,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from dronetrack.errors import ConfigError, InputError
-from dronetrack.formats.lvx import extrinsic_pose
+from dronetrack.formats.livox.lvx import extrinsic_pose
 from dronetrack.sinks.lvx_writer import DEFAULT_START_NS, LvxWriter, firing_slots, lvx_turret_mode
-from dronetrack.sources.lvx import LvxRecording
-from dronetrack.sources.recording import ReplayOptions, fixed_pose_frame
+from dronetrack.sources.frames import fixed_pose_frame
+from dronetrack.sources.recordings.lvx import LvxRecording
+from dronetrack.sources.recordings.recording import ReplayOptions
 from dronetrack.types import Frame
 
 POSE = extrinsic_pose((0.0, -12.5, 30.0, 0.25, -1.0, 1.5))

@@ -14,13 +14,13 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from dronetrack.cli.main import run
-from dronetrack.formats.ros2_names import check_type_name, ros_topic_name
+from dronetrack.formats.ros.names import check_type_name, ros_topic_name
 from ros2_helpers import check_tracks_published, loopback_dds
 
 
 def _subscribe(domain_id: int) -> tuple[Any, dict[str, Any]]:
     from dronetrack.sinks.ros2_out import TOPICS
-    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2.dds import DdsDomain
 
     sub = DdsDomain(domain_id)
     # the reliable topics with depth 100 (every sample of the run), the clouds best effort

@@ -200,7 +200,7 @@ def _ns(i: int) -> int:
 def test_foxglove_shows_every_track_with_its_id_and_class(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
     pytest.importorskip("rerun")
-    from dronetrack.sinks.foxglove_out import FoxgloveWriter
+    from dronetrack.sinks.foxglove.mcap_file import FoxgloveWriter
 
     path = tmp_path / "run.mcap"
     with FoxgloveWriter(path, start=START) as writer:
@@ -267,9 +267,9 @@ def test_foxglove_live_advertises_the_track_topics_with_the_first_tracks() -> No
     """A WebSocket client sees the run's topics, and the track topics only once a frame
     has tracks."""
     pytest.importorskip("foxglove")
-    from dronetrack.sinks.foxglove_live import FoxgloveServer
-    from dronetrack.sinks.foxglove_out import TOPICS
-    from dronetrack.sinks.foxglove_tracks import TRACK_TOPICS
+    from dronetrack.sinks.foxglove.live import FoxgloveServer
+    from dronetrack.sinks.foxglove.mcap_file import TOPICS
+    from dronetrack.sinks.foxglove.tracks import TRACK_TOPICS
 
     server = FoxgloveServer(0)
     messages = ws_messages(server.port, 5.0)
@@ -370,7 +370,7 @@ def test_ros2_publishes_every_track_as_markers(
     from rosbags.typesys import Stores, get_typestore
 
     from dronetrack.sinks.ros2_out import TOPICS, Ros2Publisher
-    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2.dds import DdsDomain
 
     topic, msg_type = TOPICS["tracks"]
     sub = DdsDomain(domain)

@@ -140,7 +140,7 @@ def _read_summary(path: Path) -> McapSummary:
 
 
 def _write_mcap(path: Path, frames: list[ViewFrame], start: float = START) -> None:
-    from dronetrack.sinks.foxglove_out import FoxgloveWriter
+    from dronetrack.sinks.foxglove.mcap_file import FoxgloveWriter
 
     with FoxgloveWriter(path, start=start) as writer:
         for frame in frames:
@@ -149,7 +149,7 @@ def _write_mcap(path: Path, frames: list[ViewFrame], start: float = START) -> No
 
 def test_mcap_has_the_documented_topics_schemas_and_times(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
-    from dronetrack.sinks.foxglove_out import TOPICS
+    from dronetrack.sinks.foxglove.mcap_file import TOPICS
 
     path = tmp_path / "run.mcap"
     _write_mcap(path, _frames())
@@ -226,7 +226,7 @@ def test_mcap_point_clouds_and_transforms_read_back(tmp_path: Path) -> None:
 
 def test_two_mcap_writers_in_one_process_keep_their_own_messages(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
-    from dronetrack.sinks.foxglove_out import FoxgloveWriter
+    from dronetrack.sinks.foxglove.mcap_file import FoxgloveWriter
 
     frames = _frames()
     a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
@@ -363,7 +363,7 @@ def test_rerun_disabled_by_the_environment_is_refused(
 def test_a_bad_frame_raises_and_writes_nothing(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
     pytest.importorskip("rerun")
-    from dronetrack.sinks.foxglove_out import FoxgloveWriter
+    from dronetrack.sinks.foxglove.mcap_file import FoxgloveWriter
     from dronetrack.sinks.rerun_out import RerunWriter
 
     good = _frames()[1]

@@ -21,7 +21,7 @@ from dronetrack.sim.emulate.livox import EmulatedLivox, GridSource, grid_points
 from dronetrack.sim.emulate.livox_stream import PointChunk
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.live import LiveSource
-from dronetrack.sources.livox_udp import LivoxClient, LivoxEndpoint
+from dronetrack.sources.livox.sdk1 import LivoxClient, LivoxEndpoint
 from dronetrack.types import Frame, Sample, StepResult, TurretCommand, TurretState
 
 LOOP = "127.0.0.1"
@@ -333,7 +333,7 @@ def test_a_frame_arrived_with_the_batch_that_held_its_last_point() -> None:
 def test_the_truth_in_the_sensors_time_base_is_shifted_to_the_runs_clock() -> None:
     """The points' clock starts at 5 s (a synchronised device); the truth x = t on that
     clock, so at a frame's end e on the run's clock the target is at x = 5 + e."""
-    from dronetrack.sources.recording import GroundTruth
+    from dronetrack.sources.truth import GroundTruth
 
     base = 5_000 * MS
     stream = _Scripted([[base + k * 10 * MS for k in range(j, j + 10)] for j in (0, 10, 20, 30)])

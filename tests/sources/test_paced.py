@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import ConfigError
+from dronetrack.sources.frames import fixed_pose_frame
 from dronetrack.sources.paced import PacedSource
-from dronetrack.sources.recording import fixed_pose_frame
 from dronetrack.types import Sample
 
 T = 0.1

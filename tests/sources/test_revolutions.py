@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from dronetrack.sources.assembly import PointBatch
 from dronetrack.sources.revolutions import RevolutionAssembler
-from dronetrack.sources.velodyne_timing import PacketClock, RevolutionCuts, spin_rpm
+from dronetrack.sources.velodyne.timing import PacketClock, RevolutionCuts, spin_rpm
 
 HOUR_US = 3_600_000_000
 SPAN = 1_327_104  # ns between VLP-16 packets, single return

@@ -1,5 +1,5 @@
 """A turret driven over ROS 2 (``--turret ros2:///NAMESPACE``), through DDS with no ROS
-install (``sources.dds``).
+install (``sources.ros2.dds``).
 
     ros2:///turret[?command=/TOPIC&states=/TOPIC&type=pkg/msg/Name&pan=NAME&tilt=NAME&group=NAME]
 
@@ -30,15 +30,15 @@ from urllib.parse import parse_qsl, urlsplit
 
 from dronetrack.actuators.state_poller import StatePoller
 from dronetrack.errors import ConfigError, DecodeError, DeviceError
-from dronetrack.formats.ros2_msgs import (
+from dronetrack.formats.ros.msgs import (
     JOINT_GROUP_COMMAND,
     JOINT_STATE,
     decode_joint_state,
     encode_joint_command,
     encode_joint_state,
 )
-from dronetrack.formats.ros2_names import ROS2_SCHEME, check_type_name, ros_topic_name
-from dronetrack.sources.dds import DdsDomain
+from dronetrack.formats.ros.names import ROS2_SCHEME, check_type_name, ros_topic_name
+from dronetrack.sources.ros2.dds import DdsDomain
 from dronetrack.types import TurretCommand, TurretState
 
 __all__ = ["Ros2Turret", "Ros2TurretUri", "parse_ros2_turret_uri"]

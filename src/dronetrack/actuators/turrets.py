@@ -1,8 +1,8 @@
 """The turrets a live run drives, by URI, and the guard on their limits.
 
-``--turret`` takes ``dynamixel://DEVICE?baud=…&pan=…&tilt=…`` (``actuators.dynamixel``),
+``--turret`` takes ``dynamixel://DEVICE?baud=…&pan=…&tilt=…`` (``actuators.dynamixel.turret``),
 ``ros2:///NAMESPACE`` (``actuators.ros2_turret``), ``ptu://DEVICE?baud=…`` or
-``ptu://HOST:PORT`` (a FLIR pan-tilt unit, ``actuators.ptu``) or ``none``: a fixed
+``ptu://HOST:PORT`` (a FLIR pan-tilt unit, ``actuators.ptu.turret``) or ``none``: a fixed
 sensor, whose pose is the mount's at pan = tilt = 0; its commands go nowhere.
 
 Whatever the tracker or controller says, a command reaches the turret only through
@@ -129,7 +129,7 @@ def check_turret_uri(uri: str) -> None:
     if uri.strip().lower() == NONE_URI:
         return
     if uri.startswith("dynamixel://"):
-        from dronetrack.actuators.dynamixel import parse_dynamixel_uri
+        from dronetrack.actuators.dynamixel.turret import parse_dynamixel_uri
 
         parse_dynamixel_uri(uri)
         return
@@ -139,7 +139,7 @@ def check_turret_uri(uri: str) -> None:
         parse_ros2_turret_uri(uri)
         return
     if uri.startswith("ptu://"):
-        from dronetrack.actuators.ptu_uri import parse_ptu_uri
+        from dronetrack.actuators.ptu.uri import parse_ptu_uri
 
         parse_ptu_uri(uri)
         return
@@ -166,9 +166,9 @@ def open_turret(
 
         return LimitGuard(Ros2Turret(uri, ros_domain_id, clock=clock), spec)
     if uri.startswith("ptu://"):
-        from dronetrack.actuators.ptu import PtuTurret
+        from dronetrack.actuators.ptu.turret import PtuTurret
 
         return LimitGuard(PtuTurret.from_uri(uri, turret=spec, clock=clock), spec)
-    from dronetrack.actuators.dynamixel import DynamixelTurret
+    from dronetrack.actuators.dynamixel.turret import DynamixelTurret
 
     return LimitGuard(DynamixelTurret.from_uri(uri, turret=spec, clock=clock), spec)

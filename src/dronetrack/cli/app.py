@@ -17,7 +17,7 @@ from dronetrack.cli.output import (
     print_kernel_note,
     print_metrics,
 )
-from dronetrack.errors import DronetrackError
+from dronetrack.errors import RunInterruptedError
 
 if TYPE_CHECKING:
     from dronetrack.jobs.run import RunFolder, RunResult
@@ -60,11 +60,6 @@ def _root(
     ] = False,
 ) -> None:
     """Detect and track small drones with LiDAR on a pan-tilt turret."""
-
-
-class RunInterruptedError(DronetrackError):
-    """A command whose loop Ctrl-C stopped, after it wrote what it had; the message
-    ends the ``interrupted`` line."""
 
 
 INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command killed by Ctrl-C

@@ -5,20 +5,13 @@ without hardware."""
 
 from __future__ import annotations
 
-import ipaddress
-import signal
 import sys
-import threading
-import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from types import FrameType
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 
-from dronetrack.cli.app import RunInterruptedError, app
+from dronetrack.cli.app import app
 from dronetrack.cli.options import (
     FlightDurationOption,
     RosDomainOption,
@@ -28,96 +21,17 @@ from dronetrack.cli.options import (
 )
 from dronetrack.cli.output import err_console
 
-if TYPE_CHECKING:
-    from dronetrack.sim.emulate.rig import EmulatedRig
-
 __all__ = ["emulate"]
-
-POLL_S = 0.05  # how often the waiting command looks at Ctrl-C, SIGTERM and the rig
-LINGER_S = 2.0  # the devices answer this long after the stream, while the host closes
-WAIT_S = 600.0  # how long it waits for a host by default
-
-
-@contextmanager
-def _sigterm_sets(stop: threading.Event) -> Iterator[None]:
-    """SIGTERM sets ``stop`` inside the block (main thread only), as Ctrl-C asks a loop
-    to stop; the previous handler comes back after."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _say(text: str) -> None:
     err_console.print(text, markup=False, highlight=False, soft_wrap=True)
 
 
-def _print_ros2(device: object, options: object) -> None:
-    """The two lines a host needs: the ros2:// URIs of the LiDAR and the turret."""
-    from dronetrack.sim.emulate.ros2 import Ros2Device, Ros2Options
-
-    assert isinstance(device, Ros2Device)
-    assert isinstance(options, Ros2Options)
-    tf = "/tf and /tf_static" if options.tf else "no /tf"
-    typer.echo(
-        f"lidar: ros2://{options.topic}  ({options.msg_type}, {options.frame_id}; {tf}; "
-        f"ROS 2 domain {device.domain.domain_id})"
-    )
-    typer.echo(
-        f"turret: ros2://{options.turret_ns}  (sensor_msgs/JointState goals on "
-        f"{options.command_topic}, states on {options.states_topic})"
-    )
-
-
-def _destination(text: str) -> tuple[str, int]:
-    """``IP[:PORT]`` (port 2368 if not given); ConfigError naming the problem."""
-    from dronetrack.errors import ConfigError
-
-    ip, colon, port = text.rpartition(":")
-    if not colon:
-        ip, port = text, "2368"
-    try:
-        ipaddress.IPv4Address(ip)
-    except ValueError:
-        raise ConfigError(f"--lidar-dest {text!r}: {ip!r} is not an IPv4 address") from None
-    if not port.isdigit() or not 1 <= int(port) <= 65535:
-        raise ConfigError(f"--lidar-dest {text!r}: {port!r} is not a UDP port in 1..65535")
-    return ip, int(port)
-
-
-def _serve(rig: EmulatedRig, stop: threading.Event, began: str, wait_s: float) -> bool | None:
-    """Let the rig serve hosts until its run is over: True once the scenario clock, from
-    the last start, has passed the streamed length and the stream has ended (a host that
-    stopped sampling ended it), and ``LINGER_S`` more have passed while the host closes
-    (stops sampling, parks the turret); False on a stop request; None if no host started
-    the scenario within ``wait_s``.  Says each start."""
-    from dronetrack.interrupt import stop_requested
-
-    ready = streaming = time.monotonic()
-    announced = 0
-    while not (stop.is_set() or stop_requested()):
-        now = time.monotonic()
-        if rig.starts > announced:
-            announced = rig.starts
-            _say(f"{began}: the scenario clock runs")
-        elapsed = rig.scenario_time(now)
-        if rig.device.sampling:
-            streaming = now
-        if elapsed is None:
-            if now - ready > wait_s:
-                return None
-        elif elapsed >= rig.duration_s + LINGER_S and now - streaming >= LINGER_S:
-            return True
-        time.sleep(POLL_S)
-    return False
+def _show(line: str) -> None:
+    """A line a host needs (a device's URI), on stdout at once: scripts read it."""
+    typer.echo(line)
+    sys.stdout.flush()
 
 
 @app.command()
@@ -183,7 +97,7 @@ def emulate(
             help="Seconds to wait for a host to start the scenario (start sampling, listen "
             "or subscribe); none came: error, exit code 2.",
         ),
-    ] = WAIT_S,
+    ] = 600.0,
     pointcloud2: Annotated[
         bool,
         typer.Option(
@@ -219,88 +133,25 @@ def emulate(
     stream has ended, whether the host sampled to the end or stopped before; Ctrl-C or
     SIGTERM end it sooner (exit 130; the truth file is kept).
     """
-    from dronetrack.errors import ConfigError, DeviceError
-    from dronetrack.formats.ptu import BAUD_RATES
-    from dronetrack.interrupt import stoppable
-    from dronetrack.jobs.emulate import emulated_rig, emulated_seconds
-    from dronetrack.jobs.factory import scan_duration
-    from dronetrack.realtime import frozen_heap
-    from dronetrack.sim.emulate.lidars import DEVICES, host_uri
+    from dronetrack.jobs.emulate import EmulateOptions, emulate_scenario
 
-    try:
-        ipaddress.IPv4Address(lidar_ip)
-    except ValueError:
-        raise ConfigError(f"--lidar-ip {lidar_ip!r} is not an IPv4 address") from None
-    if ptu_baud not in BAUD_RATES:
-        rates = ", ".join(map(str, BAUD_RATES))
-        raise ConfigError(f"--ptu-baud {ptu_baud} is not a standard rate ({rates})")
-    if not ros2 and (pointcloud2 or not tf or ros_domain_id is not None):
-        raise ConfigError("--pointcloud2, --no-tf and --ros-domain-id go with --ros2")
-    if ros2 and (serial_link is not None or lidar_dest is not None):
-        raise ConfigError("--serial-link and --lidar-dest are for the UDP rig; --ros2 has neither")
-    dest = _destination(lidar_dest) if lidar_dest is not None else None
-    cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
-    if dest is not None:
-        known = DEVICES.get(cfg.sensor.model)
-        if known is None or known.scheme != "velodyne":
-            raise ConfigError("--lidar-dest is for a VLP-16; this scenario's LiDAR takes a host")
-    options = None
-    if ros2:
-        from dronetrack.sim.emulate.ros2 import Ros2Options
-
-        options = Ros2Options(pointcloud2=pointcloud2, tf=tf)
-    rig = emulated_rig(
-        cfg,
+    options = EmulateOptions(
         lidar_ip=lidar_ip,
+        lidar_dest=lidar_dest,
         serial_link=serial_link,
-        truth=truth,
-        lidar_dest=dest,
         ptu_baud=ptu_baud,
-        ros2=options,
+        truth=truth,
+        ros2=ros2,
         ros_domain_id=ros_domain_id,
+        wait_s=wait_s,
+        pointcloud2=pointcloud2,
+        tf=tf,
     )
-    # What is built stays: no full collection of it pauses a slice (measured 45 ms, once
-    # about every 2 s of stream, without this; under 10 ms with it).
-    stop = threading.Event()
-    with frozen_heap(), rig, _sigterm_sets(stop), stoppable():
-        if options is not None:
-            _print_ros2(rig.device, options)
-            waits, began = "a subscriber of " + options.topic, "a subscriber came"
-        else:
-            model = DEVICES[cfg.sensor.model]
-            ip, port = rig.address
-            assert rig.link is not None
-            uri = host_uri(model, rig.device)
-            if model.scheme == "velodyne":
-                wire = f"UDP from {ip}:{port} to {uri.removeprefix('velodyne://')}"
-                waits, began = "a host to listen", "a host listens"
-            else:
-                wire = f"UDP {ip}:{port}"
-                waits, began = "a host to start sampling", "sampling started"
-            typer.echo(f"lidar: {uri}  ({model.name}, {wire})")
-            if rig.ptu is not None:
-                what = f"FLIR PTU-E46, {rig.ptu_baud} baud 8N1"
-            else:
-                rate = "/".join(map(str, sorted(rig.bus.rates())))
-                what = f"2 XM430-W350, pan ID 1, tilt ID 2, {rate} baud"
-            typer.echo(f"turret: {rig.turret_uri}  ({what}, on {rig.link.path})")
-        sys.stdout.flush()
-        scan_s = scan_duration(cfg.pipeline)
-        _say(
-            f"{cfg.name}: waiting for {waits}; then {scan_s:g} s of "
-            f"background scan and {cfg.duration_s:g} s of flight "
-            f"({emulated_seconds(cfg):g} s streamed)"
-        )
-        ended = _serve(rig, stop, began, wait_s)
-        if ended is None:
-            raise DeviceError(f"{cfg.name}: waited {wait_s:g} s for {waits}, none came (--wait-s)")
-    device = rig.device
-    what = "point messages" if options is not None else "point packets"
-    kept = f"; truth ({rig.truth_rows} rows) kept in {truth}" if truth is not None else ""
-    if not ended:
-        raise RunInterruptedError(f"{kept}; {device.packets_sent} {what} sent")
+    options.check()
+    cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
+    done = emulate_scenario(cfg, options, show=_show, say=_say)
+    kept = f"; truth: {done.truth_rows} rows in {truth}" if truth is not None else ""
     _say(
-        f"streamed {rig.slices * rig.slice_s:.2f} s of {cfg.name}: "
-        f"{device.packets_sent} {what}, {device.points_built} points"
-        + (f"; truth: {rig.truth_rows} rows in {truth}" if truth is not None else "")
+        f"streamed {done.streamed_s:.2f} s of {cfg.name}: {done.sent} {done.messages}, "
+        f"{done.points} points{kept}"
     )

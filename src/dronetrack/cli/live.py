@@ -8,7 +8,6 @@ Ctrl-C or SIGTERM (the turret holds, the files are written).
 
 from __future__ import annotations
 
-import ipaddress
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -136,17 +135,13 @@ def live(
     packets lost, and the plots) and prints the metrics.
     """
     from dronetrack.config.run import apply_overrides
-    from dronetrack.errors import ConfigError, DeviceError
+    from dronetrack.errors import DeviceError
     from dronetrack.interrupt import handling_sigterm
-    from dronetrack.jobs.live import LiveSetup, base_config, live_config, run_live
+    from dronetrack.jobs.live.run import LiveSetup, base_config, live_config, run_live
     from dronetrack.jobs.run import RunFolder
     from dronetrack.sinks.run_folder import default_run_dir
 
-    if host_ip is not None:
-        try:
-            ipaddress.IPv4Address(host_ip)
-        except ValueError:
-            raise ConfigError(f"--host-ip {host_ip!r} is not an IPv4 address") from None
+    setup = LiveSetup(lidar, turret, duration, truth, host_ip, ros_domain_id=ros_domain_id)
     named = None
     if scenario is not None:
         from dronetrack.cli.options import scenario_from_options
@@ -154,7 +149,6 @@ def live(
         named = scenario_from_options(scenario, None)
     cfg = apply_overrides(base_config(named, lidar), tracker=tracker, particles=particles)
     cfg = live_config(cfg, duration_s=duration, background_file=background, scan_s=scan_s)
-    setup = LiveSetup(lidar, turret, duration, truth, host_ip, ros_domain_id=ros_domain_id)
     folder = RunFolder(out if out is not None else default_run_dir())
     viewers = _live_viewers(foxglove_port, cfg, publish, ros_domain_id)
 
@@ -206,7 +200,7 @@ def _live_viewers(
         feed = ViewerFeed(open_viewers(None, None, publish=publish, ros_domain_id=domain))
         sinks.append(feed)
     if port is not None:
-        from dronetrack.sinks.foxglove_live import FoxgloveServer
+        from dronetrack.sinks.foxglove.live import FoxgloveServer
 
         server = FoxgloveServer(port, turret_spec(cfg.turret).mount)
         _say(f"foxglove: {server.url}  (Foxglove app: Open connection, Foxglove WebSocket)")

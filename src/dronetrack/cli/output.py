@@ -21,7 +21,7 @@ from rich.progress import ProgressColumn
 if TYPE_CHECKING:
     from rich.progress import Progress, TaskID
 
-    from dronetrack.jobs.kernels import CompileProgress, KernelWarmUp
+    from dronetrack.pipeline.kernels import CompileProgress, KernelWarmUp
 
 __all__ = [
     "COMPILING",

@@ -51,10 +51,14 @@ from dronetrack.cli.output import (
 )
 from dronetrack.errors import ConfigError
 from dronetrack.sinks.run_folder import check_run_dir
-from dronetrack.sources.recording import RecordingInfo, TopicInfo
-from dronetrack.sources.recordings import recording_info
+from dronetrack.sources.recordings.opener import recording_info
+from dronetrack.sources.recordings.recording import RecordingInfo, TopicInfo
 
 __all__ = ["info", "record", "track"]
+
+
+def _warn(text: str) -> None:
+    err_console.print(f"warning: {text}", markup=False, highlight=False, soft_wrap=True)
 
 
 def _floats(text: str | None, n: int, option: str) -> tuple[float, ...] | None:
@@ -177,15 +181,10 @@ def track(
     """
 
     from dronetrack.actuators.command_log import write_commands_csv
-    from dronetrack.config.run import load_scenario_file
-    from dronetrack.config.scenarios import SCENARIOS
-    from dronetrack.jobs.lidar_model import adopt_lidar, recording_lidar
-    from dronetrack.jobs.replay import recording_config, run_replay
+    from dronetrack.jobs.replay import open_replay, run_replay
     from dronetrack.jobs.run import RunFolder
     from dronetrack.sinks.run_folder import default_run_dir
-    from dronetrack.sources.live import read_truth_csv
-    from dronetrack.sources.recording import ReplayOptions
-    from dronetrack.sources.recordings import open_recording
+    from dronetrack.sources.recordings.recording import ReplayOptions
 
     folder = RunFolder(out if out is not None else default_run_dir())
     origin = _floats(gt_origin, 3, "--gt-origin")
@@ -199,20 +198,17 @@ def track(
         period_s=period,
         timestamps=timestamps,
     )
-    source = open_recording(recording, options)
-    if truth is not None:
-        source.ground_truth = read_truth_csv(truth)
-    base = load_scenario_file(config, SCENARIOS) if config is not None else None
-    cfg = recording_config(
-        source,
-        base,
+    source, cfg, warning = open_replay(
+        recording,
+        options,
+        truth=truth,
+        config=config,
         tracker=tracker,
         background_file=background,
         background_from=background_from,
     )
-    cfg, warning = adopt_lidar(cfg, recording_lidar(source), recording.name)
     if warning is not None:
-        err_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
+        _warn(warning)
     outputs = run_outputs(
         folder, foxglove, rerun, start=source.origin, publish=publish, ros_domain_id=ros_domain_id
     )
@@ -230,7 +226,7 @@ def track(
     metrics = folder.finish(result.run, extra=result.metrics())
     write_commands_csv(result.commands, folder.out_dir / "commands.csv")
     for warning in result.warnings:
-        err_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
+        _warn(warning)
     report_run(folder, result.run, metrics)
     if result.skipped:
         err_console.print(
@@ -262,7 +258,7 @@ def info(
     from rich.markup import escape
 
     if target.startswith(("livox://", "livox2://", "velodyne://")):
-        from dronetrack.jobs.live_probe import probe_lidar
+        from dronetrack.jobs.live.probe import probe_lidar
 
         for name, value in probe_lidar(target):
             typer.echo(f"{name}: {value}")
@@ -271,13 +267,13 @@ def info(
         _servo_info(target)
         return
     if target.startswith("ros2://"):
-        from dronetrack.jobs.live_ros2 import probe_ros2
+        from dronetrack.jobs.live.ros2 import probe_ros2
 
         for name, value in probe_ros2(target, ros_domain_id):
             typer.echo(f"{name}: {value}")
         return
     if target.startswith("ptu://"):
-        from dronetrack.actuators.ptu_probe import probe_ptu
+        from dronetrack.actuators.ptu.probe import probe_ptu
 
         for name, value in probe_ptu(target):
             typer.echo(f"{name}: {value}")
@@ -300,8 +296,8 @@ def _servo_info(uri: str) -> None:
     or tilt servo does not answer (after the lines), or if no servo answers at all."""
     import math
 
-    from dronetrack.actuators.dynamixel import parse_dynamixel_uri, probe_servos
-    from dronetrack.actuators.dynamixel_port import no_servo_answered
+    from dronetrack.actuators.dynamixel.port import no_servo_answered
+    from dronetrack.actuators.dynamixel.turret import parse_dynamixel_uri, probe_servos
     from dronetrack.errors import DeviceError
 
     reports = probe_servos(uri)
@@ -391,10 +387,9 @@ def record(
     the LiDAR's packets and its fixed pose (the turret holds still), with the truth
     and the scenario beside it.  Prints the metrics of the run, then what it wrote.
     """
-    from dronetrack.config.rig import turret_spec
-    from dronetrack.config.run import dump_scenario
+    from dronetrack.jobs.record import recording_writer
     from dronetrack.jobs.simulate import hold_still, resolve_run, run_simulation
-    from dronetrack.sinks.bag_writer import RecordingWriter, record_format
+    from dronetrack.sinks.bag_writer import record_format
     from dronetrack.sinks.lvx_writer import LVX_FORMATS, LvxWriter, lvx_turret_mode
 
     container = record_format(out, fmt.value if fmt is not None else None)
@@ -415,24 +410,11 @@ def record(
         particles=particles,
         turret_mode=turret_mode,
     )
-    resolved = resolve_run(cfg)
+    resolved = hold_still(resolve_run(cfg)) if lvx else resolve_run(cfg)
     check_run_dir(out.parent)
-    writer: RecordingWriter | LvxWriter
-    if lvx:
-        resolved = hold_still(resolved)
-        observer = resolved.observer is not None
-        config_text = dump_scenario(resolved)
-        writer = LvxWriter(out, container, resolved.sensor.model, config_text, observer)
-    else:
-        writer = RecordingWriter(
-            out,
-            container,
-            turret_spec(resolved.turret).mount,
-            livox_custom=livox_custom,
-            config_text=dump_scenario(resolved),
-            observer=resolved.observer is not None,
-            compress=compress,
-        )
+    writer = recording_writer(
+        out, container, resolved, livox_custom=livox_custom, compress=compress
+    )
     try:
         with progress_bar() as bar:
             task = bar.add_task(f"recording {cfg.name}", total=None)

@@ -98,7 +98,7 @@ def _base_config(spec: Any) -> Any:
     """The configuration the grid varies: the named scenario, or the recording's own."""
     if spec.recording is not None:
         from dronetrack.jobs.replay import recording_config
-        from dronetrack.sources.recordings import open_recording
+        from dronetrack.sources.recordings.opener import open_recording
 
         rec = Path(spec.recording)
         return recording_config(open_recording(rec), None)

@@ -41,7 +41,7 @@ __all__ = [
 Vec3 = tuple[float, float, float]
 Pair = tuple[float, float]
 # The one list of tracker names: the command line's --tracker choices, [pipeline.tracker]
-# kind, and the keys of jobs.factory.TRACKERS.
+# kind, and the keys of pipeline.factory.TRACKERS.
 TrackerKind = Literal[
     "pf-delta",
     "pf-cv",
@@ -55,7 +55,7 @@ TrackerKind = Literal[
     "aekf-ca",
 ]
 # How the turret is driven: tracking / fixed / truth, or one of seed 003's scan
-# strategies for a pan-only PTU; the keys of jobs.factory.CONTROLLERS.
+# strategies for a pan-only PTU; the keys of pipeline.factory.CONTROLLERS.
 ControllerMode = Literal[
     "tracking", "fixed", "truth", "sweep", "swing", "slowdown", "stop", "adaptive"
 ]

@@ -1,4 +1,4 @@
-"""What kind of file a recording is, from its first bytes (see ``io.recordings``), and
+"""What kind of file a recording is, from its first bytes (see ``sources.recordings.opener``), and
 whether a bag file is whole: an MCAP file ends with its magic too, and a ROS 1 bag's
 file header says where its index starts, 0 until the writer closes it.
 """

@@ -26,7 +26,7 @@ The format (PCL's PCD v0.7) is an ASCII header, one ``KEY values`` line each,
 VIEWPOINT is read into the header but not applied: writers almost always leave
 it at the identity, and the sensor pose of a recording is ``ReplayOptions.sensor_pose``.
 
-A folder of them is read as a recording by ``io.pcd_folder``.
+A folder of them is read as a recording by ``sources.recordings.pcd``.
 """
 
 from __future__ import annotations

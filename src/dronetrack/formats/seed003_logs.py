@@ -1,7 +1,7 @@
 """Seed 003's CSV logs of a run: one folder per run, one file per log.
 
 The one definition of the files and their columns, for the writer
-(``sinks/strategy_logs.py``) and the reader (``sources/field_logs.py``):
+(``sinks/strategy_logs.py``) and the reader (``sources/recordings/field_logs.py``):
 
 - ``filtered_points.csv``: ``t,x,y,z,seq``, the points that passed the filters
   (world frame [m]) and the frame's sequence number;

@@ -12,11 +12,11 @@ from dronetrack.formats.background import (
     load_learnt,
     save_background,
 )
+from dronetrack.pipeline.factory import SavedBackground
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.learning import LearningBackground
-from dronetrack.preprocess.voxel import key_centres, unique_keys, voxel_keys
 
-__all__ = ["load_model", "resume_learning", "save_model"]
+__all__ = ["load_model", "load_saved", "resume_learning", "save_model"]
 
 
 def save_model(
@@ -49,15 +49,13 @@ def load_model(path: Path) -> VoxelBackground:
     )
 
 
+def load_saved(path: Path) -> SavedBackground:
+    """Everything ``save_model`` wrote: the model and the voxels a learning map held."""
+    return SavedBackground(load_model(path), load_learnt(path))
+
+
 def resume_learning(path: Path, learning: LearningBackground) -> int:
-    """Start ``learning`` from the voxels the saved map had learnt (their centres taken
-    to its voxel size); the number of voxels it starts with."""
+    """Start ``learning`` from the voxels the saved map had learnt; the number of voxels
+    it starts with."""
     held = load_learnt(path)
-    if held is None:
-        return 0
-    resolution, keys = held
-    size = learning.settings.resolution
-    if len(keys) and resolution != size:
-        keys = unique_keys(voxel_keys(key_centres(keys, resolution), size))
-    learning.seed(keys)
-    return len(learning)
+    return 0 if held is None else learning.resume(held[1], held[0])

@@ -41,8 +41,8 @@ from dataclasses import dataclass
 from dronetrack.config.run import ScenarioConfig, SensorConfig, validate_scenario, with_rig_reach
 from dronetrack.config.spinning import SPINNING
 from dronetrack.errors import ConfigError
-from dronetrack.formats.lvx import DEVICE_NAMES
-from dronetrack.sources.recording import Recording
+from dronetrack.formats.livox.lvx import DEVICE_NAMES
+from dronetrack.sources.recordings.recording import Recording
 
 __all__ = [
     "LIVOX_MODELS",
@@ -86,7 +86,7 @@ def livox_lidar(dev_type: int | None, said: str) -> FoundLidar | None:
 
 def recording_lidar(recording: Recording) -> FoundLidar | None:
     """What ``recording`` says its LiDAR is (the module docstring); None if nothing."""
-    from dronetrack.sources.lvx import LvxRecording
+    from dronetrack.sources.recordings.lvx import LvxRecording
 
     if isinstance(recording, LvxRecording):
         header = f"in its {recording.file.kind.upper()} header"

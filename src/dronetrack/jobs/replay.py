@@ -24,22 +24,27 @@ from dronetrack.config.rig import resolve_turret, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig, validate_scenario
 from dronetrack.errors import ConfigError, RecordingError
 from dronetrack.eval.log import TrackLog
-from dronetrack.jobs.factory import scan_duration
-from dronetrack.jobs.kernels import REPLAY_WARM_UPS, CompileProgress, warm_up
 from dronetrack.jobs.lidar_model import adopt_lidar, recording_lidar
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
 from dronetrack.pipeline import run
+from dronetrack.pipeline.factory import scan_duration
+from dronetrack.pipeline.kernels import CompileProgress, warm_up
 from dronetrack.seams import Sink
 from dronetrack.sinks.track_log import TrackLogSink
 from dronetrack.sinks.view import ViewerFeed, ViewerSink
-from dronetrack.sources.playback import RecordingSource
-from dronetrack.sources.recording import Recording, truth_overlap_warning
+from dronetrack.sources.recordings.kernels import REPLAY_WARM_UPS
+from dronetrack.sources.recordings.playback import RecordingSource
+from dronetrack.sources.recordings.recording import (
+    Recording,
+    ReplayOptions,
+    truth_overlap_warning,
+)
 from dronetrack.types import TurretCommand
 
 Progress = Callable[[int, int], None]
 LogSink = Callable[[TrackLog], None]
 
-__all__ = ["ReplayRun", "recording_config", "run_replay"]
+__all__ = ["ReplayRun", "open_replay", "recording_config", "run_replay"]
 
 # A return within the drone's half-diagonal plus this margin of the true position
 # counts as the target's (the sensor's range noise and the truth's own error).
@@ -63,6 +68,39 @@ class ReplayRun:
         if self.warnings:
             out["warnings"] = list(self.warnings)
         return out
+
+
+def open_replay(
+    path: Path,
+    options: ReplayOptions,
+    *,
+    truth: Path | None = None,
+    config: Path | None = None,
+    tracker: str | None = None,
+    background_file: Path | None = None,
+    background_from: float | None = None,
+) -> tuple[Recording, ScenarioConfig, str | None]:
+    """``dronetrack track``'s recording (with the truth file's track, if given), the
+    configuration to replay it with (``recording_config``, from ``config`` if given) set
+    to the recording's LiDAR, and a warning if that LiDAR differs from the config's."""
+    from dronetrack.config.run import load_scenario_file
+    from dronetrack.config.scenarios import SCENARIOS
+    from dronetrack.sources.live import read_truth_csv
+    from dronetrack.sources.recordings.opener import open_recording
+
+    source = open_recording(path, options)
+    if truth is not None:
+        source.ground_truth = read_truth_csv(truth)
+    base = load_scenario_file(config, SCENARIOS) if config is not None else None
+    cfg = recording_config(
+        source,
+        base,
+        tracker=tracker,
+        background_file=background_file,
+        background_from=background_from,
+    )
+    cfg, warning = adopt_lidar(cfg, recording_lidar(source), path.name)
+    return source, cfg, warning
 
 
 def recording_config(

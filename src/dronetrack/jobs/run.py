@@ -23,9 +23,10 @@ from dronetrack.eval.log import TrackLog
 from dronetrack.eval.objects import drone_figures, mot_figures
 from dronetrack.formats.background import read_background_settings
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.jobs.factory import build_pipeline, noise_parameters, resolve_tracker
-from dronetrack.jobs.kernels import KernelWarmUp
+from dronetrack.jobs.background import load_saved
 from dronetrack.pipeline import Pipeline
+from dronetrack.pipeline.factory import build_pipeline, noise_parameters, resolve_tracker
+from dronetrack.pipeline.kernels import KernelWarmUp
 from dronetrack.sinks.run_folder import (
     FramesCsvWriter,
     TracksCsvWriter,
@@ -109,6 +110,7 @@ def turret_pipeline(
     cfg: ScenarioConfig, period: float, turret: TurretSpec, rng: np.random.Generator
 ) -> Pipeline:
     """The pipeline ``cfg`` describes, for frames of ``period`` s from this turret."""
+    file = cfg.pipeline.background.file
     return build_pipeline(
         cfg.pipeline,
         period,
@@ -116,6 +118,7 @@ def turret_pipeline(
         (turret.pan.lower, turret.pan.upper),
         (turret.tilt.lower, turret.tilt.upper),
         rng,
+        saved=load_saved(Path(file).expanduser()) if file is not None else None,
     )
 
 

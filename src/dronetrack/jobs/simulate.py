@@ -22,10 +22,10 @@ from dronetrack.control.aiming import aim_angles
 from dronetrack.errors import ConfigError
 from dronetrack.eval.log import TrackLog
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.jobs.factory import scan_duration
-from dronetrack.jobs.kernels import PIPELINE_WARM_UPS, CompileProgress, warm_up
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
 from dronetrack.pipeline import Pipeline, Stage, run
+from dronetrack.pipeline.factory import scan_duration
+from dronetrack.pipeline.kernels import PIPELINE_WARM_UPS, CompileProgress, warm_up
 from dronetrack.seams import Sink
 from dronetrack.sim.build import build_world, resolve_scenario
 from dronetrack.sim.rig import SimSource, SimTurret, TruthAimer

@@ -306,6 +306,15 @@ class LearningBackground:
         self.last_hit[at] = self._window if self._window is not None else 0
         self._rebuild()
 
+    def resume(self, keys: IntArray, resolution: float) -> int:
+        """Start from a saved map's learnt voxels (keys at ``resolution`` m, their centres
+        taken to this map's voxel size); the number of voxels it starts with."""
+        size = self.settings.resolution
+        if len(keys) and resolution != size:
+            keys = unique_keys(voxel_keys(key_centres(keys, resolution), size))
+        self.seed(keys)
+        return len(self)
+
     def is_background(self, points: FloatArray) -> NDArray[np.bool_]:
         """(N,) whether each world point falls in (or beside) a learnt voxel."""
         if len(self._cells) == 0:

@@ -38,14 +38,14 @@ import numpy as np
 from rosbags.typesys import get_types_from_msg
 
 from dronetrack.errors import ConfigError, InputError
-from dronetrack.formats.livox import (
+from dronetrack.formats.ros.livox_msg import (
     LIVOX_POINT,
     LivoxCloud,
     encode_livox_cdr,
     encode_livox_ros1,
     livox_typestore,
 )
-from dronetrack.formats.pointcloud2 import encode_cloud
+from dronetrack.formats.ros.pointcloud2 import encode_cloud
 from dronetrack.geometry.mount import (
     TURRET_FRAMES,
     MountGeometry,
@@ -59,7 +59,13 @@ from dronetrack.geometry.transforms import (
     make_pose,
     matrix_to_quaternion,
 )
-from dronetrack.sources.bag import CONFIG_TOPIC, POINTCLOUD2, POSESTAMPED, STRING_TYPE, TF_TYPE
+from dronetrack.sources.recordings.bag import (
+    CONFIG_TOPIC,
+    POINTCLOUD2,
+    POSESTAMPED,
+    STRING_TYPE,
+    TF_TYPE,
+)
 from dronetrack.types import Frame, Sample, StepResult
 
 __all__ = [

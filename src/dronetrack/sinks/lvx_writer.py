@@ -1,5 +1,5 @@
 """Write a simulated run as a Livox Viewer recording (``dronetrack record --format lvx``
-or ``lvx2``; the bytes: ``formats.lvx``).
+or ``lvx2``; the bytes: ``formats.livox.lvx``).
 
 An LVX file holds what Livox Viewer records: the LiDAR's point packets, and for each
 device one fixed pose, its extrinsics.  It has no place for a turret's motion, the
@@ -39,8 +39,8 @@ from pathlib import Path
 import numpy as np
 
 from dronetrack.errors import ConfigError, InputError
-from dronetrack.formats import livox_sdk1 as s1
-from dronetrack.formats.lvx import (
+from dronetrack.formats.livox import sdk1 as s1
+from dronetrack.formats.livox.lvx import (
     FRAME_DURATION_MS,
     LVX2_INTERVAL_NS,
     LvxDevice,
@@ -50,7 +50,7 @@ from dronetrack.formats.lvx import (
     extrinsic_of,
 )
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.sources.recording import DEFAULT_PERIOD_S
+from dronetrack.sources.recordings.recording import DEFAULT_PERIOD_S
 from dronetrack.types import Frame, Sample, StepResult
 
 __all__ = ["LVX_FORMATS", "LvxWriter", "lvx_turret_mode", "sidecar_paths"]

@@ -1,5 +1,5 @@
 """``--publish ros2``: a run published on ROS 2 as it goes, for RViz (over DDS,
-``sources.dds``; no ROS install).
+``sources.ros2.dds``; no ROS install).
 
 Every frame, in the ``world`` frame (RViz's fixed frame):
 
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import time
 
-from dronetrack.formats.ros2_msgs import (
+from dronetrack.formats.ros.msgs import (
     MARKER_ARRAY,
     PATH,
     POINT_STAMPED,
@@ -54,7 +54,7 @@ from dronetrack.sinks.view import (
     track_size,
     xyz,
 )
-from dronetrack.sources.dds import DdsDomain
+from dronetrack.sources.ros2.dds import DdsDomain
 
 __all__ = ["TOPICS", "Ros2Publisher", "track_markers"]
 

@@ -37,14 +37,14 @@ def open_viewers(
     ``ConfigError`` that names it.
     """
     # Imported here: the writer modules import the helpers of this module.
-    from dronetrack.sinks.foxglove_out import FoxgloveWriter, require_foxglove
+    from dronetrack.sinks.foxglove.mcap_file import FoxgloveWriter, require_foxglove
     from dronetrack.sinks.rerun_out import RerunWriter, require_rerun
     from dronetrack.sinks.run_folder import prepare_output_file
 
     if publish is not None and publish not in ("ros2",):
         raise ConfigError(f"--publish {publish!r}: the one choice is ros2")
     if publish is not None:
-        from dronetrack.sources.dds import require_cyclonedds
+        from dronetrack.sources.ros2.dds import require_cyclonedds
 
         require_cyclonedds()
     if foxglove is not None:

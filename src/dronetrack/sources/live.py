@@ -69,8 +69,7 @@ from dronetrack.formats.tables import missing_columns
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, PoseHistory, StreamFrame
 from dronetrack.sources.frame_queue import POLL_S, FrameQueue
-from dronetrack.sources.playback import RecordedTruth
-from dronetrack.sources.recording import GroundTruth
+from dronetrack.sources.truth import GroundTruth, RecordedTruth
 from dronetrack.types import Sample, TurretState
 
 __all__ = [

@@ -18,7 +18,7 @@ import pytest
 from dronetrack.errors import ConfigError
 from dronetrack.sim.emulate.livox import GridSource, PointChunk, grid_points
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
-from dronetrack.sources.livox_net import udp_socket
+from dronetrack.sources.udp import udp_socket
 from livox_helpers import (
     LOOP,
     assert_no_reply,

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from dronetrack.errors import ConfigError
-from dronetrack.formats.livox import livox_typestore
+from dronetrack.formats.ros.livox_msg import livox_typestore
 from dronetrack.geometry.mount import MountGeometry, sensor_poses
 from dronetrack.sim.emulate.livox_stream import PointChunk
 from dronetrack.sim.emulate.ros2 import (
@@ -28,7 +28,7 @@ from dronetrack.sim.emulate.ros2 import (
 from ros2_helpers import loopback_dds
 
 if TYPE_CHECKING:
-    from dronetrack.sources.dds import RawReader
+    from dronetrack.sources.ros2.dds import RawReader
 
 MOUNT = MountGeometry((1.0, 2.0, 1.5), (0.0, 0.0, 0.05), (0.03, 0.0, 0.09))
 
@@ -116,8 +116,8 @@ def test_the_device_streams_periods_from_the_first_subscriber(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     domain_id = loopback_dds(tmp_path, monkeypatch)
-    from dronetrack.formats.livox import decode_livox_cdr
-    from dronetrack.formats.ros2_msgs import (
+    from dronetrack.formats.ros.livox_msg import decode_livox_cdr
+    from dronetrack.formats.ros.msgs import (
         JOINT_STATE,
         TF_MESSAGE,
         decode_joint_state,
@@ -125,7 +125,7 @@ def test_the_device_streams_periods_from_the_first_subscriber(
         encode_joint_state,
     )
     from dronetrack.sim.emulate.ros2 import Ros2Device
-    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2.dds import DdsDomain
 
     rig = _FakeRig()
     device = Ros2Device(
@@ -189,9 +189,9 @@ def test_without_tf_the_device_publishes_points_and_no_transform(
     a message, so a host takes its poses from the turret's joint states (that path:
     ``tests/sources/test_ros2_dds.py``)."""
     domain_id = loopback_dds(tmp_path, monkeypatch)
-    from dronetrack.formats.ros2_msgs import TF_MESSAGE
+    from dronetrack.formats.ros.msgs import TF_MESSAGE
     from dronetrack.sim.emulate.ros2 import Ros2Device
-    from dronetrack.sources.dds import DdsDomain
+    from dronetrack.sources.ros2.dds import DdsDomain
 
     device = Ros2Device(
         lambda: iter(_chunks()),

@@ -21,7 +21,7 @@ from dronetrack.sim.emulate.velodyne import EmulatedVelodyne
 from dronetrack.sim.mounted import RotatedPattern, side_mount
 from dronetrack.sim.spinning import vlp16_pattern
 from dronetrack.sources.assembly import PointBatch
-from dronetrack.sources.velodyne_udp import VelodyneClient, VelodyneEndpoint
+from dronetrack.sources.velodyne.client import VelodyneClient, VelodyneEndpoint
 from livox_helpers import LOOP, collect
 
 PACKET_US = 24 * 55.296  # a packet's span [µs]

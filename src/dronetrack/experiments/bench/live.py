@@ -179,7 +179,7 @@ def run_against_emulator(
     --lidar ros2:///livox/lidar --turret ros2:///turret``; no turret: ``none``).  The
     device error that ended the run is raised."""
     from dronetrack.config.scenarios import get_scenario
-    from dronetrack.jobs.live import LiveSetup, live_config, run_live
+    from dronetrack.jobs.live.run import LiveSetup, live_config, run_live
     from dronetrack.jobs.run import RunFolder
 
     if not flight_s > 0:

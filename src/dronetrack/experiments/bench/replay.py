@@ -91,7 +91,7 @@ class ReplayTiming:
 def time_replay(path: Path) -> ReplayTiming:
     """Open and replay the recording at ``path`` with ``replay_config``, timed."""
     from dronetrack.jobs.replay import run_replay
-    from dronetrack.sources.recordings import open_recording
+    from dronetrack.sources.recordings.opener import open_recording
 
     start = time.perf_counter()
     result = run_replay(open_recording(path), replay_config())

@@ -70,7 +70,7 @@ def run_one(run: RunSpec) -> dict[str, Any]:
 def _execute(run: RunSpec) -> tuple[dict[str, Any], Any]:
     if "recording" in run.source:
         from dronetrack.jobs.replay import recording_config, run_replay
-        from dronetrack.sources.recordings import open_recording
+        from dronetrack.sources.recordings.opener import open_recording
 
         rec = open_recording(Path(run.source["recording"]))
         replay = run_replay(rec, run_config(recording_config(rec, None), run))
@@ -84,7 +84,7 @@ def _execute(run: RunSpec) -> tuple[dict[str, Any], Any]:
 
 def _eq11(cfg: Any) -> dict[str, float]:
     """Seed 000's analytic σ values (eq. 11) for the run's drone and frame period."""
-    from dronetrack.jobs.factory import DEFAULT_S_DIAG
+    from dronetrack.pipeline.factory import DEFAULT_S_DIAG
     from dronetrack.track.particle import eq11_parameters
 
     t = cfg.pipeline.tracker

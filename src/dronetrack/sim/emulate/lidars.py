@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from dronetrack.config.run import SensorConfig
 from dronetrack.config.spinning import head_rotation, spin_rpm
 from dronetrack.errors import ConfigError
-from dronetrack.formats import livox_sdk1 as s1
 from dronetrack.formats import velodyne as fv
+from dronetrack.formats.livox import sdk1 as s1
 from dronetrack.sim.emulate.livox import AVIA, MID40, EmulatedLivox
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
 from dronetrack.sim.emulate.livox_stream import PointSource, StreamingDevice

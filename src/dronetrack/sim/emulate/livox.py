@@ -1,6 +1,6 @@
 """An emulated Livox SDK 1 LiDAR (Avia or Mid-40) on UDP, streaming given points.
 
-The device side of the link ``sources.livox_udp`` drives (Livox-SDK
+The device side of the link ``sources.livox.sdk1`` drives (Livox-SDK
 ``sdk_core/src/device_discovery.cpp``, ``command_handler/command_channel.cpp``):
 
 - it binds its command socket on (ip, device_port) (65000 on a real device) and,
@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError
-from dronetrack.formats import livox_sdk1 as s1
+from dronetrack.formats.livox import sdk1 as s1
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.emulate.livox_stream import (
     GridSource,

@@ -1,6 +1,6 @@
 """An emulated Livox SDK 2 LiDAR (Mid-360) on UDP, streaming given points.
 
-The device side of the link ``sources.livox2_udp`` drives, as the Mid-360 protocol
+The device side of the link ``sources.livox.sdk2`` drives, as the Mid-360 protocol
 document (livox_wiki_en ``livox_eth_protocol_mid360.md``) describes it:
 
 - discovery: a request 0x0000 to its detection socket (port 56000 on a real device)
@@ -50,8 +50,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError
-from dronetrack.formats import livox_sdk2 as s2
-from dronetrack.formats import livox_sdk2_control as c2
+from dronetrack.formats.livox import sdk2 as s2
+from dronetrack.formats.livox import sdk2_control as c2
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.emulate.livox_stream import PointSource, StreamingDevice, bound_udp
 

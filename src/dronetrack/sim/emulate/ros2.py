@@ -1,6 +1,6 @@
 """The emulated rig on ROS 2 (``dronetrack emulate --ros2``): the simulated sensor
 published as livox_ros_driver2 publishes it, and the simulated turret as a ROS 2 joint
-controller, over DDS with no ROS install (``sources.dds``).
+controller, over DDS with no ROS install (``sources.ros2.dds``).
 
 Topics (defaults; ``Ros2Options`` renames them):
 
@@ -56,8 +56,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.errors import ConfigError, DecodeError, DronetrackError
-from dronetrack.formats.livox import LIVOX_POINT, LivoxCloud, encode_livox_cdr
-from dronetrack.formats.ros2_msgs import (
+from dronetrack.formats.ros.livox_msg import LIVOX_POINT, LivoxCloud, encode_livox_cdr
+from dronetrack.formats.ros.msgs import (
     JOINT_STATE,
     POINTCLOUD2,
     TF_MESSAGE,
@@ -66,11 +66,11 @@ from dronetrack.formats.ros2_msgs import (
     encode_points,
     encode_tf,
 )
-from dronetrack.formats.ros2_names import ros_topic_name
+from dronetrack.formats.ros.names import ros_topic_name
 from dronetrack.geometry.mount import MountGeometry, turret_links
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.emulate.livox_stream import PointChunk, PointSource
-from dronetrack.sources.dds import DdsDomain
+from dronetrack.sources.ros2.dds import DdsDomain
 
 __all__ = [
     "CUSTOM_MSG",

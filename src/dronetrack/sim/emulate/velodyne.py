@@ -1,6 +1,6 @@
 """An emulated Velodyne VLP-16 on UDP, streaming given points.
 
-The sensor side of the link ``sources.velodyne_udp`` reads.  A VLP-16 takes no
+The sensor side of the link ``sources.velodyne.client`` reads.  A VLP-16 takes no
 command: it sends its data packets (``formats.velodyne``) from its address to the
 destination set in its web interface (255.255.255.255, data port 2368, by default),
 here ``dest``.
