@@ -170,7 +170,8 @@ class RunResult:
     def realtime_factor(self) -> float:
         return self.simulated_s / self.wall_s if self.wall_s > 0 else math.inf
 
-    def metrics(self) -> dict[str, Any]:
+    def metrics(self, objects: dict[str, Any] | None = None) -> dict[str, Any]:
+        """metrics.json's figures; ``objects``: ``object_metrics()`` if already computed."""
         evaluation = self.config.pipeline.evaluation
         gt = self.log.gt
         known = np.all(np.isfinite(gt), axis=1)
@@ -180,7 +181,7 @@ class RunResult:
         )
         if area is not None:
             out["outside_field_pct"] = outside_share(area[known])
-        out.update(self.object_metrics())
+        out.update(self.object_metrics() if objects is None else objects)
         out["realtime_factor"] = self.realtime_factor
         out["wall_s"] = self.wall_s
         if self.interrupted:

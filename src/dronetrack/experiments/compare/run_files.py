@@ -1,12 +1,14 @@
 """A suite's per-run files: ``results.jsonl`` (every run's metrics, and for the suites
 that score every object its ``drones``, ``mot`` and ``classes``), ``confusion.md``
-(each case's class confusion matrix, summed over the runs) and each run's resolved
-configuration, ``configs/<case>/<method>/run<r>.toml``: ``dronetrack simulate --config``
-of it is that run (``results.jsonl``'s ``config`` and ``command``)."""
+(each case's class confusion matrix, summed over the runs) and each run's folder,
+``runs/<case>/<method>/seed-<n>/``: its resolved ``config.toml``, of which
+``dronetrack simulate --config`` is that run (``results.jsonl``'s ``config`` and
+``command``), and its ``metrics.json``."""
 
 from __future__ import annotations
 
 import json
+import shlex
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -19,27 +21,27 @@ from dronetrack.experiments.compare.ranking import format_number
 from dronetrack.experiments.compare.runner import RunMetrics
 from dronetrack.experiments.compare.suites import Suite
 from dronetrack.experiments.compare.tables import options_lines
-from dronetrack.sinks.run_folder import json_safe
+from dronetrack.sinks.run_folder import json_safe, write_metrics
 from dronetrack.types import TRACK_CLASSES
 
 __all__ = [
-    "CONFIGS_DIR",
     "CONFUSION_FILE",
     "RESULTS_FILE",
-    "config_path",
+    "RUNS_DIR",
     "confusion_markdown",
+    "run_dir",
     "summed_confusion",
     "write_run_files",
 ]
 
 RESULTS_FILE = "results.jsonl"
 CONFUSION_FILE = "confusion.md"
-CONFIGS_DIR = "configs"
+RUNS_DIR = "runs"
 
 
-def config_path(out_dir: Path, result: RunMetrics) -> Path:
-    """Where run ``result``'s configuration goes in a suite's folder ``out_dir``."""
-    return out_dir / CONFIGS_DIR / result.case / result.method / f"run{result.run}.toml"
+def run_dir(out_dir: Path, result: RunMetrics) -> Path:
+    """Run ``result``'s folder in a suite's folder ``out_dir`` (its seed is its run)."""
+    return out_dir / RUNS_DIR / result.case / result.method / f"seed-{result.run}"
 
 
 def result_line(suite: Suite, result: RunMetrics, config: Path | None = None) -> dict[str, Any]:
@@ -55,7 +57,7 @@ def result_line(suite: Suite, result: RunMetrics, config: Path | None = None) ->
     }
     if config is not None:
         line["config"] = str(config)
-        line["command"] = f"dronetrack simulate --config {config}"
+        line["command"] = f"dronetrack simulate --config {shlex.quote(str(config))}"
     return {**line, "metrics": result.metrics, **result.objects}
 
 
@@ -138,16 +140,18 @@ def write_run_files(
     duration: float | None,
     methods: Sequence[str],
 ) -> list[Path]:
-    """Write each run's configuration, results.jsonl and, where the runs have classes,
-    confusion.md; return the paths of the last two written."""
+    """Write each run's folder (config.toml and metrics.json), results.jsonl and, where
+    the runs have classes, confusion.md; return the paths of the last two written."""
     out_dir.mkdir(parents=True, exist_ok=True)
     configs: list[Path | None] = []
     for r in results:
+        folder = run_dir(out_dir, r)
+        folder.mkdir(parents=True, exist_ok=True)
+        write_metrics(r.run_json, folder / "metrics.json")
         if r.config is None:
             configs.append(None)
             continue
-        where = config_path(out_dir, r)
-        where.parent.mkdir(parents=True, exist_ok=True)
+        where = folder / "config.toml"
         where.write_text(dump_scenario(r.config))
         configs.append(where)
     path = out_dir / RESULTS_FILE

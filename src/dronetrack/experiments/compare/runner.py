@@ -52,6 +52,8 @@ class RunMetrics:
     objects: dict[str, Any] = field(default_factory=dict)
     # the run's resolved configuration: ``simulate --config`` of it is the same run
     config: ScenarioConfig | None = None
+    # the run's metrics.json, as ``simulate`` writes it
+    run_json: dict[str, Any] = field(default_factory=dict)
 
 
 def case_config(
@@ -151,11 +153,13 @@ def run_suite(
                 # (the logs of the runs already done stay written).
                 raise KeyboardInterrupt
             for m, sim, fg in zip(chosen, done, foregrounds, strict=True):
-                objects = sim.object_metrics() if _scores_objects(suite) else {}
+                every = sim.object_metrics()
+                objects = every if _scores_objects(suite) else {}
                 values = run_metrics(suite, sim, objects)
                 if memory:
                     values["memory_mb"] = tracker_memory_mb(sim.config, fg)
-                out.append(RunMetrics(case.label, m, r, values, objects, sim.config))
+                full = sim.metrics(every)
+                out.append(RunMetrics(case.label, m, r, values, objects, sim.config, full))
     return out
 
 

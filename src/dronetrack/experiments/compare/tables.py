@@ -182,6 +182,13 @@ def table_markdown(
     """table.md: options, the side-by-side tables, and rankings written from ``rows``."""
     lines = [f"# {suite.title}", "", f"Suite `{suite.name}`.", ""]
     lines += options_lines(suite, runs, duration, methods)
+    lines += [
+        "",
+        "A row is the mean over its runs.  To rerun one: its folder beside this file, "
+        "`runs/<case>/<method>/seed-<n>/`, holds its `config.toml` and `metrics.json`; "
+        "`dronetrack simulate --config runs/<case>/<method>/seed-<n>/config.toml` "
+        "reruns it and gives the same metrics (`results.jsonl` holds each run's command).",
+    ]
     if suite.groups:
         lines += _grouped_tables(suite, rows)
     else:
