@@ -11,17 +11,15 @@ from scipy.stats import chi2
 
 from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
 from dronetrack.errors import ConfigError
-from dronetrack.track.kalman import cv_transition, kf_predict, kf_update, position_selector
-from dronetrack.track.multi import (
-    MultiTargetTracker,
-    TrackSettings,
+from dronetrack.track.cv_bank import (
     associate,
-    close_pairs,
     cv_predict,
     cv_process_noise,
     cv_update,
     gate_costs,
 )
+from dronetrack.track.kalman import cv_transition, kf_predict, kf_update, position_selector
+from dronetrack.track.multi import MultiTargetTracker, TrackSettings, close_pairs
 from dronetrack.types import Candidates, Detections, TrackEstimate
 
 T = 0.1  # frame period [s]

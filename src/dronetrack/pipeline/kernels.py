@@ -159,7 +159,7 @@ def _detection() -> None:
 
 def _object_tracks() -> None:
     """Every object's track: the filter bank's predict, gates and update."""
-    from dronetrack.track.multi import cv_predict, cv_update, gate_costs
+    from dronetrack.track.cv_bank import cv_predict, cv_update, gate_costs
 
     x, P = np.zeros((1, 6)), np.eye(6)[None]
     x, P = cv_predict(x, P, np.array([0.1]), 1.0)
