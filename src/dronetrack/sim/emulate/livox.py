@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import socket
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,10 +75,11 @@ class EmulatedLivox(StreamingDevice):
 
     ``dev_type`` 7 (Avia, data type 2) or 1 (Mid-40, data type 0); ``device_port`` 0
     takes a free port (``address`` tells which).  ``start`` runs it in a background
-    thread; ``close`` stops it within about 1 s.  Counters: ``commands_received``,
-    ``commands_malformed``, ``commands_unknown``, ``broadcasts_sent``,
-    ``heartbeats_answered``, ``packets_sent``, ``packets_dropped``, ``points_built``,
-    ``points_dropped``.
+    thread; ``close`` stops it within about 1 s.  ``clock`` (seconds; time.monotonic by
+    default) is the device's: its stream, broadcasts and heartbeats are timed on it.
+    Counters: ``commands_received``, ``commands_malformed``, ``commands_unknown``,
+    ``broadcasts_sent``, ``heartbeats_answered``, ``packets_sent``, ``packets_dropped``,
+    ``points_built``, ``points_dropped``.
     """
 
     def __init__(
@@ -92,6 +94,7 @@ class EmulatedLivox(StreamingDevice):
         broadcast_period_s: float = 1.0,
         host_timeout_s: float = 3.0,
         firmware: tuple[int, int, int, int] = (3, 0, 0, 0),
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         if dev_type not in DATA_TYPE:
             raise ConfigError(f"the emulated Livox is an Avia (7) or a Mid-40 (1), not {dev_type}")
@@ -100,7 +103,10 @@ class EmulatedLivox(StreamingDevice):
         self.dev_type = dev_type
         self.data_type = DATA_TYPE[dev_type]
         super().__init__(
-            source, s1.POINT_INTERVAL_NS[dev_type], s1.POINTS_PER_PACKET[self.data_type]
+            source,
+            s1.POINT_INTERVAL_NS[dev_type],
+            s1.POINTS_PER_PACKET[self.data_type],
+            clock=clock,
         )
         self.broadcast_to = broadcast_to
         self.broadcast_code = broadcast_code
@@ -113,7 +119,7 @@ class EmulatedLivox(StreamingDevice):
         self.host: _Host | None = None
         self._sock = bound_udp(ip, device_port, "commands")
         self._bseq = 0
-        self._next_broadcast = time.monotonic()
+        self._next_broadcast = self.clock()
 
     @property
     def address(self) -> tuple[str, int]:
@@ -160,7 +166,7 @@ class EmulatedLivox(StreamingDevice):
     def _answer(self, frame: s1.CommandFrame) -> bytes | None:
         """The ACK payload for ``frame``, or None to stay silent; DecodeError if its
         payload does not decode."""
-        now = time.monotonic()
+        now = self.clock()
         if frame.cmd_set != s1.SET_GENERAL:
             self.commands_unknown += 1
             return None

@@ -157,13 +157,23 @@ class StreamingDevice:
     """The thread and point stream of an emulated Livox device (see the module
     docstring); a subclass gives its sockets, answers its commands and encodes its
     packets.  ``start`` runs the thread; ``close`` stops it within about 1 s.
+    ``clock`` (seconds; time.monotonic by default) is the device's: the thread's ticks
+    and the stream's send times are on it.
 
     Counters: ``commands_received``, ``commands_malformed``, ``commands_unknown``,
     ``packets_sent``, ``packets_dropped``, ``points_built``, ``points_dropped``.
     """
 
-    def __init__(self, source: PointSource, point_interval_ns: int, firings_per_packet: int):
+    def __init__(
+        self,
+        source: PointSource,
+        point_interval_ns: int,
+        firings_per_packet: int,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+    ):
         self.source = source
+        self.clock = clock
         self.point_interval_ns = point_interval_ns
         self.firings_per_packet = firings_per_packet
         self.send_delay_ns = 0  # a packet goes this long after its first firing
@@ -225,7 +235,7 @@ class StreamingDevice:
 
     @property
     def stream_start(self) -> float:
-        """time.monotonic() when the current (or last) sampling started: device time 0."""
+        """``clock()`` when the current (or last) sampling started: device time 0."""
         return self._t_start
 
     # -- life cycle ------------------------------------------------------------------
@@ -253,7 +263,7 @@ class StreamingDevice:
     def _run(self) -> None:
         socks = self._sockets()
         while not self._stop.is_set():
-            now = time.monotonic()
+            now = self.clock()
             wait = min(SLEEP_S, self._tick(now))
             if self.sampling:
                 due = self._send_due(now)
@@ -295,7 +305,7 @@ class StreamingDevice:
         self.sampling = True
 
     def _reset_stream(self) -> None:
-        self._t_start = time.monotonic()
+        self._t_start = self.clock()
         self._iter: Iterator[PointChunk] | None = None
         self._exhausted = False
         self._covered = 0  # no point to come maps to a firing below this
