@@ -1,6 +1,6 @@
 """Refresh the measured results the documentation includes.
 
-    python3 docs/results/refresh.py                    # everything: about an hour on 2 cores
+    python3 docs/results/refresh.py                    # everything: tens of minutes
     python3 docs/results/refresh.py --suites multi     # one part
     python3 docs/results/refresh.py --quick --out /tmp/results   # a smoke run
 
