@@ -17,8 +17,8 @@ import pytest
 from dronetrack.cli.output import COMPILING
 
 # The worst pipeline step of the default scenario with compiled kernels is 3-6 ms
-# on this 2-core machine (README, Speed); compiling even one kernel inside a step
-# takes 0.3-5 s.  A worst step under 250 ms therefore means nothing compiled in
+# on a 2-core machine (dronetrack bench, docs/speed.md); compiling even one kernel
+# inside a step takes 0.3-5 s.  A worst step under 250 ms therefore means nothing compiled in
 # the timed loop, with room for a slow or busy machine.
 WORST_STEP_MS = 250.0
 

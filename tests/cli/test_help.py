@@ -1,6 +1,7 @@
 """``--help`` as a new user reads it: at 80 columns and on a wide terminal, nothing is
 cut, paragraphs reflow, every default is shown the same way, the valid names are
-listed and flags take no value; and the README's command table names every command."""
+listed and flags take no value; and the command tables of the README and of the
+commands page (docs/commands.md) name every command."""
 
 from __future__ import annotations
 
@@ -16,7 +17,9 @@ from dronetrack.cli.main import run
 from dronetrack.config.rig import TARGETS
 from dronetrack.sim.sensors import SENSOR_NAMES
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+ROOT = Path(__file__).resolve().parents[2]
+# Each file's command table: the section that holds it.
+COMMAND_TABLES = {ROOT / "README.md": "Commands", ROOT / "docs" / "commands.md": "Overview"}
 GROUP = typer.main.get_group(app)
 COMMANDS = list(GROUP.commands)
 EVERY_HELP = [[], *([name] for name in COMMANDS)]  # the app's own help, then each command's
@@ -175,8 +178,9 @@ def test_a_flag_is_given_without_a_value(capsys: pytest.CaptureFixture[str]) -> 
     assert capsys.readouterr().err.startswith("error: ")
 
 
-def test_the_readme_command_table_names_every_command() -> None:
-    text = README.read_text()
-    section = text.split("\n## Commands\n", 1)[1].split("\n#", 1)[0]
+@pytest.mark.parametrize("path", list(COMMAND_TABLES), ids=lambda p: p.name)
+def test_the_command_tables_name_every_command(path: Path) -> None:
+    text = path.read_text()
+    section = text.split(f"\n## {COMMAND_TABLES[path]}\n", 1)[1].split("\n#", 1)[0]
     named = set(re.findall(r"^\| `dronetrack ([\w-]+)", section, flags=re.MULTILINE))
     assert named >= set(COMMANDS), sorted(set(COMMANDS) - named)
