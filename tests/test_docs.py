@@ -42,6 +42,7 @@ from dronetrack.cli.app import app
 from dronetrack.config.run import load_scenario_file
 from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.experiments.sweep.grid import expand, load_grid
+from ros2_helpers import CONFIG as LOOPBACK_DDS
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -98,20 +99,6 @@ NOT_RUN_PROGRAMS = {
 SHORT_DURATION = "2"
 SHORTENED = {"simulate", "record", "render", "emulate", "live", "compare"}
 TIMEOUT_S = 600.0
-# Loopback-only DDS for the ROS 2 examples (as tests/ros2_helpers.py).
-CYCLONE = """<?xml version="1.0" encoding="UTF-8"?>
-<CycloneDDS><Domain Id="any">
-  <General>
-    <Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>
-    <AllowMulticast>false</AllowMulticast>
-  </General>
-  <Discovery>
-    <ParticipantIndex>auto</ParticipantIndex>
-    <MaxAutoParticipantIndex>30</MaxAutoParticipantIndex>
-    <Peers><Peer address="127.0.0.1"/></Peers>
-  </Discovery>
-</Domain></CycloneDDS>
-"""
 
 
 @dataclass(frozen=True)
@@ -431,7 +418,7 @@ class Background:
 
 def _env(tmp: Path) -> dict[str, str]:
     dds = tmp / "cyclonedds.xml"
-    dds.write_text(CYCLONE)
+    dds.write_text(LOOPBACK_DDS)  # loopback-only DDS for the ROS 2 examples
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT / "src"), env.get("PYTHONPATH")) if p)
     env.update(MPLBACKEND="Agg", PYTHONUNBUFFERED="1", CYCLONEDDS_URI=dds.as_uri())
