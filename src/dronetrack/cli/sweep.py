@@ -22,7 +22,7 @@ __all__ = ["sweep", "sweep_report"]
 
 @app.command()
 def sweep(
-    grid: Annotated[Path, typer.Argument(help="The grid file (TOML; see the README).")],
+    grid: Annotated[Path, typer.Argument(help="The grid file (TOML; docs/commands.md, sweep).")],
     workers: Annotated[
         int | None,
         typer.Option(

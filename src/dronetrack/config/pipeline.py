@@ -279,7 +279,7 @@ class EvaluationConfig(StrictModel):
     # The sensor's reach for the scenario's drone [m], from the sensor: given, metrics.json
     # adds acquire_in_reach_s, acquire_s counted from the drone's first returns within it.
     # A drone flying in from beyond reach draws single returns from a passing search out
-    # there, which acquire_s counts from (see the README's acquisition figures).
+    # there, which acquire_s counts from (docs/results.md, Acquisition).
     reach_m: float | None = Field(None, gt=0)
     # The range beyond which the drone returns no point to the sensor [m]: what returns
     # there is larger or brighter than a drone (the classes' beyond-reach test).  Set
@@ -303,7 +303,7 @@ class ControllerConfig(StrictModel):
     # search the field of regard (or without one the background scan's area): sweeps of
     # ± search_pan_deg around the last bearing, one lane wider each, then a raster of
     # search_lane_deg lanes at search_rate_deg_s (control.search).  The lane is the
-    # sensor's dense centre: 20° suits the Avia's rosette (see the README).
+    # sensor's dense centre: 20° suits the Avia's rosette (docs/pipeline.md, the search).
     search_hold_s: float = Field(2.0, ge=0)
     search_pan_deg: float = Field(30.0, ge=0)
     search_lane_deg: float = Field(20.0, gt=0)

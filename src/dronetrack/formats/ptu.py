@@ -24,7 +24,7 @@ Manual; research notes ``live_devices.md`` §5):
 
 Sign convention.  The unit's tilt grows upwards (the D46's ``TX`` is 31° up, ``TN``
 47° down); a turret's tilt here grows downwards (tilt negative looks up, as the
-README's conventions say), so θ_tilt = −p · r; pan keeps the unit's sign (positive
+docs/index.md's conventions say), so θ_tilt = −p · r; pan keeps the unit's sign (positive
 to the left, counter-clockwise seen from above).
 """
 

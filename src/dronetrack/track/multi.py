@@ -41,8 +41,8 @@ Why global nearest neighbour and not JPDA: the candidates of one frame lie metre
 apart at the ranges we track (a drone's returns form one cluster within ε = 1 m), so
 a gate rarely holds two clusters; where it does (two drones crossing), the assignment
 keeps each on the cluster its prediction points at.  JPDA's blending would pull both
-estimates to the midpoint of the two clusters at the crossing.  See the README for
-the figures measured on the two-drone scenarios.
+estimates to the midpoint of the two clusters at the crossing.  The figures measured
+on the two-drone scenarios are in docs/results.md (Several objects).
 """
 
 from __future__ import annotations
