@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -20,6 +21,8 @@ from dronetrack.experiments.compare.ranking import (
     ranking_differences,
     ranking_lines,
 )
+from dronetrack.experiments.compare.run_files import run_dir
+from dronetrack.experiments.compare.runner import RunMetrics
 from dronetrack.experiments.compare.suites import SUITES, get_suite
 from dronetrack.experiments.compare.tables import table_markdown
 
@@ -405,3 +408,13 @@ def test_every_sentence_agrees_with_the_rows(rows: list[Row]) -> None:
             checked += 1
     # Every (scenario, metric) gets its ranking line.
     assert checked >= len({(r.scenario, r.metric) for r in rows})
+
+
+def test_the_table_says_how_to_rerun_a_row_where_compare_writes_it(tmp_path: Path) -> None:
+    """table.md names the run folder and the command that reruns a run; the folder is
+    where write_run_files puts each run (its seed is its run)."""
+    md = table_markdown(INDOOR, [], runs=1, duration=None, methods=INDOOR.methods)
+    assert "`runs/<case>/<method>/seed-<n>/`" in md
+    assert "`dronetrack simulate --config runs/<case>/<method>/seed-<n>/config.toml`" in md
+    done = RunMetrics("fast", "pf-delta", 3, {})
+    assert run_dir(tmp_path, done) == tmp_path / "runs" / "fast" / "pf-delta" / "seed-3"
