@@ -290,3 +290,20 @@ def test_the_servos_move_before_any_lidar_host_samples() -> None:
     )[:, :3, 0]
     assert math.acos(min(1.0, float(x_first @ x_moved))) < 2 * spec.pan.resolution
     assert math.acos(min(1.0, float(x_first @ x_start))) > 0.4
+
+
+def test_the_command_waits_as_long_as_the_job_by_default() -> None:
+    """``emulate --wait-s``'s default is the job's (the command loads its job lazily, so it
+    cannot import the constant), and options the job rejects are rejected there too."""
+    import inspect
+
+    from dronetrack.cli.emulate import emulate
+    from dronetrack.errors import ConfigError
+    from dronetrack.jobs.emulate import WAIT_S, EmulateOptions
+
+    assert inspect.signature(emulate).parameters["wait_s"].default == WAIT_S
+    assert EmulateOptions().wait_s == WAIT_S
+    with pytest.raises(ConfigError, match=r"--lidar-dest '10\.0\.0\.1:0'"):
+        EmulateOptions(lidar_dest="10.0.0.1:0").check()
+    with pytest.raises(ConfigError, match="go with --ros2"):
+        EmulateOptions(pointcloud2=True).check()
