@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dronetrack.jobs.background import load_model, resume_learning, save_model
+from dronetrack.jobs.background import load_model, load_saved, resume_learning, save_model
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.learning import LearningBackground, LearningSettings
 from dronetrack.preprocess.voxel import key_centres
@@ -67,3 +67,14 @@ def test_a_scanned_model_without_learnt_voxels_resumes_nothing(tmp_path: Path) -
     fresh = LearningBackground(LearningSettings(), 0.1)
     assert resume_learning(path, fresh) == 0
     assert len(fresh) == 0
+
+
+def test_the_saved_map_read_at_once_is_the_model_and_the_learnt_voxels(tmp_path: Path) -> None:
+    learnt = _learnt_map()
+    path = tmp_path / "site.npz"
+    save_model(None, path, learnt)
+    saved = load_saved(path)
+    assert len(saved.model) == len(load_model(path)) == 0
+    assert saved.learnt is not None
+    assert saved.learnt[0] == learnt.settings.resolution
+    np.testing.assert_array_equal(saved.learnt[1], learnt.learnt_keys())

@@ -147,7 +147,6 @@ def emulate(
         pointcloud2=pointcloud2,
         tf=tf,
     )
-    options.check()
     cfg = scenario_from_options(scenario, None, seed=seed, duration=duration)
     done = emulate_scenario(cfg, options, show=_show, say=_say)
     kept = f"; truth: {done.truth_rows} rows in {truth}" if truth is not None else ""

@@ -17,6 +17,7 @@ from dronetrack.errors import InputError
 __all__ = [
     "BackgroundSettings",
     "load_background",
+    "load_background_and_learnt",
     "load_learnt",
     "read_background_settings",
     "save_background",
@@ -128,6 +129,15 @@ def load_background(path: Path) -> tuple[BackgroundSettings, IntArray]:
     settings, keys, _ = _read(path, cells=True)
     assert keys is not None
     return settings, keys
+
+
+def load_background_and_learnt(
+    path: Path,
+) -> tuple[BackgroundSettings, IntArray, tuple[float, IntArray] | None]:
+    """``load_background`` and ``load_learnt`` of one file in one read."""
+    settings, keys, held = _read(path, cells=True, learnt=True)
+    assert keys is not None
+    return settings, keys, held
 
 
 def load_learnt(path: Path) -> tuple[float, IntArray] | None:

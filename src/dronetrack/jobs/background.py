@@ -8,7 +8,9 @@ import numpy as np
 
 from dronetrack.formats.background import (
     BackgroundSettings,
+    IntArray,
     load_background,
+    load_background_and_learnt,
     load_learnt,
     save_background,
 )
@@ -41,17 +43,22 @@ def save_model(
     save_background(path, cells, settings, learnt, resolution)
 
 
-def load_model(path: Path) -> VoxelBackground:
-    """The model ``save_model`` wrote, ready for lookups."""
-    s, cells = load_background(path)
+def _model(s: BackgroundSettings, cells: IntArray) -> VoxelBackground:
     return VoxelBackground.from_cells(
         cells, s.resolution, s.inflate, s.lookup_depth, s.min_hits, s.min_neighbours
     )
 
 
+def load_model(path: Path) -> VoxelBackground:
+    """The model ``save_model`` wrote, ready for lookups."""
+    return _model(*load_background(path))
+
+
 def load_saved(path: Path) -> SavedBackground:
-    """Everything ``save_model`` wrote: the model and the voxels a learning map held."""
-    return SavedBackground(load_model(path), load_learnt(path))
+    """Everything ``save_model`` wrote, in one read: the model and the voxels a learning
+    map held."""
+    settings, cells, learnt = load_background_and_learnt(path)
+    return SavedBackground(_model(settings, cells), learnt)
 
 
 def resume_learning(path: Path, learning: LearningBackground) -> int:

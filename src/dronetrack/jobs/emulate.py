@@ -240,10 +240,11 @@ class Emulation:
 def addresses(cfg: ScenarioConfig, rig: EmulatedRig) -> tuple[list[str], str, str]:
     """The lines a host needs (the LiDAR's and the turret's URIs), what the rig waits
     for, and what it says when that came."""
-    from dronetrack.sim.emulate.ros2 import Ros2Device
-
     device = rig.device
-    if isinstance(device, Ros2Device):
+    if rig.link is None:  # a ROS 2 rig: topics, no pseudo-terminal
+        from dronetrack.sim.emulate.ros2 import Ros2Device
+
+        assert isinstance(device, Ros2Device)
         o = device.options
         tf = "/tf and /tf_static" if o.tf else "no /tf"
         return (
@@ -258,7 +259,6 @@ def addresses(cfg: ScenarioConfig, rig: EmulatedRig) -> tuple[list[str], str, st
         )
     model = DEVICES[cfg.sensor.model]
     ip, port = rig.address
-    assert rig.link is not None
     uri = host_uri(model, device)
     if model.scheme == "velodyne":
         wire = f"UDP from {ip}:{port} to {uri.removeprefix('velodyne://')}"
