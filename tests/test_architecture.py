@@ -205,6 +205,33 @@ def test_no_two_modules_of_a_folder_share_a_prefix() -> None:
     assert not repeated, "\n".join(repeated)
 
 
+MAX_COMMAND_LINES = 60  # a command parses, calls one job and reports (docs/development.md)
+
+
+def _commands() -> dict[str, int]:
+    """Every ``@app.command`` function of the CLI and its length in lines, from the
+    decorator's ``def`` to its last line: options, docstring and body."""
+    lengths: dict[str, int] = {}
+    for path in sorted((SRC / "cli").glob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.FunctionDef) and any(
+                isinstance(d, ast.Call) and getattr(d.func, "attr", "") == "command"
+                for d in node.decorator_list
+            ):
+                assert node.end_lineno is not None
+                lengths[f"{path.name}:{node.name}"] = node.end_lineno - node.lineno + 1
+    return lengths
+
+
+def test_every_command_is_thin() -> None:
+    """Options are ``Annotated`` aliases beside the command, validation and set-up are in
+    config and jobs, so the command function reads on one screen."""
+    commands = _commands()
+    assert len(commands) >= 13, commands  # the rule sees every command
+    long = {name: n for name, n in commands.items() if n > MAX_COMMAND_LINES}
+    assert not long, long
+
+
 def test_no_two_modules_import_each_other_even_through_others() -> None:
     assert _cycles(GRAPH) == []
 

@@ -22,6 +22,7 @@ from dronetrack.experiments.bench import (
     LIVE_QUICK,
     LIVE_TARGETS,
     LiveSettings,
+    live_request,
     resident_mb,
     rss_growth_pct,
 )
@@ -171,3 +172,24 @@ def test_live_settings_are_checked() -> None:
     assert LiveSettings(soak_s=0.0, warmup_s=60.0).checked().soak_s == 0.0  # no soak
     with pytest.raises(ConfigError, match="sampling"):
         LiveSettings(sample_s=0.0).checked()
+
+
+def test_a_live_request_gives_the_options_over_the_chosen_settings() -> None:
+    """What is not given is the quick (or full) run's; --turret none drives no turret,
+    --ros2 the ROS 2 chain."""
+    quick = live_request(True, soak_s=0.0, turret="none")
+    assert quick.settings == LiveSettings(
+        LIVE_QUICK.latency_s, 0.0, LIVE_QUICK.warmup_s, LIVE_QUICK.sample_s, LIVE_QUICK.scan_s
+    )
+    assert (quick.turret, quick.chain) == (False, "livox")
+    ptu = live_request(False, turret="ptu", ptu_baud=38400, scenario="walk-line")
+    assert (ptu.settings.turret, ptu.settings.ptu_baud, ptu.settings.scenario) == (
+        "ptu",
+        38400,
+        "walk-line",
+    )
+    assert ptu.turret
+    ros2 = live_request(False, ros2=True)
+    assert (ros2.chain, ros2.settings.turret) == ("ros2", LiveSettings().turret)
+    with pytest.raises(ConfigError, match="ROS 2 turret"):
+        live_request(False, ros2=True, turret="ptu")

@@ -18,8 +18,9 @@ empty kernel cache, that is the first measurement).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
@@ -31,6 +32,9 @@ from dronetrack.cli.options import RunDirOption
 from dronetrack.cli.output import progress_bar
 from dronetrack.experiments.bench import FULL, LIVE_FULL, LIVE_QUICK, QUICK
 from dronetrack.experiments.bench.replay import MIN_REPLAY_S
+
+if TYPE_CHECKING:
+    from dronetrack.experiments.bench import LiveRequest
 
 __all__ = ["bench", "bench_table", "live_table"]
 
@@ -182,148 +186,168 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
     return table
 
 
-def _live(
-    out_dir: Path,
-    quick: bool,
-    latency_s: float | None,
-    soak_s: float | None,
-    warmup_s: float | None,
-    turret: str | None,
-    ptu_baud: int | None,
-    scenario: str | None = None,
-    chain: str = "livox",
-) -> None:
+def _suite(out_dir: Path, quick: bool, **settings: Any) -> None:
+    """``bench``: run the suite on one core, write bench.json, print the table."""
+    from dronetrack.experiments.bench import bench as run_bench
+    from dronetrack.experiments.bench import single_thread
+
+    with single_thread(), progress_bar() as bar:
+        task = bar.add_task("benchmarks", total=None)
+
+        def report(what: str, done: int, total: int) -> None:
+            bar.update(task, description=what, completed=done, total=total)
+
+        results = run_bench(quick=quick, progress=report, **settings)
+    _write(out_dir / "bench.json", results, bench_table)
+
+
+def _live(out_dir: Path, request: LiveRequest, quick: bool) -> None:
     """``bench --live``: run the live benchmarks, write bench_live.json, print the table."""
-    from dataclasses import replace
-
     from dronetrack.experiments.bench import live_bench
-    from dronetrack.sinks.run_folder import prepare_run_dir
 
-    settings = LIVE_QUICK if quick else LIVE_FULL
-    given: dict[str, Any] = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
-    fixed = turret == "none"
-    given.update(turret=None if fixed else turret, ptu_baud=ptu_baud, scenario=scenario)
-    settings = replace(settings, **{k: v for k, v in given.items() if v is not None})
-    settings.checked()
     with progress_bar() as bar:
         task = bar.add_task("live benchmarks", total=None)
 
         def report(what: str, done: float, total: float) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
-        results = live_bench(settings, quick=quick, turret=not fixed, progress=report, chain=chain)
-    prepare_run_dir(out_dir)
-    path = out_dir / "bench_live.json"
+        results = live_bench(
+            request.settings,
+            quick=quick,
+            turret=request.turret,
+            progress=report,
+            chain=request.chain,
+        )
+    _write(out_dir / "bench_live.json", results, live_table)
+
+
+def _write(
+    path: Path, results: dict[str, Any], table: Callable[[dict[str, Any], Path], Table]
+) -> None:
+    """Write the results as JSON, print their table, then the file's path."""
+    from dronetrack.sinks.run_folder import prepare_run_dir
+
+    prepare_run_dir(path.parent)
     path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
-    Console().print(live_table(results, path))
+    Console().print(table(results, path))
     typer.echo(str(path))
+
+
+_QUICK_HELP = (
+    f"A smoke test: {QUICK.repeats} steps, {QUICK.rounds} round, a {QUICK.replay_s:g} s "
+    f"recording, unless given (with --live: {LIVE_QUICK.latency_s:g} s of latency, a "
+    f"{LIVE_QUICK.soak_s:g} s soak)."
+)
+_Rounds = Annotated[
+    int | None,
+    typer.Option(
+        "--rounds",
+        min=1,
+        help="Rounds per measurement; the best counts.",
+        show_default=_with_quick(FULL.rounds, QUICK.rounds),
+    ),
+]
+_Repeats = Annotated[
+    int | None,
+    typer.Option(
+        "--repeats",
+        min=1,
+        help="Timed steps or frames per round (a fifth at 100,000 particles).",
+        show_default=_with_quick(FULL.repeats, QUICK.repeats),
+    ),
+]
+_ReplaySeconds = Annotated[
+    float | None,
+    typer.Option(
+        "--replay-seconds",
+        help=f"Length of the replayed recording, at least {MIN_REPLAY_S:g} s.",
+        show_default=_with_quick(FULL.replay_s, QUICK.replay_s, " s"),
+    ),
+]
+_Quick = Annotated[bool, typer.Option("--quick", help=_QUICK_HELP)]
+_Live = Annotated[
+    bool,
+    typer.Option(
+        "--live",
+        help="Instead: the live chain against 'dronetrack emulate' in real time "
+        "(latency, then a memory soak); writes bench_live.json.",
+    ),
+]
+_LatencyS = Annotated[
+    float | None,
+    typer.Option(
+        "--latency-s",
+        help="With --live: the latency run's flight.",
+        show_default=_with_quick(LIVE_FULL.latency_s, LIVE_QUICK.latency_s, " s"),
+    ),
+]
+_SoakS = Annotated[
+    float | None,
+    typer.Option(
+        "--soak-s",
+        help="With --live: the soak's flight, 0 for none.",
+        show_default=_with_quick(LIVE_FULL.soak_s, LIVE_QUICK.soak_s, " s"),
+    ),
+]
+_WarmupS = Annotated[
+    float | None,
+    typer.Option(
+        "--warmup-s",
+        help="With --live: the soak's warm-up before memory counts.",
+        show_default=_with_quick(LIVE_FULL.warmup_s, LIVE_QUICK.warmup_s, " s"),
+    ),
+]
+_Turret = Annotated[
+    str | None,
+    typer.Option(
+        "--turret",
+        help="With --live: the emulated turret driven, dynamixel (the scenario's WidowX), "
+        "ptu (a FLIR PTU-E46 on its ASCII line) or none (a fixed sensor).",
+        show_default=LIVE_FULL.turret,
+    ),
+]
+_PtuBaud = Annotated[
+    int | None,
+    typer.Option(
+        "--ptu-baud",
+        help="With --live --turret ptu: the line's baud rate.",
+        show_default=str(LIVE_FULL.ptu_baud),
+    ),
+]
+_Scenario = Annotated[
+    str | None,
+    typer.Option(
+        "--scenario",
+        help="With --live: the scenario emulated, and so its LiDAR (e.g. walk-line for a VLP-16).",
+        show_default=repr(LIVE_FULL.scenario),
+    ),
+]
+_Ros2 = Annotated[
+    bool,
+    typer.Option(
+        "--ros2",
+        help="With --live: over ROS 2 (emulate --ros2; live --lidar ros2:///livox/lidar "
+        "--turret ros2:///turret, on a DDS domain of its own) instead of the Livox and "
+        "Dynamixel protocols.",
+    ),
+]
 
 
 @app.command()
 def bench(
     out: RunDirOption = None,
-    rounds: Annotated[
-        int | None,
-        typer.Option(
-            "--rounds",
-            min=1,
-            help="Rounds per measurement; the best counts.",
-            show_default=_with_quick(FULL.rounds, QUICK.rounds),
-        ),
-    ] = None,
-    repeats: Annotated[
-        int | None,
-        typer.Option(
-            "--repeats",
-            min=1,
-            help="Timed steps or frames per round (a fifth at 100,000 particles).",
-            show_default=_with_quick(FULL.repeats, QUICK.repeats),
-        ),
-    ] = None,
-    replay_seconds: Annotated[
-        float | None,
-        typer.Option(
-            "--replay-seconds",
-            help=f"Length of the replayed recording, at least {MIN_REPLAY_S:g} s.",
-            show_default=_with_quick(FULL.replay_s, QUICK.replay_s, " s"),
-        ),
-    ] = None,
-    quick: Annotated[
-        bool,
-        typer.Option(
-            "--quick",
-            help=f"A smoke test: {QUICK.repeats} steps, {QUICK.rounds} round, a "
-            f"{QUICK.replay_s:g} s recording, unless given (with --live: "
-            f"{LIVE_QUICK.latency_s:g} s of latency, a {LIVE_QUICK.soak_s:g} s soak).",
-        ),
-    ] = False,
-    live: Annotated[
-        bool,
-        typer.Option(
-            "--live",
-            help="Instead: the live chain against 'dronetrack emulate' in real time "
-            "(latency, then a memory soak); writes bench_live.json.",
-        ),
-    ] = False,
-    latency_s: Annotated[
-        float | None,
-        typer.Option(
-            "--latency-s",
-            help="With --live: the latency run's flight.",
-            show_default=_with_quick(LIVE_FULL.latency_s, LIVE_QUICK.latency_s, " s"),
-        ),
-    ] = None,
-    soak_s: Annotated[
-        float | None,
-        typer.Option(
-            "--soak-s",
-            help="With --live: the soak's flight, 0 for none.",
-            show_default=_with_quick(LIVE_FULL.soak_s, LIVE_QUICK.soak_s, " s"),
-        ),
-    ] = None,
-    warmup_s: Annotated[
-        float | None,
-        typer.Option(
-            "--warmup-s",
-            help="With --live: the soak's warm-up before memory counts.",
-            show_default=_with_quick(LIVE_FULL.warmup_s, LIVE_QUICK.warmup_s, " s"),
-        ),
-    ] = None,
-    turret: Annotated[
-        str | None,
-        typer.Option(
-            "--turret",
-            help="With --live: the emulated turret driven, dynamixel (the scenario's WidowX), "
-            "ptu (a FLIR PTU-E46 on its ASCII line) or none (a fixed sensor).",
-            show_default=LIVE_FULL.turret,
-        ),
-    ] = None,
-    ptu_baud: Annotated[
-        int | None,
-        typer.Option(
-            "--ptu-baud",
-            help="With --live --turret ptu: the line's baud rate.",
-            show_default=str(LIVE_FULL.ptu_baud),
-        ),
-    ] = None,
-    scenario: Annotated[
-        str | None,
-        typer.Option(
-            "--scenario",
-            help="With --live: the scenario emulated, and so its LiDAR (e.g. walk-line for "
-            "a VLP-16).",
-            show_default=repr(LIVE_FULL.scenario),
-        ),
-    ] = None,
-    ros2: Annotated[
-        bool,
-        typer.Option(
-            "--ros2",
-            help="With --live: over ROS 2 (emulate --ros2; live --lidar ros2:///livox/lidar "
-            "--turret ros2:///turret, on a DDS domain of its own) instead of the Livox and "
-            "Dynamixel protocols.",
-        ),
-    ] = False,
+    rounds: _Rounds = None,
+    repeats: _Repeats = None,
+    replay_seconds: _ReplaySeconds = None,
+    quick: _Quick = False,
+    live: _Live = False,
+    latency_s: _LatencyS = None,
+    soak_s: _SoakS = None,
+    warmup_s: _WarmupS = None,
+    turret: _Turret = None,
+    ptu_baud: _PtuBaud = None,
+    scenario: _Scenario = None,
+    ros2: _Ros2 = False,
 ) -> None:
     """Time the pipeline, every tracker, the simulator and replay on one core.
 
@@ -332,51 +356,28 @@ def bench(
     With --live, runs the live chain against the emulator instead (latency p50/p99,
     frames dropped, packets lost; a memory soak) and writes bench_live.json.
     """
-    from dronetrack.errors import ConfigError
-    from dronetrack.sinks.run_folder import check_run_dir, default_run_dir, prepare_run_dir
+    from dronetrack.experiments.bench import check_mode, live_request
+    from dronetrack.sinks.run_folder import check_run_dir, default_run_dir
 
     out_dir = check_run_dir(out if out is not None else default_run_dir())
-    if live:
-        if rounds is not None or repeats is not None or replay_seconds is not None:
-            raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
-        if ptu_baud is not None and turret != "ptu":
-            raise ConfigError("--ptu-baud goes with --turret ptu")
-        if ros2 and turret not in (None, "none"):
-            raise ConfigError("--ros2 drives the emulated ROS 2 turret (or --turret none)")
-        if scenario is not None:
-            from dronetrack.config.scenarios import get_scenario
-
-            get_scenario(scenario)  # an unknown one is an error before anything runs
-        chain = "ros2" if ros2 else "livox"
-        _live(out_dir, quick, latency_s, soak_s, warmup_s, turret, ptu_baud, scenario, chain)
-        return
+    suite = {"repeats": repeats, "rounds": rounds, "replay_s": replay_seconds}
     live_only = (latency_s, soak_s, warmup_s, turret, ptu_baud, scenario)
-    if ros2 or any(value is not None for value in live_only):
-        raise ConfigError(
-            "--latency-s, --soak-s, --warmup-s, --turret, --ptu-baud, --scenario and --ros2 "
-            "go with --live"
-        )
-    from dronetrack.experiments.bench import bench as run_bench
-    from dronetrack.experiments.bench import single_thread
-
-    with (
-        single_thread(),
-        progress_bar() as bar,
-    ):
-        task = bar.add_task("benchmarks", total=None)
-
-        def report(what: str, done: int, total: int) -> None:
-            bar.update(task, description=what, completed=done, total=total)
-
-        results = run_bench(
-            repeats=repeats,
-            rounds=rounds,
-            quick=quick,
-            replay_s=replay_seconds,
-            progress=report,
-        )
-    prepare_run_dir(out_dir)
-    path = out_dir / "bench.json"
-    path.write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
-    Console().print(bench_table(results, path))
-    typer.echo(str(path))
+    check_mode(
+        live,
+        suite_options=any(v is not None for v in suite.values()),
+        live_options=ros2 or any(v is not None for v in live_only),
+    )
+    if not live:
+        _suite(out_dir, quick, **suite)
+        return
+    request = live_request(
+        quick,
+        latency_s=latency_s,
+        soak_s=soak_s,
+        warmup_s=warmup_s,
+        turret=turret,
+        ptu_baud=ptu_baud,
+        scenario=scenario,
+        ros2=ros2,
+    )
+    _live(out_dir, request, quick)

@@ -14,35 +14,37 @@ from dronetrack.experiments.compare.suites import SUITES
 __all__ = ["compare"]
 
 
+_Suite = Annotated[
+    str, typer.Option("--suite", help=f"{', '.join(list(SUITES)[:-1])} or {list(SUITES)[-1]}.")
+]
+_Runs = Annotated[int, typer.Option("--runs", min=1, help="Seeded runs per method.")]
+_Duration = Annotated[
+    float | None,
+    typer.Option(
+        "--duration",
+        "-d",
+        min=0.01,
+        help="Shorten every flight to these seconds.",
+        show_default="the suite's",
+    ),
+]
+_Methods = Annotated[
+    str | None,
+    typer.Option(
+        "--methods",
+        help="Comma-separated subset of the suite's methods.",
+        show_default="all of them",
+    ),
+]
+
+
 @app.command()
 def compare(
-    suite: Annotated[
-        str,
-        typer.Option(
-            "--suite",
-            help=f"{', '.join(list(SUITES)[:-1])} or {list(SUITES)[-1]}.",
-        ),
-    ],
-    runs: Annotated[int, typer.Option("--runs", min=1, help="Seeded runs per method.")] = 5,
+    suite: _Suite,
+    runs: _Runs = 5,
     out: RunDirOption = None,
-    duration: Annotated[
-        float | None,
-        typer.Option(
-            "--duration",
-            "-d",
-            min=0.01,
-            help="Shorten every flight to these seconds.",
-            show_default="the suite's",
-        ),
-    ] = None,
-    methods: Annotated[
-        str | None,
-        typer.Option(
-            "--methods",
-            help="Comma-separated subset of the suite's methods.",
-            show_default="all of them",
-        ),
-    ] = None,
+    duration: _Duration = None,
+    methods: _Methods = None,
 ) -> None:
     """Run every method of a suite on the same seeded scenarios, side by side.
 

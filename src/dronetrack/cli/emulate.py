@@ -34,86 +34,97 @@ def _show(line: str) -> None:
     sys.stdout.flush()
 
 
+_LidarIp = Annotated[
+    str,
+    typer.Option(
+        "--lidar-ip",
+        help="The emulated LiDAR's IPv4 address, one of this host's (127.0.0.1: loopback).",
+    ),
+]
+_LidarDest = Annotated[
+    str | None,
+    typer.Option(
+        "--lidar-dest",
+        help="VLP-16 only: where it sends its packets, IP[:PORT] (its Host and Data "
+        "Port settings).",
+        show_default="127.0.0.1:2368 from a loopback --lidar-ip",
+    ),
+]
+_SerialLink = Annotated[
+    Path | None,
+    typer.Option(
+        "--serial-link",
+        help="Also reach the turret's pseudo-terminal through this symlink "
+        "(dynamixel://PATH, or ptu://PATH for a PTU-E46 scenario, opens it).",
+    ),
+]
+_PtuBaud = Annotated[
+    int,
+    typer.Option(
+        "--ptu-baud",
+        help="The emulated PTU's serial rate: its replies are paced as on a line at this "
+        "baud (8N1); a PTU-E46 scenario only.",
+    ),
+]
+_Truth = Annotated[
+    Path | None,
+    typer.Option(
+        "--truth",
+        help="Write the target's true position here: CSV t,x,y,z, t in the sensor's "
+        "time base (seconds since sampling started, as the packets' stamps).",
+    ),
+]
+_Ros2 = Annotated[
+    bool,
+    typer.Option(
+        "--ros2",
+        help="Instead: publish on ROS 2 over DDS as livox_ros_driver2 (CustomMsg on "
+        "/livox/lidar), /tf and /tf_static, and take goals on /turret/command "
+        "(JointState), publishing /turret/joint_states (extra: ros2).",
+    ),
+]
+_WaitS = Annotated[
+    float,
+    typer.Option(
+        "--wait-s",
+        min=0.1,
+        help="Seconds to wait for a host to start the scenario (start sampling, listen "
+        "or subscribe); none came: error, exit code 2.",
+    ),
+]
+_PointCloud2 = Annotated[
+    bool,
+    typer.Option(
+        "--pointcloud2",
+        help="With --ros2: the points as a PointCloud2 (sensor_msgs; in the layout of "
+        "livox_ros_driver2) instead of a CustomMsg.",
+    ),
+]
+_Tf = Annotated[
+    bool,
+    typer.Option(
+        "--tf/--no-tf",
+        help="With --ros2: publish the turret's joints on /tf (--no-tf: the host takes "
+        "the sensor's pose from the joint states).",
+    ),
+]
+
+
 @app.command()
 def emulate(
     scenario: ScenarioArgument = None,
     seed: SeedOption = None,
     duration: FlightDurationOption = None,
-    lidar_ip: Annotated[
-        str,
-        typer.Option(
-            "--lidar-ip",
-            help="The emulated LiDAR's IPv4 address, one of this host's (127.0.0.1: loopback).",
-        ),
-    ] = "127.0.0.1",
-    lidar_dest: Annotated[
-        str | None,
-        typer.Option(
-            "--lidar-dest",
-            help="VLP-16 only: where it sends its packets, IP[:PORT] (its Host and Data "
-            "Port settings).",
-            show_default="127.0.0.1:2368 from a loopback --lidar-ip",
-        ),
-    ] = None,
-    serial_link: Annotated[
-        Path | None,
-        typer.Option(
-            "--serial-link",
-            help="Also reach the turret's pseudo-terminal through this symlink "
-            "(dynamixel://PATH, or ptu://PATH for a PTU-E46 scenario, opens it).",
-        ),
-    ] = None,
-    ptu_baud: Annotated[
-        int,
-        typer.Option(
-            "--ptu-baud",
-            help="The emulated PTU's serial rate: its replies are paced as on a line at this "
-            "baud (8N1); a PTU-E46 scenario only.",
-        ),
-    ] = 9600,
-    truth: Annotated[
-        Path | None,
-        typer.Option(
-            "--truth",
-            help="Write the target's true position here: CSV t,x,y,z, t in the sensor's "
-            "time base (seconds since sampling started, as the packets' stamps).",
-        ),
-    ] = None,
-    ros2: Annotated[
-        bool,
-        typer.Option(
-            "--ros2",
-            help="Instead: publish on ROS 2 over DDS as livox_ros_driver2 (CustomMsg on "
-            "/livox/lidar), /tf and /tf_static, and take goals on /turret/command "
-            "(JointState), publishing /turret/joint_states (extra: ros2).",
-        ),
-    ] = False,
+    lidar_ip: _LidarIp = "127.0.0.1",
+    lidar_dest: _LidarDest = None,
+    serial_link: _SerialLink = None,
+    ptu_baud: _PtuBaud = 9600,
+    truth: _Truth = None,
+    ros2: _Ros2 = False,
     ros_domain_id: RosDomainOption = None,
-    wait_s: Annotated[
-        float,
-        typer.Option(
-            "--wait-s",
-            min=0.1,
-            help="Seconds to wait for a host to start the scenario (start sampling, listen "
-            "or subscribe); none came: error, exit code 2.",
-        ),
-    ] = 600.0,
-    pointcloud2: Annotated[
-        bool,
-        typer.Option(
-            "--pointcloud2",
-            help="With --ros2: the points as a PointCloud2 (sensor_msgs; in the layout of "
-            "livox_ros_driver2) instead of a CustomMsg.",
-        ),
-    ] = False,
-    tf: Annotated[
-        bool,
-        typer.Option(
-            "--tf/--no-tf",
-            help="With --ros2: publish the turret's joints on /tf (--no-tf: the host takes "
-            "the sensor's pose from the joint states).",
-        ),
-    ] = True,
+    wait_s: _WaitS = 600.0,
+    pointcloud2: _PointCloud2 = False,
+    tf: _Tf = True,
 ) -> None:
     """Run a scenario's simulator in real time behind an emulated rig, to test 'live'
     without hardware.

@@ -39,10 +39,13 @@ def _flags_without_placeholder(params: list[Any]) -> list[Any]:
 
 
 class ReadableCommand(TyperCommand):
-    """A command whose help paragraphs reflow and whose flags show no placeholder."""
+    """A command whose help paragraphs (and epilog's) reflow and whose flags show no
+    placeholder."""
 
-    def __init__(self, name: str | None, *, help: str | None = None, **kwargs: Any) -> None:
-        super().__init__(name, help=reflow(help), **kwargs)
+    def __init__(
+        self, name: str | None, *, help: str | None = None, epilog: str | None = None, **kwargs: Any
+    ) -> None:
+        super().__init__(name, help=reflow(help), epilog=reflow(epilog), **kwargs)
 
     def get_params(self, ctx: Any) -> list[Any]:
         return _flags_without_placeholder(super().get_params(ctx))

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 import typer
@@ -50,9 +50,14 @@ from dronetrack.cli.output import (
     progress_bar,
 )
 from dronetrack.errors import ConfigError
-from dronetrack.sinks.run_folder import check_run_dir
 from dronetrack.sources.recordings.opener import recording_info
 from dronetrack.sources.recordings.recording import RecordingInfo, TopicInfo
+
+if TYPE_CHECKING:
+    from dronetrack.jobs.record import RecordingPlan
+    from dronetrack.jobs.replay import ReplayRun
+    from dronetrack.jobs.run import RunFolder, RunResult
+    from dronetrack.sources.recordings.recording import ReplayOptions
 
 __all__ = ["info", "record", "track"]
 
@@ -87,88 +92,121 @@ def _sensor_pose(text: str | None) -> np.ndarray | None:
     return pose
 
 
+def _replay_options(
+    lidar_topic: str | None,
+    gt_topic: str | None,
+    pose_frame: str | None,
+    sensor_pose: str | None,
+    gt_origin: str | None,
+    gt_heading: float,
+    period: float | None,
+    timestamps: Path | None,
+) -> ReplayOptions:
+    """How ``track`` reads its recording, from the command line's text."""
+    from dronetrack.sources.recordings.recording import ReplayOptions
+
+    origin = _floats(gt_origin, 3, "--gt-origin")
+    return ReplayOptions(
+        lidar_topic=lidar_topic,
+        gt_topic=gt_topic,
+        pose_frame=pose_frame,
+        sensor_pose=_sensor_pose(sensor_pose),
+        gt_origin=(origin[0], origin[1], origin[2]) if origin else None,
+        gt_heading_deg=gt_heading,
+        period_s=period,
+        timestamps=timestamps,
+    )
+
+
+_Recording = Annotated[
+    Path,
+    typer.Argument(
+        help="A ROS 1 bag, a ROS 2 bag folder, an MCAP or .db3 file, a PCD file or a folder "
+        "of them, a LAS/LAZ file, a Livox Viewer .lvx or .lvx2 file, or a folder of seed "
+        "003's CSV logs; files are recognised by their content, whatever their name."
+    ),
+]
+_LidarTopic = Annotated[
+    str | None,
+    typer.Option("--lidar-topic", help="Point topic or LVX LiDAR.", show_default="the only one"),
+]
+_GtTopic = Annotated[
+    str | None,
+    typer.Option(
+        "--gt-topic", help="NavSatFix or PoseStamped ground truth.", show_default="the only one"
+    ),
+]
+_PoseFrame = Annotated[
+    str | None,
+    typer.Option("--pose-frame", help="The /tf frame to track in.", show_default="the tree's root"),
+]
+_Background = Annotated[
+    Path | None, typer.Option("--background", help="Load this background model (.npz).")
+]
+_BackgroundFrom = Annotated[
+    float | None,
+    typer.Option(
+        "--background-from", min=0.0, help="Build the background from the first S seconds."
+    ),
+]
+_Config = Annotated[
+    Path | None,
+    typer.Option(
+        "--config", help="A scenario/config .toml.", show_default="the recording's own, if any"
+    ),
+]
+_SensorPose = Annotated[
+    str | None,
+    typer.Option(
+        "--sensor-pose", help="Fixed sensor pose x,y,z,roll,pitch,yaw (m, deg) without /tf."
+    ),
+]
+_GtOrigin = Annotated[
+    str | None,
+    typer.Option("--gt-origin", help="NavSatFix ENU origin lat,lon,alt (deg, deg, m)."),
+]
+_GtHeading = Annotated[
+    float, typer.Option("--gt-heading", help="Yaw of the world x axis from east (deg).")
+]
+_Period = Annotated[
+    float | None,
+    typer.Option(
+        "--period",
+        min=1e-4,
+        help="Frame period in s; a bag's points are re-cut by their times to it.",
+        show_default="from the stamps",
+    ),
+]
+_Timestamps = Annotated[
+    Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
+]
+_Truth = Annotated[
+    Path | None,
+    typer.Option(
+        "--truth",
+        help="Ground truth from a CSV with columns t,x,y,z (t in s from the recording's "
+        "start, x, y, z in m in the world frame), instead of the recording's own.",
+    ),
+]
+
+
 @app.command()
 def track(
-    recording: Annotated[
-        Path,
-        typer.Argument(
-            help="A ROS 1 bag, a ROS 2 bag folder, an MCAP or .db3 file, a PCD file or a folder "
-            "of them, a LAS/LAZ file, a Livox Viewer .lvx or .lvx2 file, or a folder of seed "
-            "003's CSV logs; files are recognised by their content, whatever their name."
-        ),
-    ],
-    lidar_topic: Annotated[
-        str | None,
-        typer.Option(
-            "--lidar-topic", help="Point topic or LVX LiDAR.", show_default="the only one"
-        ),
-    ] = None,
-    gt_topic: Annotated[
-        str | None,
-        typer.Option(
-            "--gt-topic",
-            help="NavSatFix or PoseStamped ground truth.",
-            show_default="the only one",
-        ),
-    ] = None,
-    pose_frame: Annotated[
-        str | None,
-        typer.Option(
-            "--pose-frame", help="The /tf frame to track in.", show_default="the tree's root"
-        ),
-    ] = None,
-    background: Annotated[
-        Path | None, typer.Option("--background", help="Load this background model (.npz).")
-    ] = None,
-    background_from: Annotated[
-        float | None,
-        typer.Option(
-            "--background-from", min=0.0, help="Build the background from the first S seconds."
-        ),
-    ] = None,
+    recording: _Recording,
+    lidar_topic: _LidarTopic = None,
+    gt_topic: _GtTopic = None,
+    pose_frame: _PoseFrame = None,
+    background: _Background = None,
+    background_from: _BackgroundFrom = None,
     tracker: TrackerOption = None,
-    config: Annotated[
-        Path | None,
-        typer.Option(
-            "--config",
-            help="A scenario/config .toml.",
-            show_default="the recording's own, if any",
-        ),
-    ] = None,
+    config: _Config = None,
     out: RunDirOption = None,
-    sensor_pose: Annotated[
-        str | None,
-        typer.Option(
-            "--sensor-pose", help="Fixed sensor pose x,y,z,roll,pitch,yaw (m, deg) without /tf."
-        ),
-    ] = None,
-    gt_origin: Annotated[
-        str | None,
-        typer.Option("--gt-origin", help="NavSatFix ENU origin lat,lon,alt (deg, deg, m)."),
-    ] = None,
-    gt_heading: Annotated[
-        float, typer.Option("--gt-heading", help="Yaw of the world x axis from east (deg).")
-    ] = 0.0,
-    period: Annotated[
-        float | None,
-        typer.Option(
-            "--period",
-            min=1e-4,
-            help="Frame period in s; a bag's points are re-cut by their times to it.",
-            show_default="from the stamps",
-        ),
-    ] = None,
-    timestamps: Annotated[
-        Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
-    ] = None,
-    truth: Annotated[
-        Path | None,
-        typer.Option(
-            "--truth",
-            help="Ground truth from a CSV with columns t,x,y,z (t in s from the recording's "
-            "start, x, y, z in m in the world frame), instead of the recording's own.",
-        ),
-    ] = None,
+    sensor_pose: _SensorPose = None,
+    gt_origin: _GtOrigin = None,
+    gt_heading: _GtHeading = 0.0,
+    period: _Period = None,
+    timestamps: _Timestamps = None,
+    truth: _Truth = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
     publish: PublishOption = None,
@@ -179,24 +217,13 @@ def track(
     Writes config.toml, frames.csv, commands.csv, metrics.json and plots, as simulate
     does; the metrics that need ground truth appear only when there is some.
     """
-
-    from dronetrack.actuators.command_log import write_commands_csv
     from dronetrack.jobs.replay import open_replay, run_replay
     from dronetrack.jobs.run import RunFolder
     from dronetrack.sinks.run_folder import default_run_dir
-    from dronetrack.sources.recordings.recording import ReplayOptions
 
     folder = RunFolder(out if out is not None else default_run_dir())
-    origin = _floats(gt_origin, 3, "--gt-origin")
-    options = ReplayOptions(
-        lidar_topic=lidar_topic,
-        gt_topic=gt_topic,
-        pose_frame=pose_frame,
-        sensor_pose=_sensor_pose(sensor_pose),
-        gt_origin=(origin[0], origin[1], origin[2]) if origin else None,
-        gt_heading_deg=gt_heading,
-        period_s=period,
-        timestamps=timestamps,
+    options = _replay_options(
+        lidar_topic, gt_topic, pose_frame, sensor_pose, gt_origin, gt_heading, period, timestamps
     )
     source, cfg, warning = open_replay(
         recording,
@@ -223,6 +250,14 @@ def track(
             log_sink=folder.log_sink,
             truth_file=truth,
         )
+    _report_replay(folder, result)
+
+
+def _report_replay(folder: RunFolder, result: ReplayRun) -> None:
+    """``track``'s end: the run folder and commands.csv written, the replay's warnings,
+    the run's report, then the messages it skipped."""
+    from dronetrack.actuators.command_log import write_commands_csv
+
     metrics = folder.finish(result.run, extra=result.metrics())
     write_commands_csv(result.commands, folder.out_dir / "commands.csv")
     for warning in result.warnings:
@@ -331,44 +366,50 @@ class RecordFormatName(StrEnum):
     lvx2 = "lvx2"
 
 
+_RecordOut = Annotated[
+    Path,
+    typer.Option(
+        "--out",
+        "-o",
+        help="The recording to write: NAME.bag (ROS 1), NAME.mcap or NAME.db3 (one ROS 2 "
+        "file), NAME.lvx or NAME.lvx2 (Livox Viewer 1 or 2); without a suffix, a ROS 1 bag "
+        "file, or a rosbag2 folder with a ros2 --format.",
+    ),
+]
+_Format = Annotated[
+    RecordFormatName | None,
+    typer.Option(
+        "--format",
+        metavar="<container>",
+        help=f"The container: {', '.join(f.value for f in RecordFormatName)}.",
+        show_default="from the --out suffix, else ros1",
+    ),
+]
+_LivoxCustom = Annotated[
+    bool,
+    typer.Option(
+        "--livox-custom/--pointcloud2",
+        help="Points as a Livox driver's CustomMsg (livox_ros_driver or "
+        "livox_ros_driver2) or as a PointCloud2 (sensor_msgs).",
+    ),
+]
+_Compress = Annotated[
+    bool,
+    typer.Option(
+        "--compress",
+        help="Compress: lz4 chunks (ROS 1), zstd chunks (MCAP), zstd messages (a rosbag2 "
+        "sqlite3 folder).",
+    ),
+]
+
+
 @app.command()
 def record(
-    out: Annotated[
-        Path,
-        typer.Option(
-            "--out",
-            "-o",
-            help="The recording to write: NAME.bag (ROS 1), NAME.mcap or NAME.db3 (one ROS 2 "
-            "file), NAME.lvx or NAME.lvx2 (Livox Viewer 1 or 2); without a suffix, a ROS 1 bag "
-            "file, or a rosbag2 folder with a ros2 --format.",
-        ),
-    ],
+    out: _RecordOut,
     scenario: ScenarioArgument = None,
-    fmt: Annotated[
-        RecordFormatName | None,
-        typer.Option(
-            "--format",
-            metavar="<container>",
-            help=f"The container: {', '.join(f.value for f in RecordFormatName)}.",
-            show_default="from the --out suffix, else ros1",
-        ),
-    ] = None,
-    livox_custom: Annotated[
-        bool,
-        typer.Option(
-            "--livox-custom/--pointcloud2",
-            help="Points as a Livox driver's CustomMsg (livox_ros_driver or "
-            "livox_ros_driver2) or as a PointCloud2 (sensor_msgs).",
-        ),
-    ] = True,
-    compress: Annotated[
-        bool,
-        typer.Option(
-            "--compress",
-            help="Compress: lz4 chunks (ROS 1), zstd chunks (MCAP), zstd messages (a rosbag2 "
-            "sqlite3 folder).",
-        ),
-    ] = False,
+    fmt: _Format = None,
+    livox_custom: _LivoxCustom = True,
+    compress: _Compress = False,
     seed: SeedOption = None,
     duration: FlightDurationOption = None,
     tracker: TrackerOption = None,
@@ -387,16 +428,9 @@ def record(
     the LiDAR's packets and its fixed pose (the turret holds still), with the truth
     and the scenario beside it.  Prints the metrics of the run, then what it wrote.
     """
-    from dronetrack.jobs.record import recording_writer
-    from dronetrack.jobs.simulate import hold_still, resolve_run, run_simulation
-    from dronetrack.sinks.bag_writer import record_format
-    from dronetrack.sinks.lvx_writer import LVX_FORMATS, LvxWriter, lvx_turret_mode
+    from dronetrack.jobs.record import prepare_recording
+    from dronetrack.jobs.simulate import run_simulation
 
-    container = record_format(out, fmt.value if fmt is not None else None)
-    lvx = container in LVX_FORMATS
-    turret_mode = turret.value if turret else None
-    if lvx:
-        turret_mode = lvx_turret_mode(container, turret_mode, compress, livox_custom)
     cfg = scenario_from_options(
         scenario,
         config,
@@ -408,34 +442,45 @@ def record(
         sensor=sensor,
         tracker=tracker,
         particles=particles,
-        turret_mode=turret_mode,
     )
-    resolved = hold_still(resolve_run(cfg)) if lvx else resolve_run(cfg)
-    check_run_dir(out.parent)
-    writer = recording_writer(
-        out, container, resolved, livox_custom=livox_custom, compress=compress
+    plan = prepare_recording(
+        cfg,
+        out,
+        fmt.value if fmt is not None else None,
+        turret_mode=turret.value if turret else None,
+        livox_custom=livox_custom,
+        compress=compress,
     )
     try:
         with progress_bar() as bar:
             task = bar.add_task(f"recording {cfg.name}", total=None)
             run = run_simulation(
-                resolved,
+                plan.resolved,
                 progress=lambda i, n: bar.update(task, completed=i, total=n),
-                sinks=[writer],
+                sinks=[plan.writer],
                 compiling=compile_reporter(bar, task),
             )
     finally:
-        writer.close()
+        plan.writer.close()
+    _report_recording(out, plan, run)
+
+
+def _report_recording(out: Path, plan: RecordingPlan, run: RunResult) -> None:
+    """``record``'s end: the kernels' note, then one ``interrupted`` line (exit 130),
+    or the metrics, the recording written and its topics."""
+    from dronetrack.sinks.lvx_writer import LvxWriter
+
     print_kernel_note(run.kernels)
     written = recording_info(out)
+    writer = plan.writer
     lvx_frames = writer.frames_written if isinstance(writer, LvxWriter) else None
-    summary = recording_summary(written, container, writer.compression, lvx_frames)
+    summary = recording_summary(written, plan.container, writer.compression, lvx_frames)
     stop_if_interrupted(run.interrupted, f"; kept {summary}")
     print_metrics(run.metrics(), out)
     typer.echo(f"wrote {summary}")
     _print_topics(written.topics)
     if isinstance(writer, LvxWriter):
-        typer.echo("  " + writer.replay_hint(resolved.sensor.integration_time_s))
+        typer.echo("  " + writer.replay_hint(plan.resolved.sensor.integration_time_s))
 
 
 def recording_summary(

@@ -112,39 +112,44 @@ def pattern(
     err_console.print(f"wrote {len(pulses)} directions of {model.name} to {out}")
 
 
+_RenderScenario = Annotated[
+    str, typer.Argument(help="A scenario name (see 'dronetrack scenarios') or a .toml file.")
+]
+_RenderOut = Annotated[Path, typer.Option("--out", "-o", help="Output folder.")]
+_RenderDuration = Annotated[
+    float | None,
+    typer.Option(
+        "--duration",
+        "-d",
+        min=0.01,
+        help="Seconds of flight to render; unlike simulate, no background scan comes "
+        "first, so this is the whole rendering.",
+        show_default=SCENARIOS_OWN,
+    ),
+]
+_RenderTurret = Annotated[
+    TurretMode, typer.Option("--turret", help="Follow the true target, or hold still.")
+]
+_Noise = Annotated[
+    bool | None,
+    typer.Option(
+        "--noise/--no-noise", help="Sensor noise and false alarms.", show_default=SCENARIOS_OWN
+    ),
+]
+
+
 @app.command()
 def render(
-    scenario: Annotated[
-        str, typer.Argument(help="A scenario name (see 'dronetrack scenarios') or a .toml file.")
-    ],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
-    duration: Annotated[
-        float | None,
-        typer.Option(
-            "--duration",
-            "-d",
-            min=0.01,
-            help="Seconds of flight to render; unlike simulate, no background scan comes "
-            "first, so this is the whole rendering.",
-            show_default=SCENARIOS_OWN,
-        ),
-    ] = None,
+    scenario: _RenderScenario,
+    out: _RenderOut,
+    duration: _RenderDuration = None,
     seed: SeedOption = None,
-    turret: Annotated[
-        TurretMode, typer.Option("--turret", help="Follow the true target, or hold still.")
-    ] = TurretMode.truth,
+    turret: _RenderTurret = TurretMode.truth,
     trajectory: TrajectoryOption = None,
     visibility: VisibilityOption = None,
     drone: DroneOption = None,
     sensor: SensorOption = None,
-    noise: Annotated[
-        bool | None,
-        typer.Option(
-            "--noise/--no-noise",
-            help="Sensor noise and false alarms.",
-            show_default=SCENARIOS_OWN,
-        ),
-    ] = None,
+    noise: _Noise = None,
 ) -> None:
     """Simulate a scenario and write its frames, ground truth and a PNG preview.
 

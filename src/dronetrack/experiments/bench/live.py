@@ -42,7 +42,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -65,11 +65,14 @@ __all__ = [
     "RSS_GROWTH_TARGET_PCT",
     "TURRETS",
     "EmulatorProcess",
+    "LiveRequest",
     "LiveRunFigures",
     "LiveSettings",
+    "check_mode",
     "emulator_process",
     "live_bench",
     "live_latency",
+    "live_request",
     "live_soak",
     "resident_mb",
     "rss_growth_pct",
@@ -385,6 +388,59 @@ class LiveSettings:
 LIVE_FULL = LiveSettings()
 # a smoke test, not a measurement: a 0.5 s scan, 2 s of latency, a 4 s soak
 LIVE_QUICK = LiveSettings(latency_s=2.0, soak_s=4.0, warmup_s=1.0, sample_s=0.5, scan_s=0.5)
+
+
+@dataclass(frozen=True, slots=True)
+class LiveRequest:
+    """What ``bench --live`` runs: the settings, whether a turret is driven (``--turret
+    none``: a fixed sensor) and the chain (``livox``, or ``ros2``)."""
+
+    settings: LiveSettings
+    turret: bool
+    chain: str
+
+
+def check_mode(live: bool, *, suite_options: bool, live_options: bool) -> None:
+    """ConfigError if ``bench`` is given the other mode's options: the suite's
+    (--rounds, --repeats, --replay-seconds) with --live, or --live's without it."""
+    if live and suite_options:
+        raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
+    if not live and live_options:
+        raise ConfigError(
+            "--latency-s, --soak-s, --warmup-s, --turret, --ptu-baud, --scenario and --ros2 "
+            "go with --live"
+        )
+
+
+def live_request(
+    quick: bool,
+    *,
+    latency_s: float | None = None,
+    soak_s: float | None = None,
+    warmup_s: float | None = None,
+    turret: str | None = None,
+    ptu_baud: int | None = None,
+    scenario: str | None = None,
+    ros2: bool = False,
+) -> LiveRequest:
+    """``bench --live``'s options over the full (or ``quick``) settings, checked: a
+    ConfigError names an option that does not fit (``ptu_baud`` without the PTU,
+    ``ros2`` with a turret other than its own, an unknown scenario or a bad value)."""
+    from dronetrack.config.scenarios import get_scenario
+
+    if ptu_baud is not None and turret != "ptu":
+        raise ConfigError("--ptu-baud goes with --turret ptu")
+    if ros2 and turret not in (None, "none"):
+        raise ConfigError("--ros2 drives the emulated ROS 2 turret (or --turret none)")
+    if scenario is not None:
+        get_scenario(scenario)  # an unknown one is an error before anything runs
+    fixed = turret == "none"
+    given: dict[str, Any] = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
+    given.update(turret=None if fixed else turret, ptu_baud=ptu_baud, scenario=scenario)
+    settings = LIVE_QUICK if quick else LIVE_FULL
+    settings = replace(settings, **{k: v for k, v in given.items() if v is not None})
+    return LiveRequest(settings.checked(), not fixed, "ros2" if ros2 else "livox")
+
 
 StageProgress = Callable[[str, float, float], None]  # (what, seconds run, seconds in all)
 

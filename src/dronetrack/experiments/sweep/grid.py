@@ -202,3 +202,23 @@ def check_keys(spec: GridSpec, base: ScenarioConfig, grid: Path | str = "grid fi
             where = f"{grid}: [grid] {key} = {json.dumps(value)}"
             run_config(base, RunSpec(spec.source, spec.duration, {key: value}, spec.seed), where)
             _check_name(key, value, where)
+
+
+def base_config(spec: GridSpec) -> ScenarioConfig:
+    """The configuration the grid varies: the named scenario, or the recording's own."""
+    if spec.recording is not None:
+        from dronetrack.jobs.replay import recording_config
+        from dronetrack.sources.recordings.opener import open_recording
+
+        return recording_config(open_recording(Path(spec.recording)), None)
+    from dronetrack.config.scenarios import get_scenario
+
+    return get_scenario(spec.scenario or "default")
+
+
+def planned_runs(grid: Path) -> list[RunSpec]:
+    """The runs of the grid file ``grid``, its keys checked against the configuration
+    it varies (ConfigError names a bad file, key or value)."""
+    spec = load_grid(grid)
+    check_keys(spec, base_config(spec), grid)
+    return expand(spec)

@@ -21,8 +21,9 @@ import socket
 import sys
 import time
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, cast
 
@@ -130,6 +131,22 @@ def dask_executor(address: str) -> tuple[ExecutorFactory, Callable[[], None]]:
     except (OSError, TimeoutError, ValueError) as err:
         raise ConfigError(f"cannot reach the Dask scheduler at {address}: {err}") from None
     return (lambda: client.get_executor(pure=False)), client.close
+
+
+@contextmanager
+def sweep_executor(workers: int | None, scheduler: str | None) -> Iterator[ExecutorFactory]:
+    """The executors a sweep runs on: the Dask cluster at ``scheduler`` (disconnected
+    after the block), else ``workers`` local processes (default: one per core)."""
+    if scheduler is not None and workers is not None:
+        raise ConfigError("give --workers or --scheduler, not both")
+    if scheduler is None:
+        yield local_executor(workers or os.cpu_count() or 1)
+        return
+    make, close = dask_executor(scheduler)
+    try:
+        yield make
+    finally:
+        close()
 
 
 def run_sweep(
