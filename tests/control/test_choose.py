@@ -6,11 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dronetrack.control.choose import ChooseSettings, TargetChooser, threat
+from dronetrack.control.choose import ChooseSettings, TargetChooser, drone_instead, threat
 from dronetrack.errors import ConfigError
 from dronetrack.types import TRACK_CLASSES, Tracks
 
 DRONE, BIRD = TRACK_CLASSES.index("drone"), TRACK_CLASSES.index("bird")
+UNKNOWN = TRACK_CLASSES.index("unknown")
 
 
 def _tracks(
@@ -120,3 +121,26 @@ def test_bad_settings_are_refused() -> None:
         ChooseSettings(revisit_s=0.0)
     with pytest.raises(ConfigError, match="hysteresis"):
         ChooseSettings(hysteresis=0.5)
+
+
+def test_a_lock_on_no_drone_turns_to_a_drone_track() -> None:
+    """Held: an unknown object 190 m out (p 0.12); a drone-class track 60 m out is a
+    candidate: threat 0.98·100/160 = 0.61 against 0.12·100/290 = 0.04, so it is chosen."""
+    tracks = _tracks(0.0, [[190.0, 0, 10], [60.0, 0, 15]], [UNKNOWN, DRONE], [0.12, 0.98])
+    owner = np.array([1, -1])  # candidate 0 is the drone's cluster, candidate 1 no track's
+    assert drone_instead(owner, tracks, 0, ChooseSettings()) == 0
+    assert drone_instead(owner, tracks, -1, ChooseSettings()) == 0  # no track at the lock
+
+
+def test_a_lock_on_a_drone_or_a_greater_threat_stays() -> None:
+    """A held drone-class track is kept whatever else is seen; a held unknown track
+    near the protected point outweighs a drone-class track far out (hysteresis 1.5)."""
+    s = ChooseSettings()
+    tracks = _tracks(0.0, [[60.0, 0, 15], [190.0, 0, 10]], [DRONE, DRONE], [0.98, 0.98])
+    assert drone_instead(np.array([1]), tracks, 0, s) == -1
+    tracks = _tracks(0.0, [[60.0, 0, 15], [190.0, 0, 10]], [UNKNOWN, DRONE], [0.5, 0.98])
+    # 0.98·100/290 = 0.34 is not 1.5 × 0.5·100/160 = 0.47
+    assert drone_instead(np.array([1]), tracks, 0, s) == -1
+    birds = _tracks(0.0, [[190.0, 0, 10], [60.0, 0, 15]], [UNKNOWN, BIRD], [0.12, 0.1])
+    assert drone_instead(np.array([1]), birds, 0, s) == -1  # no drone among the candidates
+    assert drone_instead(np.array([0]), tracks, 0, s) == -1  # the held track is no other

@@ -25,6 +25,7 @@ __all__ = [
     "ChooseSettings",
     "TargetChooser",
     "candidate_tracks",
+    "drone_instead",
     "held_track",
     "not_static",
     "servable",
@@ -106,6 +107,41 @@ def threat(
     closing = -np.einsum("ij,ij->i", velocities, rel) / np.maximum(d, 1e-9)
     out: FloatArray = p_drone * d_ref / (d_ref + d) * (1.0 + np.maximum(closing, 0.0) / v_ref)
     return out
+
+
+def drone_instead(
+    owner: NDArray[np.intp],
+    tracks: Tracks,
+    held: int,
+    settings: ChooseSettings,
+) -> int:
+    """While the target held is no drone's (its track ``held`` not classed drone, or
+    −1: no track follows it), the candidate to turn to: of those whose track (``owner``,
+    ``candidate_tracks``) is classed drone, the most threatening (``threat``), if it is
+    ``hysteresis`` times as threatening as the held track (0 without one); −1 if none.
+
+        pick = argmax_k threat_k over owner_k classed drone, owner_k ≠ held
+        turn if threat_pick > hysteresis · threat_held
+    """
+    if held >= 0 and tracks.classes[held] == DRONE:
+        return -1
+    ok = owner >= 0
+    ok[ok] = (tracks.classes[owner[ok]] == DRONE) & (owner[ok] != held)
+    if not ok.any():
+        return -1
+    k = np.arange(len(tracks))
+    score = threat(
+        tracks.positions,
+        tracks.velocities,
+        tracks.p_drone,
+        np.asarray(settings.protected),
+        settings.d_ref,
+        settings.v_ref,
+    )
+    cand = np.flatnonzero(ok)
+    best = int(cand[np.argmax(score[owner[cand]])])
+    held_score = float(score[k == held].sum())  # 0 without a held track
+    return best if score[owner[best]] > settings.hysteresis * held_score else -1
 
 
 @dataclass(frozen=True, slots=True)

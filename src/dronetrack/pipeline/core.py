@@ -34,8 +34,10 @@ from numpy.typing import NDArray
 
 from dronetrack.classify.classifier import TrackClassifier
 from dronetrack.control.choose import (
+    ChooseSettings,
     TargetChooser,
     candidate_tracks,
+    drone_instead,
     held_track,
     not_static,
     servable,
@@ -234,7 +236,9 @@ class Pipeline:
         candidates whose track is not static (``control.choose``): a lock on a static
         track is given up; while the tracker is not locked it gets the offered ones
         within reach of the last fix; while it is locked on what never hovered, it is
-        restarted on an offered candidate that did (``detect.lock``).  Returns the
+        restarted on an offered candidate that did (``detect.lock``), and while it is
+        locked on what no drone-class track follows, on a more threatening candidate
+        whose track is classed drone (``control.choose.drone_instead``).  Returns the
         clusters, the confirmed candidates, those offered and the tracks."""
         if self.acquisition is None or steps == 0:
             return None, None, None, None
@@ -251,8 +255,11 @@ class Pipeline:
             lock.reset()
         offered = self._serve(t, found, tracks, offered)
         other = lock.switch(offered)
+        why = "a target that hovered"
+        if other is None and self._look is None:
+            other, why = self._drone_instead(found, tracks, offered), "a drone's track"
         if other is not None:
-            log.info("frame ending %.3f s: lock moved to a target that hovered", t)
+            log.info("frame ending %.3f s: lock moved to %s", t, why)
             self.tracker.reset()
             lock.reset()
             self.tracker.acquire(other)
@@ -304,6 +311,23 @@ class Pipeline:
                 tracks.ids[k : k + 1],
             )
         return mine
+
+    def _drone_instead(
+        self, found: Detections, tracks: Tracks | None, offered: Candidates
+    ) -> Candidates | None:
+        """While locked on what no drone-class track follows, an offered candidate whose
+        track is classed drone and more threatening (``control.choose.drone_instead``),
+        to restart the tracker on; else None."""
+        lock = self.acquisition.lock if self.acquisition is not None else None
+        if tracks is None or lock is None or not lock.locked or lock.estimate is None:
+            return None
+        settings = self.chooser.settings if self.chooser is not None else ChooseSettings()
+        # the filter's estimate lags a fast drone by metres: within apart_m is the same
+        held = held_track(tracks, lock.estimate.position, settings.apart_m)
+        owner = candidate_tracks(offered, found, tracks)
+        away = np.linalg.norm(offered.positions - lock.estimate.position, axis=1) > settings.apart_m
+        pick = drone_instead(np.where(away, owner, -1), tracks, held, settings)
+        return offered.take(np.array([pick])) if pick >= 0 else None
 
     def _held_static(self, t: float, tracks: Tracks | None) -> bool:
         """Whether the locked target's track has been classed static, or out of the open
