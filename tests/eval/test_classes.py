@@ -224,3 +224,19 @@ def test_each_row_counts_the_track_frames_that_follow_that_kind(
     confusion = class_figures(objects, tracks, radius, min_age_s=min_age)["confusion"]
     got = {kind: sum(row.values()) for kind, row in confusion.items()}
     assert got == expected
+
+
+def test_the_lock_on_a_static_track_is_timed_and_on_a_drone_not() -> None:
+    """The lone still track is locked for its first 8 frames (1 s at 0.125 s a frame),
+    then the drone's track for the rest: static_held_s is 1 s; none in the scene of a
+    drone track and a static one that is never locked."""
+    from dataclasses import replace
+
+    objects, tracks = ObjectsLog(), TracksLog()
+    for f in range(30):
+        t = T * (f + 1)
+        objects.append(t, _truth(np.array([_drone(f)]), ("drone",)), np.zeros(3))
+        rows = hand_tracks([1, 7], [_drone(f), [0.0, -80.0, 3.0]], [DRONE, UNKNOWN])
+        tracks.append(t, replace(rows, locked=np.array([f >= 8, f < 8])))
+    assert class_figures(objects, tracks, radius=4.0)["static_held_s"] == pytest.approx(1.0)
+    assert class_figures(*_scene(), radius=4.0)["static_held_s"] == 0.0

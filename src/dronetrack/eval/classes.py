@@ -15,7 +15,7 @@ its birth shows nothing of how its object moves), and its position on those fram
 never strays more than ``still_m`` from its first one (a track coasting after it lost
 its object drifts on its last velocity, which is no movement of the object).  Its time
 to class is from its first row (its birth, on confirmation) to its first row classed
-``static``.
+``static``, and the time the turret held one is its locked rows times the frame period.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ __all__ = [
     "followed_objects",
     "row_percentages",
     "static_figures",
+    "static_held_s",
     "static_times",
     "track_ages",
 ]
@@ -101,6 +102,39 @@ def row_percentages(counts: NDArray[np.int64]) -> FloatArray:
         return np.where(total > 0, 100.0 * counts / total, np.nan)
 
 
+def _still_tracks(
+    t: FloatArray,
+    ids: NDArray[np.int64],
+    classes: NDArray[np.int64],
+    positions: FloatArray,
+    updated: NDArray[np.bool_],
+    on_static: NDArray[np.bool_],
+    still_m: float,
+    seen_s: float,
+) -> tuple[NDArray[np.bool_], NDArray[np.intp], FloatArray, FloatArray]:
+    """Per track (in order of id): whether it holds still on the static world, its
+    time from birth to its first static class (NaN if never) and its life [s]; and
+    each row's track (``inverse``)."""
+    _, first_row, inverse = np.unique(ids, return_index=True, return_inverse=True)
+    n = len(first_row)
+    born = t[first_row]
+    last = np.full(n, -np.inf)
+    np.maximum.at(last, inverse, t)
+    wander = np.linalg.norm(positions - positions[first_row][inverse], axis=1)
+    farthest = np.zeros(n)
+    np.maximum.at(farthest, inverse[updated], np.nan_to_num(wander[updated], nan=np.inf))
+    first_seen, last_seen = np.full(n, np.inf), np.full(n, -np.inf)
+    np.minimum.at(first_seen, inverse[updated], t[updated])
+    np.maximum.at(last_seen, inverse[updated], t[updated])
+    elsewhere = np.bincount(inverse, weights=(~on_static).astype(float), minlength=n) > 0
+    classed = np.full(n, np.inf)
+    static = classes == _STATIC
+    np.minimum.at(classed, inverse[static], t[static])
+    still = ~elsewhere & (farthest <= still_m) & (last_seen - first_seen >= seen_s)
+    to_class = np.where(np.isfinite(classed), classed - born, np.nan)
+    return still, inverse, to_class, last - born
+
+
 def static_times(
     t: FloatArray,
     ids: NDArray[np.int64],
@@ -120,24 +154,33 @@ def static_times(
     """
     if len(t) == 0:
         return np.zeros(0), np.zeros(0)
-    _, first_row, inverse = np.unique(ids, return_index=True, return_inverse=True)
-    n = len(first_row)
-    born = t[first_row]
-    last = np.full(n, -np.inf)
-    np.maximum.at(last, inverse, t)
-    wander = np.linalg.norm(positions - positions[first_row][inverse], axis=1)
-    farthest = np.zeros(n)
-    np.maximum.at(farthest, inverse[updated], np.nan_to_num(wander[updated], nan=np.inf))
-    first_seen, last_seen = np.full(n, np.inf), np.full(n, -np.inf)
-    np.minimum.at(first_seen, inverse[updated], t[updated])
-    np.maximum.at(last_seen, inverse[updated], t[updated])
-    elsewhere = np.bincount(inverse, weights=(~on_static).astype(float), minlength=n) > 0
-    classed = np.full(n, np.inf)
-    static = classes == _STATIC
-    np.minimum.at(classed, inverse[static], t[static])
-    still = ~elsewhere & (farthest <= still_m) & (last_seen - first_seen >= seen_s)
-    to_class = np.where(np.isfinite(classed), classed - born, np.nan)
-    return to_class[still], (last - born)[still]
+    still, _, to_class, life = _still_tracks(
+        t, ids, classes, positions, updated, on_static, still_m, seen_s
+    )
+    return to_class[still], life[still]
+
+
+def static_held_s(
+    t: FloatArray,
+    ids: NDArray[np.int64],
+    classes: NDArray[np.int64],
+    positions: FloatArray,
+    updated: NDArray[np.bool_],
+    on_static: NDArray[np.bool_],
+    locked: NDArray[np.bool_],
+    still_m: float,
+    seen_s: float = 1.0,
+) -> float:
+    """How long the turret's lock was on a track that holds still on the static world
+    [s]: its locked track-frames times the frame period (the median step between the
+    rows' times)."""
+    steps = np.diff(np.unique(t))
+    if len(steps) == 0:
+        return 0.0
+    still, inverse, _, _ = _still_tracks(
+        t, ids, classes, positions, updated, on_static, still_m, seen_s
+    )
+    return float(np.count_nonzero(locked & still[inverse]) * np.median(steps))
 
 
 def _pct(value: float) -> float | None:
@@ -204,23 +247,19 @@ def class_figures(
     """metrics.json's ``classes`` (see the module docstring): the ``radius_m`` and
     ``min_age_s`` it was counted with, ``confusion_figures`` of the track-frames at
     least ``min_age_s`` old, and ``static_figures`` of the tracks that hold still on the
-    static world (within ``still_m``: the radius unless given)."""
+    static world (within ``still_m``: the radius unless given), and ``static_held_s``:
+    how long the turret's lock was on one of them."""
     rows = tracks.rows
     kinds = followed_kinds(objects, tracks, radius)
     counted = track_ages(rows["t"], rows["id"]) >= min_age_s
     on_static = (kinds == NONE) | (kinds == "static")
-    to_class, life = static_times(
-        rows["t"],
-        rows["id"],
-        rows["cls"],
-        rows["position"],
-        rows["updated"],
-        on_static,
-        radius if still_m is None else still_m,
-    )
+    lives = (rows["t"], rows["id"], rows["cls"], rows["position"], rows["updated"], on_static)
+    still = radius if still_m is None else still_m
+    to_class, life = static_times(*lives, still)
     return {
         "radius_m": radius,
         "min_age_s": min_age_s,
         **confusion_figures(kinds[counted], rows["cls"][counted]),
         **static_figures(to_class, life, static_within_s),
+        "static_held_s": static_held_s(*lives, rows["locked"].astype(bool), still),
     }

@@ -84,6 +84,7 @@ def _objects(drones: list[dict[str, Any]], confusion: dict[str, Any]) -> dict[st
             "static_to_class_median_s": 2.0,
             "static_to_class_max_s": 2.0,
             "static_late": 0,
+            "static_held_s": 0.5,
         },
     }
 

@@ -399,6 +399,7 @@ _MULTI_GROUPS = (
             "static_to_class_median_s",
             "static_to_class_max_s",
             "static_late",
+            "static_held_s",
         ),
         "metrics.json's classes.  A track-frame follows the truth object nearest within "
         "the correct radius, none if there is none (the static scene, clutter, or a "
@@ -407,8 +408,8 @@ _MULTI_GROUPS = (
         "tracks that only ever follow none (or a static object) and never move more "
         "than the radius from their birth; static_to_class: their time from birth to "
         "their first static class, over those classed; static_late: those not "
-        "classed static within 3 s although they lived that long.  confusion.md has "
-        "each case's matrix.",
+        "classed static within 3 s although they lived that long; static_held_s: how "
+        "long the turret's lock was on one of them.  confusion.md has each case's matrix.",
     ),
 )
 MULTI_METRICS = tuple(m for g in _MULTI_GROUPS for m in g.metrics)
