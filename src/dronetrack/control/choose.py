@@ -21,6 +21,7 @@ from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES, Candidates, Detections, Tracks
 
 __all__ = [
+    "DRONE",
     "STATIC",
     "ChooseSettings",
     "TargetChooser",

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 from dronetrack.classify.classifier import TrackClassifier
 from dronetrack.control.choose import (
+    DRONE,
     ChooseSettings,
     TargetChooser,
     candidate_tracks,
@@ -321,9 +322,14 @@ class Pipeline:
         lock = self.acquisition.lock if self.acquisition is not None else None
         if tracks is None or lock is None or not lock.locked or lock.estimate is None:
             return None
+        drones = tracks.classes == DRONE
+        if not drones.any() or len(offered) == 0:
+            return None  # the common case, decided without the geometry below
         settings = self.chooser.settings if self.chooser is not None else ChooseSettings()
         # the filter's estimate lags a fast drone by metres: within apart_m is the same
         held = held_track(tracks, lock.estimate.position, settings.apart_m)
+        if held >= 0 and drones[held]:
+            return None
         owner = candidate_tracks(offered, found, tracks)
         away = np.linalg.norm(offered.positions - lock.estimate.position, axis=1) > settings.apart_m
         pick = drone_instead(np.where(away, owner, -1), tracks, held, settings)
