@@ -130,7 +130,6 @@ def drone_instead(
     ok[ok] = (tracks.classes[owner[ok]] == DRONE) & (owner[ok] != held)
     if not ok.any():
         return -1
-    k = np.arange(len(tracks))
     score = threat(
         tracks.positions,
         tracks.velocities,
@@ -141,7 +140,7 @@ def drone_instead(
     )
     cand = np.flatnonzero(ok)
     best = int(cand[np.argmax(score[owner[cand]])])
-    held_score = float(score[k == held].sum())  # 0 without a held track
+    held_score = float(score[held]) if held >= 0 else 0.0
     return best if score[owner[best]] > settings.hysteresis * held_score else -1
 
 
