@@ -20,7 +20,7 @@ to class is from its first row (its birth, on confirmation) to its first row cla
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,6 +33,7 @@ from dronetrack.types import OBJECT_KINDS, TRACK_CLASSES
 __all__ = [
     "CONFUSION_KINDS",
     "NONE",
+    "StaticLives",
     "class_figures",
     "confusion_counts",
     "confusion_figures",
@@ -41,7 +42,7 @@ __all__ = [
     "row_percentages",
     "static_figures",
     "static_held_s",
-    "static_times",
+    "static_lives",
     "track_ages",
 ]
 
@@ -102,7 +103,18 @@ def row_percentages(counts: NDArray[np.int64]) -> FloatArray:
         return np.where(total > 0, 100.0 * counts / total, np.nan)
 
 
-def _still_tracks(
+class StaticLives(NamedTuple):
+    """Per track (in order of id): whether it holds still on the static world, its time
+    from birth to its first static class (NaN if never) and its life (last row less
+    first row) [s]; and per track-frame, its track's index (``track_of``)."""
+
+    still: NDArray[np.bool_]
+    to_class: FloatArray
+    life: FloatArray
+    track_of: NDArray[np.intp]
+
+
+def static_lives(
     t: FloatArray,
     ids: NDArray[np.int64],
     classes: NDArray[np.int64],
@@ -110,11 +122,14 @@ def _still_tracks(
     updated: NDArray[np.bool_],
     on_static: NDArray[np.bool_],
     still_m: float,
-    seen_s: float,
-) -> tuple[NDArray[np.bool_], NDArray[np.intp], FloatArray, FloatArray]:
-    """Per track (in order of id): whether it holds still on the static world, its
-    time from birth to its first static class (NaN if never) and its life [s]; and
-    each row's track (``inverse``)."""
+    seen_s: float = 1.0,
+) -> StaticLives:
+    """Which tracks hold still on the static world (see the module docstring) and when
+    each was first classed static.
+
+    updated: (M,) whether a cluster updated each track-frame; on_static: (M,) whether
+    it follows ``none`` or a static object.
+    """
     _, first_row, inverse = np.unique(ids, return_index=True, return_inverse=True)
     n = len(first_row)
     born = t[first_row]
@@ -132,55 +147,17 @@ def _still_tracks(
     np.minimum.at(classed, inverse[static], t[static])
     still = ~elsewhere & (farthest <= still_m) & (last_seen - first_seen >= seen_s)
     to_class = np.where(np.isfinite(classed), classed - born, np.nan)
-    return still, inverse, to_class, last - born
+    return StaticLives(still, to_class, last - born, inverse.astype(np.intp))
 
 
-def static_times(
-    t: FloatArray,
-    ids: NDArray[np.int64],
-    classes: NDArray[np.int64],
-    positions: FloatArray,
-    updated: NDArray[np.bool_],
-    on_static: NDArray[np.bool_],
-    still_m: float,
-    seen_s: float = 1.0,
-) -> tuple[FloatArray, FloatArray]:
-    """The tracks that hold still on the static world (see the module docstring), each
-    with its time from birth to its first static class (NaN if never) and its life
-    (last row less first row) [s], in order of track id.
-
-    updated: (M,) whether a cluster updated each track-frame; on_static: (M,) whether
-    it follows ``none`` or a static object.
-    """
-    if len(t) == 0:
-        return np.zeros(0), np.zeros(0)
-    still, _, to_class, life = _still_tracks(
-        t, ids, classes, positions, updated, on_static, still_m, seen_s
-    )
-    return to_class[still], life[still]
-
-
-def static_held_s(
-    t: FloatArray,
-    ids: NDArray[np.int64],
-    classes: NDArray[np.int64],
-    positions: FloatArray,
-    updated: NDArray[np.bool_],
-    on_static: NDArray[np.bool_],
-    locked: NDArray[np.bool_],
-    still_m: float,
-    seen_s: float = 1.0,
-) -> float:
+def static_held_s(t: FloatArray, locked: NDArray[np.bool_], lives: StaticLives) -> float:
     """How long the turret's lock was on a track that holds still on the static world
     [s]: its locked track-frames times the frame period (the median step between the
-    rows' times)."""
+    rows' times ``t``)."""
     steps = np.diff(np.unique(t))
     if len(steps) == 0:
         return 0.0
-    still, inverse, _, _ = _still_tracks(
-        t, ids, classes, positions, updated, on_static, still_m, seen_s
-    )
-    return float(np.count_nonzero(locked & still[inverse]) * np.median(steps))
+    return float(np.count_nonzero(locked & lives.still[lives.track_of]) * np.median(steps))
 
 
 def _pct(value: float) -> float | None:
@@ -253,13 +230,20 @@ def class_figures(
     kinds = followed_kinds(objects, tracks, radius)
     counted = track_ages(rows["t"], rows["id"]) >= min_age_s
     on_static = (kinds == NONE) | (kinds == "static")
-    lives = (rows["t"], rows["id"], rows["cls"], rows["position"], rows["updated"], on_static)
-    still = radius if still_m is None else still_m
-    to_class, life = static_times(*lives, still)
+    lives = static_lives(
+        rows["t"],
+        rows["id"],
+        rows["cls"],
+        rows["position"],
+        rows["updated"],
+        on_static,
+        radius if still_m is None else still_m,
+    )
+    still = lives.still
     return {
         "radius_m": radius,
         "min_age_s": min_age_s,
         **confusion_figures(kinds[counted], rows["cls"][counted]),
-        **static_figures(to_class, life, static_within_s),
-        "static_held_s": static_held_s(*lives, rows["locked"].astype(bool), still),
+        **static_figures(lives.to_class[still], lives.life[still], static_within_s),
+        "static_held_s": static_held_s(rows["t"], rows["locked"].astype(bool), lives),
     }
