@@ -116,3 +116,18 @@ def test_drone_0s_own_figures_are_the_runs_single_target_figures() -> None:
         assert own[key] == pytest.approx(metrics[key]), key
     assert 0.0 <= metrics["mot"]["mota"] <= 1.0
     assert metrics["mot"]["frames"] == metrics["frames"]
+
+
+def test_a_drone_is_acquired_as_a_track_from_its_first_visible_frame_to_its_first_match() -> None:
+    """Visible from frame 2; a track 10 m off until frame 4, on it from frame 5: acquired
+    as a track 3 frames (0.3 s) after it came into view; never, without the match."""
+    objects, tracks, far = ObjectsLog(), TracksLog(), TracksLog()
+    for f in range(8):
+        drone = np.array([[40.0, 0.0, 10.0]])
+        objects.append(T * (f + 1), _truth(drone, [0 if f < 2 else 3], ("drone",)), np.zeros(3))
+        off = 10.0 if f < 5 else 0.5
+        tracks.append(T * (f + 1), hand_tracks([1], np.array([[40.0, off, 10.0]]), [DRONE]))
+        far.append(T * (f + 1), hand_tracks([1], np.array([[40.0, 10.0, 10.0]]), [DRONE]))
+    (drone,) = mot_figures(objects, tracks, radius=4.0)["drones"]
+    assert drone["track_acquire_s"] == pytest.approx(0.3)
+    assert mot_figures(objects, far, radius=4.0)["drones"][0]["track_acquire_s"] is None

@@ -145,8 +145,10 @@ def _mm() -> Any:
 def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[str, Any]:
     """The multi-object figures of the drones (see the module docstring): ``mota``,
     ``motp_m``, ``idf1``, ``id_switches``, ``false_positives``, ``misses``, ``matches``,
-    ``frames``, and per drone its identity switches and the share of its visible frames
-    its track matched (``own_track_pct``)."""
+    ``frames``, and per drone its identity switches, the share of its visible frames
+    its track matched (``own_track_pct``) and the time from its first visible frame to
+    the first one a track matched it (``track_acquire_s``: acquired as a track, whether
+    or not the turret serves it)."""
     mm = _mm()
     acc = mm.MOTAccumulator(auto_id=True)
     rows = tracks.rows
@@ -185,13 +187,17 @@ def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[s
     for k in drones:
         mine = events[events["OId"] == objects.ids[k]]
         seen_frames = int(np.count_nonzero(returns[:, k] > 0))
-        hit = int(mine["Type"].isin(["MATCH", "SWITCH"]).sum())
+        matched = mine["Type"].isin(["MATCH", "SWITCH"])
+        hit = int(matched.sum())
         per.append(
             {
                 "id": int(objects.ids[k]),
                 "id_switches": int((mine["Type"] == "SWITCH").sum()),
                 "own_track_pct": 100.0 * hit / seen_frames if seen_frames else None,
                 "track_ids": int(mine["HId"].dropna().nunique()),
+                "track_acquire_s": _first_match_s(
+                    objects.t, returns[:, k] > 0, mine.index.get_level_values(0)[matched]
+                ),
             }
         )
 
@@ -214,6 +220,14 @@ def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[s
     }
 
 
+def _first_match_s(t: FloatArray, visible: NDArray[np.bool_], matched_frames: Any) -> float | None:
+    """From a drone's first visible frame to the first frame a track matched it [s]
+    (motmetrics' frame ids are the frames' indices); None if it was never matched."""
+    if not visible.any() or len(matched_frames) == 0:
+        return None
+    return float(t[int(np.min(matched_frames))] - t[int(np.argmax(visible))])
+
+
 def _over(values: list[Any], worst: Callable[[list[float]], float]) -> tuple[float, float]:
     """(mean, worst) of the numbers among ``values`` (None left out), NaN without any."""
     known = [float(v) for v in values if v is not None]
@@ -227,13 +241,16 @@ def drone_summary(drones: list[dict[str, Any]]) -> dict[str, float]:
     ``mot_figures``' per-drone entries) over its drones: the mean and the worst drone's
     ``coverage_pct``, ``lock_on_visible_pct`` and ``own_track_pct`` (``*_mean_pct``,
     ``*_min_pct``), of ``acquire_s`` (``acquire_mean_s``, ``acquire_max_s``, over the
-    drones acquired), ``never_acquired`` (drones visible but never acquired) and
-    ``id_switches_max``; NaN where no drone has the figure."""
+    drones acquired) and of ``track_acquire_s`` (likewise), ``never_acquired`` (drones
+    visible but never acquired) and ``id_switches_max``; NaN where no drone has the
+    figure."""
     out: dict[str, float] = {}
     for key in ("coverage", "lock_on_visible", "own_track"):
         mean, low = _over([d.get(f"{key}_pct") for d in drones], min)
         out[f"{key}_mean_pct"], out[f"{key}_min_pct"] = mean, low
     out["acquire_mean_s"], out["acquire_max_s"] = _over([d.get("acquire_s") for d in drones], max)
+    track_acquire = [d.get("track_acquire_s") for d in drones]
+    out["track_acquire_mean_s"], out["track_acquire_max_s"] = _over(track_acquire, max)
     out["never_acquired"] = float(
         sum(d.get("acquire_s") is None and d.get("visible_frames", 0) > 0 for d in drones)
     )

@@ -368,6 +368,7 @@ _MULTI_GROUPS = (
             "acquire_max_s",
             "acquire_mean_s",
             "never_acquired",
+            "track_acquire_max_s",
             "lock_on_visible_min_pct",
             "lock_on_visible_mean_pct",
             "own_track_min_pct",
@@ -378,7 +379,9 @@ _MULTI_GROUPS = (
         "maximum (_max) or the mean (_mean) over the drones: coverage against the "
         "turret's estimate; acquire_s from its first visible frame to its first locked-on "
         "one (over the drones acquired; never_acquired counts the drones visible but "
-        "never locked on); lock_on_visible: its locked-on frames over its visible "
+        "never locked on); track_acquire_s from its first visible frame to the first "
+        "one a track matched it, whether or not the turret serves it (motmetrics; over "
+        "the drones matched); lock_on_visible: its locked-on frames over its visible "
         "frames; own_track: the share of its visible frames in which a track matched it "
         "(motmetrics); id_switches: its identity switches.",
     ),
