@@ -3,6 +3,8 @@ on hand-built tracks and truth."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -230,8 +232,6 @@ def test_the_lock_on_a_static_track_is_timed_and_on_a_drone_not() -> None:
     """The lone still track is locked for its first 8 frames (1 s at 0.125 s a frame),
     then the drone's track for the rest: static_held_s is 1 s; none in the scene of a
     drone track and a static one that is never locked."""
-    from dataclasses import replace
-
     objects, tracks = ObjectsLog(), TracksLog()
     for f in range(30):
         t = T * (f + 1)
@@ -240,3 +240,16 @@ def test_the_lock_on_a_static_track_is_timed_and_on_a_drone_not() -> None:
         tracks.append(t, replace(rows, locked=np.array([f >= 8, f < 8])))
     assert class_figures(objects, tracks, radius=4.0)["static_held_s"] == pytest.approx(1.0)
     assert class_figures(*_scene(), radius=4.0)["static_held_s"] == 0.0
+
+
+def test_the_lock_is_timed_by_the_frame_period_when_frames_have_no_tracks() -> None:
+    """The still track is logged (locked) in every other frame of 0.125 s only: 8 locked
+    rows are 1 s, whatever the gaps between the rows."""
+    objects, tracks = ObjectsLog(), TracksLog()
+    for f in range(16):
+        t = T * (f + 1)
+        objects.append(t, _truth(np.array([_drone(f)]), ("drone",)), np.zeros(3))
+        if f % 2 == 0:
+            rows = hand_tracks([7], [[0.0, -80.0, 3.0]], [UNKNOWN])
+            tracks.append(t, replace(rows, locked=np.array([True])))
+    assert class_figures(objects, tracks, radius=4.0)["static_held_s"] == pytest.approx(1.0)

@@ -150,14 +150,10 @@ def static_lives(
     return StaticLives(still, to_class, last - born, inverse.astype(np.intp))
 
 
-def static_held_s(t: FloatArray, locked: NDArray[np.bool_], lives: StaticLives) -> float:
+def static_held_s(locked: NDArray[np.bool_], lives: StaticLives, period: float) -> float:
     """How long the turret's lock was on a track that holds still on the static world
-    [s]: its locked track-frames times the frame period (the median step between the
-    rows' times ``t``)."""
-    steps = np.diff(np.unique(t))
-    if len(steps) == 0:
-        return 0.0
-    return float(np.count_nonzero(locked & lives.still[lives.track_of]) * np.median(steps))
+    [s]: its locked track-frames times the frame ``period`` [s]."""
+    return float(np.count_nonzero(locked & lives.still[lives.track_of]) * period)
 
 
 def _pct(value: float) -> float | None:
@@ -240,10 +236,12 @@ def class_figures(
         radius if still_m is None else still_m,
     )
     still = lives.still
+    # every frame has a row of truth; a frame without tracks has none in ``rows``
+    period = float(np.median(np.diff(objects.t))) if len(objects) > 1 else 0.0
     return {
         "radius_m": radius,
         "min_age_s": min_age_s,
         **confusion_figures(kinds[counted], rows["cls"][counted]),
         **static_figures(lives.to_class[still], lives.life[still], static_within_s),
-        "static_held_s": static_held_s(rows["t"], rows["locked"].astype(bool), lives),
+        "static_held_s": static_held_s(rows["locked"].astype(bool), lives, period),
     }
