@@ -121,6 +121,40 @@ def test_a_still_fragment_among_fragments_in_the_air_is_no_hovering_drone() -> N
     assert p[2] > 0.95
 
 
+def test_the_top_of_a_mast_stands_on_its_pole_and_a_drone_has_free_air_below() -> None:
+    """A mast's top 125 m out and 12 m up holds still in the open air as a hovering drone
+    does; the returns of its pole just below it say it is propped: static, not a drone.
+    Returns beside a drone (more than max(0.5 m, 5 mrad × r) across), far below it, or
+    the ground's, say nothing."""
+    rng = np.random.default_rng(3)
+    top, drone = np.array([125.0, 0.0, 12.0]), np.array([60.0, 20.0, 15.0])
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    life = None
+    for k in range(16):  # 1.5 s, both still
+        pole = np.column_stack([rng.normal(125.0, 0.1, 6), rng.normal(0.0, 0.1, 6)])
+        pole = np.column_stack([pole, rng.uniform(0.0, 11.7, 6)])
+        pole[0, 2] = 11.0  # one return a metre below the top
+        others = np.array(
+            [[60.9, 20.0, 14.5], [60.0, 20.0, 12.0], [60.0, 20.0, 0.2], [125.0, 0.0, 12.5]]
+        )  # beside, 3 m below and on the ground under the drone; above the top
+        tracks = _tracks([list(top), list(drone)], [[0, 0, 0]] * 2, [1, 2])
+        found = _found([list(top), list(drone)], [11.8, 14.8])
+        obs = observe(
+            tracks,
+            found,
+            np.zeros(3),
+            np.zeros(2),
+            limit_m=195.0,
+            below=np.concatenate([pole, others]),
+        )
+        assert obs.propped.tolist() == [True, False]
+        life = lives.update(k * T, tracks, obs)
+    assert life is not None
+    classes, p = classify(life)
+    assert classes.tolist() == [STATIC, DRONE]
+    assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(-1.0)))  # +4 hovered, −3 propped
+
+
 def test_the_view_floor_is_the_lowest_elevation_in_each_azimuth_sector() -> None:
     sensor = np.array([0.0, 0.0, 1.0])
     # ground 9 m out at −7° (tan 7° × 8.14 = 1.0) ahead; a wall point behind, level

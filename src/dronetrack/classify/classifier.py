@@ -93,6 +93,7 @@ class TrackClassifier:
             is_background=is_background,
             crowd_gap_m=self.crowd_gap_m,
             floor=view_floor(others[::FLOOR_STRIDE], sensor),
+            below=np.concatenate([world[foreground], others]),
         )
         life = self.lives.update(t, tracks, obs)
         classes, p_drone = classify(life, self.rules)

@@ -24,6 +24,13 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
   it is out of view, so nothing says it is in the open air: a person 3 m from a
   Mid-360 1.1 m up is seen from 0.8 m up (the view's floor is 7° down), legs cut
   off, like a small object holding still in the air;
+- *propped*: a return of the frame (not the ground's: z > g + h_g) lies in the column
+  just below the cluster, within r_c = max(r_min, θ_b r) of its centroid across and
+  within d_p (1.5 m) below its bottom z_lo: a mast's or a tree's top stands on its
+  pole or trunk, while a drone has free air below it (θ_b 5 mrad, the Avia's beam
+  divergence, its footprint at r; r_min 0.5 m).  On ``outdoor-unscanned`` a lattice
+  mast's top 12 m up and 125 m out, outside the map, held a sample of such returns in
+  89 % of its frames, the drone in none of its own;
 - *beyond reach*: r > r_lim, the range beyond which the drone model the site guards
   returns no point to the sensor (``[pipeline.evaluation] limit_m``, measured per
   sensor and drone: 195 m for an Avia and a Phantom 4, 1.5 × its reach, where a drone
@@ -34,15 +41,16 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
   a far object's jittering centroid gains a velocity and carries the state away).
 
 Over a track's life these give its age, how far it ever moved from its first
-position (d_max), the shares of its observations grounded, joined, crowded, cut or
-beyond reach, its largest extent, *aloft*: the share of its recent observations not grounded (an
-exponential average over about the last three, a ← (1 − α) a + α [not grounded],
-α = ``ALOFT_ALPHA``, from a = 1: off the ground until seen on it), so a drone that
-lifted off is off the ground again within a few frames while a person stays on it, and
-whether it *hovered*: |v| < v_hover for ``hover_frames`` updates in a row while in the
-air (neither grounded nor cut), which no bird can (stall speed ≈ 5 m/s for the
-smallest), or its candidate hovered (``detect.tentative``) and a cluster of it that is
-neither grounded nor cut updated it.
+position (d_max), the shares of its observations grounded, joined, crowded, cut,
+propped or beyond reach, its largest extent, *aloft*: the share of its recent
+observations not grounded (an exponential average over about the last three,
+a ← (1 − α) a + α [not grounded], α = ``ALOFT_ALPHA``, from a = 1: off the ground
+until seen on it), so a drone that lifted off is off the ground again within a few
+frames while a person stays on it, and whether it *hovered*: |v| < v_hover for
+``hover_frames`` updates in a row while in the air (neither grounded nor cut), which
+no bird can (stall speed ≈ 5 m/s for the smallest), or its candidate hovered
+(``detect.tentative``) and a cluster of it that is neither grounded nor cut updated
+it.
 """
 
 from __future__ import annotations
@@ -51,6 +59,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
@@ -63,6 +72,9 @@ BackgroundTest = Callable[[FloatArray], NDArray[np.bool_]]
 ALOFT_ALPHA = 0.3
 VIEW_SECTORS = 72  # azimuth sectors of the view's floor, 5° each
 CUT_MARGIN_RAD = math.radians(1.0)  # δ of the cut test
+PROP_DEPTH_M = 1.5  # d_p of the propped test
+PROP_RADIUS_M = 0.5  # r_min
+PROP_BEAM_RAD = 0.005  # θ_b
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +92,7 @@ class Observations:
     extent: FloatArray
     crowded: NDArray[np.bool_]
     cut: NDArray[np.bool_]
+    propped: NDArray[np.bool_]
 
 
 def view_floor(points: FloatArray, sensor: FloatArray, sectors: int = VIEW_SECTORS) -> FloatArray:
@@ -118,11 +131,13 @@ def observe(
     is_background: BackgroundTest | None = None,
     crowd_gap_m: float | None = None,
     floor: FloatArray | None = None,
+    below: FloatArray | None = None,
 ) -> Observations:
     """This frame's observations of each track (see the module docstring); ``ground``
     (K,) is g under each track (NaN: unknown), ``sensor`` (3,) the sensor's position,
     ``crowd_gap_m`` g_c (None: the feature is off), ``floor`` the view's floor
-    (``view_floor`` of the frame's other returns; None: the cut test is off)."""
+    (``view_floor`` of the frame's other returns; None: the cut test is off),
+    ``below`` (N, 3) the returns the propped test probes (None: it is off)."""
     k = len(tracks)
     j = tracks.clusters
     updated = tracks.updated & (j >= 0)
@@ -159,10 +174,54 @@ def observe(
         sec, n = _sector(d, len(floor)), len(floor)
         near = np.fmin(np.fmin(floor[(sec - 1) % n], floor[sec]), floor[(sec + 1) % n])
         cut[idx] = elevation <= near + CUT_MARGIN_RAD
+    propped = np.zeros(k, dtype=bool)
+    if below is not None and len(idx):
+        g = np.where(np.isfinite(ground[idx]), ground[idx], -np.inf) + ground_margin
+        propped[idx] = stands_on(c, low, rng[idx], g, below)
     speed = np.linalg.norm(tracks.velocities, axis=1)
     return Observations(
-        updated, centroid, rng, speed, grounded, joined, beyond, extent, crowded, cut
+        updated, centroid, rng, speed, grounded, joined, beyond, extent, crowded, cut, propped
     )
+
+
+def stands_on(
+    c: FloatArray, low: FloatArray, r: FloatArray, lift: FloatArray, points: FloatArray
+) -> NDArray[np.bool_]:
+    """(K,) whether a return of ``points`` (N, 3) lies in the column below each cluster
+    (centroid ``c`` (K, 3), bottom ``low``, range ``r``) and above ``lift`` (K,), the
+    ground plus h_g:
+
+        |p_xy − c_xy| ≤ max(r_min, θ_b r),  max(z_lo − d_p, lift) ≤ p_z < z_lo − 0.05 m
+    """
+    if len(points) == 0 or len(c) == 0:
+        return np.zeros(len(c), dtype=bool)
+    radius = np.maximum(PROP_RADIUS_M, PROP_BEAM_RAD * r)
+    bottom = np.maximum(low - PROP_DEPTH_M, lift)
+    z = points[:, 2]  # the returns within some column's height band
+    p = np.ascontiguousarray(points[(z >= bottom.min()) & (z < low.max())], dtype=np.float64)
+    out: NDArray[np.bool_] = _in_columns(
+        np.ascontiguousarray(c[:, :2], dtype=np.float64), radius**2, bottom, low - 0.05, p
+    )
+    return out
+
+
+@nb.njit(cache=True)
+def _in_columns(
+    c: FloatArray, r2: FloatArray, bottom: FloatArray, top: FloatArray, p: FloatArray
+) -> NDArray[np.bool_]:
+    """(K,) whether any point p (N, 3) has bottom_k ≤ p_z < top_k and
+    |p_xy − c_k|² ≤ r2_k (the first one found ends the search)."""
+    out = np.zeros(len(c), dtype=np.bool_)
+    for k in range(len(c)):
+        for i in range(len(p)):
+            z = p[i, 2]
+            if z < bottom[k] or z >= top[k]:
+                continue
+            dx, dy = p[i, 0] - c[k, 0], p[i, 1] - c[k, 1]
+            if dx * dx + dy * dy <= r2[k]:
+                out[k] = True
+                break
+    return out
 
 
 def nearest_gap(found: Detections, which: NDArray[np.int64]) -> FloatArray:
@@ -207,6 +266,7 @@ class LifeFeatures:
     beyond_reach: FloatArray
     crowded: FloatArray
     cut: FloatArray
+    propped: FloatArray
     extent: FloatArray  # the largest extent seen [m]
     hovered: NDArray[np.bool_]
     min_speed: FloatArray  # its lowest speed over its observed frames after the first [m/s]
@@ -231,6 +291,7 @@ class TrackLives:
         self.beyond = np.empty(n, dtype=np.int64)
         self.crowded = np.empty(n, dtype=np.int64)
         self.cut = np.empty(n, dtype=np.int64)
+        self.propped = np.empty(n, dtype=np.int64)
         self.extent = np.empty(n)
         self.range_m = np.empty(n)
         self.slow_run = np.empty(n, dtype=np.int64)
@@ -262,6 +323,7 @@ class TrackLives:
         self.beyond[r] += obs.beyond_reach[u]
         self.crowded[r] += obs.crowded[u]
         self.cut[r] += obs.cut[u]
+        self.propped[r] += obs.propped[u]
         self.extent[r] = np.fmax(self.extent[r], obs.extent[u])
         self.range_m[r] = np.fmax(self.range_m[r], obs.range_m[u])
         later = self.observed[r] > 1  # a track's first velocity is the birth's guess
@@ -283,6 +345,7 @@ class TrackLives:
             beyond_reach=self.beyond[rows] / n,
             crowded=self.crowded[rows] / n,
             cut=self.cut[rows] / n,
+            propped=self.propped[rows] / n,
             extent=self.extent[rows].copy(),
             hovered=self.hovered[rows].copy(),
             min_speed=self.min_speed[rows].copy(),
@@ -299,7 +362,16 @@ class TrackLives:
         self.last_t = np.append(self.last_t, t)
         self.first_p = np.concatenate([self.first_p, np.full((1, 3), np.nan)])
         self.moved = np.append(self.moved, 0.0)
-        for name in ("observed", "grounded", "joined", "beyond", "crowded", "cut", "slow_run"):
+        for name in (
+            "observed",
+            "grounded",
+            "joined",
+            "beyond",
+            "crowded",
+            "cut",
+            "propped",
+            "slow_run",
+        ):
             setattr(self, name, np.append(getattr(self, name), 0))
         self.extent = np.append(self.extent, np.nan)
         self.range_m = np.append(self.range_m, np.nan)
@@ -326,6 +398,7 @@ class TrackLives:
             "beyond",
             "crowded",
             "cut",
+            "propped",
             "extent",
             "range_m",
             "slow_run",

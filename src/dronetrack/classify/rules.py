@@ -10,6 +10,7 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
                                         what is below it is not seen)
     grounded (≥ half its frames)  −4    its bottom is the ground or the crop floor
     joined (≥ half its frames)    −3    a map cell beside or below it: part of a structure
+    propped (≥ half its frames)   −3    returns just below it: a mast's or a tree's top
     crowded (≥ half its frames)   −3    another cluster just beside it: a fragment of a
                                         structure the map lacks, not a drone in free space
                                         (two drones hovering close stay possible: it
@@ -24,7 +25,7 @@ Classes, in this order:
 - **static**: its clusters have not moved more than max(``still_m``, its extent,
   ``still_rad`` × its range) from the first, over ``static_after_s`` and
   ``min_observed`` clusters, and something says it is not in the open air (grounded,
-  joined, beyond reach or too large).  A small object holding still in the open air
+  joined, propped, beyond reach or too large).  A small object holding still in the open air
   is a hovering drone, not a static one.
 - **drone**: p_drone ≥ ``drone_p``;
 - **bird**: p_drone ≤ ``bird_p``, in the air, never slower than ``v_stall``, over
@@ -54,6 +55,7 @@ ALOFT_MIN = 0.2  # five grounded observations in a row bring a = 1 below it (0.7
 W_HOVERED = 4.0
 W_GROUNDED = -4.0
 W_JOINED = -3.0
+W_PROPPED = -3.0
 W_CROWDED = -3.0
 W_BEYOND_REACH = -6.0
 W_TOO_LARGE = -4.0
@@ -113,6 +115,7 @@ def classify(
     rules = rules if rules is not None else ClassRules()
     grounded = life.grounded >= 0.5
     joined = life.joined >= 0.5
+    propped = life.propped >= 0.5
     crowded = life.crowded >= 0.5
     cut = life.cut >= 0.5
     beyond = life.beyond_reach >= 0.5
@@ -128,6 +131,7 @@ def classify(
         W_HOVERED * (life.hovered & ~grounded & ~cut)
         + W_GROUNDED * grounded
         + W_JOINED * joined
+        + W_PROPPED * propped
         + W_CROWDED * crowded
         + W_BEYOND_REACH * beyond
         + W_TOO_LARGE * large
@@ -139,7 +143,10 @@ def classify(
     bird = (p <= rules.bird_p) & ~grounded & (life.min_speed >= rules.v_stall) & ~still & seen
     classes[bird] = BIRD
     static = (
-        still & seen & (life.age >= rules.static_after_s) & (grounded | joined | beyond | large)
+        still
+        & seen
+        & (life.age >= rules.static_after_s)
+        & (grounded | joined | propped | beyond | large)
     )
     classes[static] = STATIC
     return classes, p
