@@ -273,6 +273,10 @@ class LifeFeatures:
     aloft: FloatArray  # its recent observations' share in the open air
 
 
+# the per-track counters of ``TrackLives``, each an int64 array from 0
+_COUNTS = ("observed", "grounded", "joined", "beyond", "crowded", "cut", "propped", "slow_run")
+
+
 class TrackLives:
     """Every track's life, kept by its identity (``update`` once a frame)."""
 
@@ -362,16 +366,7 @@ class TrackLives:
         self.last_t = np.append(self.last_t, t)
         self.first_p = np.concatenate([self.first_p, np.full((1, 3), np.nan)])
         self.moved = np.append(self.moved, 0.0)
-        for name in (
-            "observed",
-            "grounded",
-            "joined",
-            "beyond",
-            "crowded",
-            "cut",
-            "propped",
-            "slow_run",
-        ):
+        for name in _COUNTS:
             setattr(self, name, np.append(getattr(self, name), 0))
         self.extent = np.append(self.extent, np.nan)
         self.range_m = np.append(self.range_m, np.nan)
@@ -387,24 +382,7 @@ class TrackLives:
             return
         keep_ids = [i for i in self._row if i in alive]
         keep = np.array([self._row[i] for i in keep_ids], dtype=np.intp)
-        for name in (
-            "first_t",
-            "last_t",
-            "first_p",
-            "moved",
-            "observed",
-            "grounded",
-            "joined",
-            "beyond",
-            "crowded",
-            "cut",
-            "propped",
-            "extent",
-            "range_m",
-            "slow_run",
-            "hovered",
-            "min_speed",
-            "aloft",
-        ):
+        rest = ("first_t", "last_t", "first_p", "moved", "extent", "range_m", "hovered")
+        for name in (*rest, "min_speed", "aloft", *_COUNTS):
             setattr(self, name, getattr(self, name)[keep])
         self._row = {i: n for n, i in enumerate(keep_ids)}
