@@ -167,6 +167,15 @@ def _object_tracks() -> None:
     cv_update(x, P, np.zeros((1, 3)), np.eye(3)[None] + cost[0, 0] * 0.0)
 
 
+def _classes() -> None:
+    """The classify stage's test of the column below each track (``propped``)."""
+    from dronetrack.classify.features import stands_on
+
+    c = np.array([[10.0, 0.0, 5.0]])
+    below = np.array([[10.0, 0.0, 4.0], [10.0, 3.0, 4.5]])
+    stands_on(c, np.array([4.8]), np.array([11.0]), np.array([0.5]), below)
+
+
 def _learning() -> None:
     """The learning background map: direction cells, looks and the sampled directions."""
     from dronetrack.preprocess.learning import LearningBackground, LearningSettings
@@ -185,6 +194,7 @@ PIPELINE_WARM_UPS: tuple[WarmUpStep, ...] = (
     _particle_filters,
     _detection,
     _object_tracks,
+    _classes,
     _learning,
 )
 
