@@ -75,7 +75,8 @@ class TrackClassifier:
         ``ground_every`` frames (it changes slowly; a sample of a frame costs 0.15 ms),
         and the view's floor (``features.view_floor``) from the same sample each frame;
         ``sensor`` (3,) is the sensor's position, ``is_background`` the background
-        map's test (None: no map yet)."""
+        map's test (None: no map yet).  The propped test probes the foreground and the
+        ground's sample of the other returns (a pole outside the map is foreground)."""
         stride = self.ground.stride
         keep = np.ones((len(world) + stride - 1) // stride, dtype=bool)
         keep[foreground[foreground % stride == 0] // stride] = False  # every stride-th row
