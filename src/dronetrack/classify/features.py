@@ -177,8 +177,7 @@ def observe(
         cut[idx] = elevation <= near + CUT_MARGIN_RAD
     propped = np.zeros(k, dtype=bool)
     if below is not None and len(idx):
-        g = np.where(np.isfinite(ground[idx]), ground[idx], -np.inf) + ground_margin
-        propped[idx] = stands_on(c, low, rng[idx], g, below)
+        propped[idx] = stands_on(c, low, rng[idx], lift, below)  # above g + h_g
     speed = np.linalg.norm(tracks.velocities, axis=1)
     return Observations(
         updated, centroid, rng, speed, grounded, joined, beyond, extent, crowded, cut, propped
