@@ -31,6 +31,7 @@ __all__ = [
     "not_static",
     "servable",
     "threat",
+    "track_threats",
 ]
 
 STATIC = TRACK_CLASSES.index("static")
@@ -110,6 +111,18 @@ def threat(
     return out
 
 
+def track_threats(tracks: Tracks, settings: ChooseSettings) -> FloatArray:
+    """Each track's ``threat`` (K,) with the settings' protected point and scales."""
+    return threat(
+        tracks.positions,
+        tracks.velocities,
+        tracks.p_drone,
+        np.asarray(settings.protected),
+        settings.d_ref,
+        settings.v_ref,
+    )
+
+
 def drone_instead(
     owner: NDArray[np.intp],
     tracks: Tracks,
@@ -130,14 +143,7 @@ def drone_instead(
     ok[ok] = (tracks.classes[owner[ok]] == DRONE) & (owner[ok] != held)
     if not ok.any():
         return -1
-    score = threat(
-        tracks.positions,
-        tracks.velocities,
-        tracks.p_drone,
-        np.asarray(settings.protected),
-        settings.d_ref,
-        settings.v_ref,
-    )
+    score = track_threats(tracks, settings)
     cand = np.flatnonzero(ok)
     best = int(cand[np.argmax(score[owner[cand]])])
     held_score = float(score[held]) if held >= 0 else 0.0
@@ -224,14 +230,7 @@ class TargetChooser:
         if len(idx) < 2:
             self.served = None
             return None
-        score = threat(
-            tracks.positions[idx],
-            tracks.velocities[idx],
-            tracks.p_drone[idx],
-            np.asarray(s.protected),
-            s.d_ref,
-            s.v_ref,
-        )
+        score = track_threats(tracks, s)[idx]
         ids = tracks.ids[idx]
         current = self._position(ids, self.served)
         if current is None:  # start with the held track if it is a fair choice
