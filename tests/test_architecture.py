@@ -18,10 +18,11 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "dronetrack"
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 # Bottom to top: a module may import its own layer and the layers before it.  The
-# algorithms (preprocess … eval) take arrays and give arrays; the pipeline joins
-# them; formats turn bytes into arrays; sources, actuators and sinks are the run
-# loop's seams; the simulator is one more source and actuator; jobs assemble runs
-# from a configuration; experiments run many; the command line calls them.
+# algorithms (preprocess … eval, the zones' alerts among them) take arrays and give
+# arrays; the pipeline joins them; formats turn bytes into arrays; sources, actuators
+# and sinks are the run loop's seams; the simulator is one more source and actuator;
+# jobs assemble runs from a configuration; experiments run many; the command line
+# calls them.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors", "interrupt", "allocator", "realtime"),
     ("geometry",),
@@ -33,6 +34,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("track",),
     ("classify",),
     ("control",),
+    ("zones",),
     ("eval",),
     ("pipeline",),
     ("formats",),
@@ -194,6 +196,8 @@ def test_no_two_modules_of_a_folder_share_a_prefix() -> None:
     """A repeated prefix (``livox_udp``, ``livox_uri`` …) is a subpackage waiting: make it one."""
     by_folder: dict[Path, list[str]] = {}
     for path in SRC.rglob("*.py"):
+        if path.stem.endswith("_pb2"):
+            continue  # protoc's modules keep the names of their vendored .proto files
         if "_" in path.stem and not path.stem.startswith("__"):
             by_folder.setdefault(path.parent, []).append(path.stem.split("_")[0])
     repeated = sorted(

@@ -380,10 +380,17 @@ def _shortened(args: list[str], tmp: Path) -> list[str]:
     return args
 
 
+# What a command run in the background for the commands after it on the page says
+# when it is ready for them.
+BACKGROUND = {"emulate": b"turret:", "sapient-listen": b"listening on"}
+
+
 class Background:
-    """``dronetrack emulate`` running for the commands after it on the page."""
+    """``dronetrack emulate`` or ``sapient-listen`` running for the commands after it on
+    the page."""
 
     def __init__(self, args: list[str], cwd: Path, env: dict[str, str]) -> None:
+        ready = BACKGROUND[args[1]]
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "dronetrack", *args[1:]],
             cwd=cwd,
@@ -394,14 +401,14 @@ class Background:
         self.out = b""
         deadline = time.monotonic() + 120.0
         assert self.proc.stdout is not None
-        while b"turret:" not in self.out and time.monotonic() < deadline:
+        while ready not in self.out and time.monotonic() < deadline:
             ready, _, _ = select.select([self.proc.stdout], [], [], 0.5)
             if ready:
                 got = os.read(self.proc.stdout.fileno(), 4096)
                 if not got:
                     break
                 self.out += got
-        assert b"turret:" in self.out, (args, self.out.decode(), self.proc.poll())
+        assert ready in self.out, (args, self.out.decode(), self.proc.poll())
 
     def stop(self) -> None:
         if self.proc.poll() is None:
@@ -447,7 +454,7 @@ def test_the_examples_run(page: Path, tmp_path: Path) -> None:
     folder (an example may use what one before it wrote)."""
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
     env = _env(tmp_path)
-    emulator: Background | None = None
+    running: dict[str, Background] = {}  # by command: one emulator, one fusion node
     try:
         for example in _runnable(page):
             for part in example.parts():
@@ -456,10 +463,10 @@ def test_the_examples_run(page: Path, tmp_path: Path) -> None:
                     args += [a.replace("/tmp/", f"{tmp_path}/") for a in part[2:]]
                 else:
                     short = _shortened(part, tmp_path)
-                    if short[1] == "emulate":
-                        if emulator is not None:
-                            emulator.stop()
-                        emulator = Background(short, tmp_path, env)
+                    if short[1] in BACKGROUND:
+                        if short[1] in running:
+                            running.pop(short[1]).stop()
+                        running[short[1]] = Background(short, tmp_path, env)
                         continue
                     args = [sys.executable, "-m", "dronetrack", *short[1:]]
                 done = subprocess.run(
@@ -476,5 +483,5 @@ def test_the_examples_run(page: Path, tmp_path: Path) -> None:
                     f"{done.stderr[-3000:]}"
                 )
     finally:
-        if emulator is not None:
-            emulator.stop()
+        for background in running.values():
+            background.stop()

@@ -15,6 +15,7 @@ __all__ = [
     "MissingExtraError",
     "RecordingError",
     "RunInterruptedError",
+    "SapientProtocolError",
     "ScenarioError",
     "SensorError",
     "TrajectoryError",
@@ -51,6 +52,10 @@ class RecordingError(InputError):
 
 class DecodeError(InputError):
     """One message's bytes do not decode (bad layout, counts that disagree with the length)."""
+
+
+class SapientProtocolError(DecodeError):
+    """A SAPIENT peer's bytes break the framing or do not parse as a ``SapientMessage``."""
 
 
 class DeviceError(DronetrackError):

@@ -141,7 +141,7 @@ def test_bench_shows_every_default_as_the_others_do(
     from dronetrack.experiments.bench import FULL, LIVE_FULL
 
     rows = _rows(_help(["bench"], 80, monkeypatch, capsys))
-    flags = {"--quick", "--live", "--ros2", "--help"}
+    flags = {"--quick", "--live", "--ros2", "--sapient", "--help"}
     for name, row in rows.items():
         if name not in flags:
             assert "[default:" in row, row

@@ -214,3 +214,37 @@ def test_the_background_scan_ends_at_home() -> None:
     # without an end the raster falls where it falls: 2.5 periods of 4 s, the far edge
     far = _controller(home=home).scanning(10.0)
     assert far.pan == pytest.approx(math.radians(60.0))
+
+
+def test_a_look_at_task_centres_the_search_on_its_point() -> None:
+    c = _controller(home=(60.0, 0.0, 15.0), search_hold_s=1.0)
+    lost = _estimate(0.0, (5.0, 5.0, 5.0), tracked=False)
+    for k in range(5):  # searching from home (the hold)
+        c.tracking(0.1 * k, lost)
+    point = np.array([60.0, -50.0, 20.0])  # 40° right of home, in the search area
+    assert c.look_at(0.5, point)
+    cmd = c.tracking(0.5, lost)
+    assert cmd is not None
+    # the search starts at once, from the point: its first command is the point's aim
+    assert (cmd.pan, cmd.tilt) == pytest.approx(aim_angles(point, MOUNT))
+    later = [c.tracking(0.5 + 0.1 * k, lost) for k in range(1, 30)]
+    pans = [cmd.pan for cmd in later if cmd is not None]
+    # it searches about the point, not about home (pan 0)
+    assert abs(np.mean(pans) - aim_angles(point, MOUNT)[0]) < math.radians(15)
+    assert abs(np.mean(pans)) > math.radians(25)
+
+
+def test_a_look_at_waits_for_the_lock_to_end_and_fixed_modes_refuse_it() -> None:
+    c = _controller(search_hold_s=0.0)
+    target = (50.0, 10.0, 20.0)
+    point = np.array([-40.0, 80.0, 30.0])
+    c.tracking(0.0, _estimate(0.0, target))
+    assert c.look_at(0.1, point)
+    held = c.tracking(0.1, _estimate(0.1, target))
+    assert held is not None
+    assert (held.pan, held.tilt) == pytest.approx(aim_angles(target, MOUNT))  # still on it
+    lost = c.tracking(0.2, _estimate(0.2, target, tracked=False))
+    assert lost is not None
+    assert (lost.pan, lost.tilt) == pytest.approx(aim_angles(point, MOUNT))  # search there
+    assert not _controller(mode="fixed").look_at(0.0, point)
+    assert not _controller().look_at(0.0, np.array([np.nan, 0.0, 0.0]))

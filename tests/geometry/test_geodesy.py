@@ -1,4 +1,5 @@
-"""WGS-84 geodetic → ECEF → local ENU: known answers and properties."""
+"""WGS-84 geodetic → local ENU and the site frame: known answers and properties, against
+the textbook ellipsoid written out here (the code under test is pymap3d's)."""
 
 from __future__ import annotations
 
@@ -6,17 +7,24 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dronetrack.geometry.geodesy import WGS84_A, WGS84_F, enu_from_geodetic, geodetic_to_ecef
+from dronetrack.geometry.geodesy import SiteFrame, enu_from_geodetic
+
+WGS84_A = 6378137.0  # semi-major axis [m]
+WGS84_F = 1.0 / 298.257223563  # flattening
 
 
-def test_ecef_known_points() -> None:
-    np.testing.assert_allclose(geodetic_to_ecef(0.0, 0.0, 0.0), [WGS84_A, 0.0, 0.0])
-    np.testing.assert_allclose(
-        geodetic_to_ecef(0.0, 90.0, 10.0), [0.0, WGS84_A + 10.0, 0.0], atol=1e-6
-    )
-    # The pole lies on the semi-minor axis b = a (1 − f).
-    np.testing.assert_allclose(
-        geodetic_to_ecef(90.0, 0.0, 0.0), [0.0, 0.0, WGS84_A * (1 - WGS84_F)], atol=1e-6
+def geodetic_to_ecef(lat_deg: float, lon_deg: float, alt_m: float) -> np.ndarray:
+    """The oracle: x = (N + h) cos φ cos λ, y = (N + h) cos φ sin λ, z = (N (1 − e²) + h)
+    sin φ, with N = a / √(1 − e² sin² φ) and e² = f (2 − f)."""
+    e2 = WGS84_F * (2.0 - WGS84_F)
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    N = WGS84_A / np.sqrt(1.0 - e2 * np.sin(lat) ** 2)
+    return np.array(
+        [
+            (N + alt_m) * np.cos(lat) * np.cos(lon),
+            (N + alt_m) * np.cos(lat) * np.sin(lon),
+            (N * (1.0 - e2) + alt_m) * np.sin(lat),
+        ]
     )
 
 
@@ -62,3 +70,36 @@ def test_enu_preserves_distances(
     enu = enu_from_geodetic(lat + dlat, lon + dlon, 50.0 + dalt, origin, heading)
     ecef = geodetic_to_ecef(lat + dlat, lon + dlon, 50.0 + dalt) - geodetic_to_ecef(*origin)
     assert abs(np.linalg.norm(enu) - np.linalg.norm(ecef)) < 1e-6
+
+
+def test_the_site_frame_puts_world_x_on_its_heading() -> None:
+    # World x points north-east (ψ = 45°); the turret base stands 1 m above the origin.
+    site = SiteFrame(47.4, 19.2, 120.0, heading_deg=45.0, base=(0.0, 0.0, 1.0))
+    lat, lon, alt = site.geodetic([0.0, 0.0, 1.0])
+    np.testing.assert_allclose([lat, lon, alt], [47.4, 19.2, 120.0], atol=1e-9)
+    az, el, rng = site.aer([100.0, 0.0, 1.0])  # 100 m along world x, level with the base
+    np.testing.assert_allclose([az, el, rng], [45.0, 0.0, 100.0], atol=1e-6)
+    az, el, rng = site.aer([0.0, 100.0, 101.0])  # world y is 90° left of x: bearing 315°
+    np.testing.assert_allclose([az, el, rng], [315.0, 45.0, 100.0 * np.sqrt(2)], atol=1e-6)
+    # A velocity along world x is north-east in ENU.
+    np.testing.assert_allclose(site.enu_vectors([2.0, 0.0, 0.0]), [np.sqrt(2), np.sqrt(2), 0.0])
+
+
+@given(
+    st.floats(-80, 80),
+    st.floats(-179, 179),
+    st.floats(-360, 360),
+    st.lists(st.floats(-2000, 2000), min_size=3, max_size=3),
+)
+def test_site_frame_round_trips(lat: float, lon: float, heading: float, p: list[float]) -> None:
+    site = SiteFrame(lat, lon, 30.0, heading_deg=heading, base=(0.0, 0.0, 1.5))
+    back = site.from_geodetic(*site.geodetic(p))
+    np.testing.assert_allclose(back, p, atol=1e-6)
+    # pymap3d's enu2aer sets ENU components under 1 mm to 0 (its singularity guard)
+    np.testing.assert_allclose(site.from_aer(*site.aer(p)), p, atol=2e-3)
+    # The covariance turns as the vectors do: var(uᵀ x) is the same in both frames.
+    P = np.diag([4.0, 1.0, 0.25])
+    u = np.array(p) / max(float(np.linalg.norm(p)), 1e-9)
+    assert (
+        abs(u @ P @ u - site.enu_vectors(u) @ site.enu_covariance(P) @ site.enu_vectors(u)) < 1e-9
+    )

@@ -428,3 +428,42 @@ def test_ros2_publishes_every_track_as_markers(
             assert deleted(msg, "track_locked") == [0]
     assert [deleted(m, "tracks") for m in msgs] == [[], [7], [3, 12]]
     assert [deleted(m, "track_labels") for m in msgs] == [[], [7], [3, 12]]
+
+
+def test_foxglove_puts_every_track_and_zone_on_the_map(tmp_path: Path) -> None:
+    pytest.importorskip("foxglove")
+    pytest.importorskip("rerun")
+    import pymap3d
+
+    from dronetrack.geometry.geodesy import SiteFrame
+    from dronetrack.sinks.foxglove.geo import SiteView
+    from dronetrack.sinks.foxglove.mcap_file import FoxgloveWriter
+    from dronetrack.zones import circle
+
+    # world x points north (heading 0°), the turret base 1 m up: ENU = (−y, x, z − 1)
+    site = SiteFrame(47.4, 19.2, 120.0, 0.0, (0.0, 0.0, 1.0))
+    path = tmp_path / "run.mcap"
+    with FoxgloveWriter(path, start=START) as writer:
+        writer.show_site(SiteView(site, (circle("depot", (50.0, 0.0), 20.0, margin_m=10.0),)))
+        _feed([writer])
+    rows = _mcap_rows(path)
+    fixes = rows["/tracks/fix"]
+    # frames 1 and 2 have 3 and 2 tracks; frame 3 none
+    assert [row["message_log_time"] for row in fixes] == [_ns(1)] * 3 + [_ns(2)] * 2
+    for row in fixes:
+        ident = int(row["CoordinateFrame:frame"][0].split("/")[1])
+        cls, _, (x, y, z) = TRACKS[ident][:3]
+        lat, lon, _ = pymap3d.enu2geodetic(-y, x, z - 1.0, 47.4, 19.2, 120.0)
+        [[got_lat, got_lon]] = row["GeoPoints:positions"]
+        assert got_lat == pytest.approx(lat, abs=1e-9)
+        assert got_lon == pytest.approx(lon, abs=1e-9)
+        rgba = row["GeoPoints:colors"][0]
+        assert ((rgba >> 24) & 255, (rgba >> 16) & 255, (rgba >> 8) & 255) == TRACK_RGB[cls]
+    [zones] = rows["/zones"]  # once: the run is shorter than ZONES_EVERY_S
+    collection = json.loads(zones["foxglove.GeoJSON:message"][0]["geojson"])
+    kinds = [(f["properties"]["name"], f["properties"]["kind"]) for f in collection["features"]]
+    assert kinds == [("depot", "zone"), ("depot", "margin")]
+    ring = np.array(collection["features"][0]["geometry"]["coordinates"][0])  # [lon, lat]
+    e, n, _ = pymap3d.geodetic2enu(ring[:, 1], ring[:, 0], 120.0, 47.4, 19.2, 120.0)
+    # the circle about world (50, 0): 50 m north of the site, 20 m across
+    np.testing.assert_allclose(np.hypot(e, n - 50.0), 20.0, atol=0.02)

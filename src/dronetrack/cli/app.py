@@ -3,7 +3,7 @@ the viewer files beside a run folder, the run report and the ``interrupted`` exi
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -20,7 +20,10 @@ from dronetrack.cli.output import (
 from dronetrack.errors import RunInterruptedError
 
 if TYPE_CHECKING:
+    from dronetrack.config.run import ScenarioConfig
     from dronetrack.jobs.run import RunFolder, RunResult
+    from dronetrack.seams import Sink
+    from dronetrack.sinks.foxglove.geo import SiteView
     from dronetrack.sinks.view import ViewerSink
 
 
@@ -30,6 +33,9 @@ __all__ = [
     "app",
     "report_run",
     "run_outputs",
+    "say_line",
+    "show_site",
+    "site_outputs",
     "stop_if_interrupted",
 ]
 
@@ -73,16 +79,20 @@ def run_outputs(
     start: float = 0.0,
     publish: str | None = None,
     ros_domain_id: int | None = None,
+    site: SiteView | None = None,
 ) -> Iterator[list[ViewerSink]]:
     """The viewer files a run writes besides its folder (and ``--publish ros2``'s
     publisher), closed after the block; if the block fails, or Ctrl-C stops it at
-    once, the folder keeps the frames done."""
+    once, the folder keeps the frames done.  ``site``: the map a viewer that has one
+    shows too (Foxglove's)."""
     from dronetrack.sinks.viewers import close_viewers, open_viewers
 
     try:
         viewers = open_viewers(
             foxglove, rerun, start=start, publish=publish, ros_domain_id=ros_domain_id
         )
+        if site is not None:
+            show_site(viewers, site)
         try:
             yield viewers
         finally:
@@ -90,6 +100,35 @@ def run_outputs(
     except BaseException:
         folder.close()
         raise
+
+
+def show_site(viewers: Iterable[object], site: SiteView) -> None:
+    """Give ``site`` to each viewer with a map (``show_site``)."""
+    for viewer in viewers:
+        show = getattr(viewer, "show_site", None)
+        if show is not None:
+            show(site)
+
+
+@contextmanager
+def site_outputs(
+    cfg: ScenarioConfig, folder: RunFolder, sapient: str | None, steerable: bool = True
+) -> Iterator[list[Sink]]:
+    """The sink that tells the site of the run (zone alerts, ``--sapient``), as a list
+    of none or one, closed after the block: each alert is said in one line."""
+    from dronetrack.jobs.site import open_site_feed
+
+    feed = open_site_feed(cfg, lambda: folder.out_dir, sapient, say=say_line, steerable=steerable)
+    try:
+        yield [] if feed is None else [feed]
+    finally:
+        if feed is not None:
+            feed.close()
+
+
+def say_line(text: str) -> None:
+    """One line on standard error, as it is (no markup)."""
+    err_console.print(text, markup=False, highlight=False, soft_wrap=True)
 
 
 def report_run(folder: RunFolder, run: RunResult, metrics: dict[str, Any]) -> None:

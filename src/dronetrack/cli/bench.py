@@ -183,6 +183,19 @@ def live_table(results: dict[str, Any], path: Path) -> Table:
             ("turret reads missed", "turret_reads_missed", ""),
         ):
             add(f"  {label}", soak, key, unit, "live_soak")
+    c2 = results.get("live_latency_sapient")
+    if c2 is not None:
+        table.add_section()
+        table.add_row("latency run again, with a SAPIENT edge node", "", "", "")
+        for label, key, unit in (
+            ("latency p99", "latency_ms_p99", " ms"),
+            ("latency p99 growth", "p99_growth_ms", " ms"),
+            ("first report after its frame, max", "sapient_first_report_ms_max", " ms"),
+            ("first report after its frame, median", "sapient_first_report_ms_median", " ms"),
+            ("messages sent", "sapient_sent", ""),
+            ("messages dropped", "sapient_dropped", ""),
+        ):
+            add(f"  {label}", c2, key, unit, "live_latency_sapient")
     return table
 
 
@@ -332,6 +345,15 @@ _Ros2 = Annotated[
     ),
 ]
 
+_Sapient = Annotated[
+    bool,
+    typer.Option(
+        "--sapient",
+        help="With --live: run the latency run again with a SAPIENT edge node sending to a "
+        "fusion node on loopback, and time its first reports (extra: sapient).",
+    ),
+]
+
 
 @app.command()
 def bench(
@@ -348,6 +370,7 @@ def bench(
     ptu_baud: _PtuBaud = None,
     scenario: _Scenario = None,
     ros2: _Ros2 = False,
+    sapient: _Sapient = False,
 ) -> None:
     """Time the pipeline, every tracker, the simulator and replay on one core.
 
@@ -365,7 +388,7 @@ def bench(
     check_mode(
         live,
         suite_options=any(v is not None for v in suite.values()),
-        live_options=ros2 or any(v is not None for v in live_only),
+        live_options=ros2 or sapient or any(v is not None for v in live_only),
     )
     if not live:
         _suite(out_dir, quick, **suite)
@@ -379,5 +402,6 @@ def bench(
         ptu_baud=ptu_baud,
         scenario=scenario,
         ros2=ros2,
+        sapient=sapient,
     )
     _live(out_dir, request, quick)

@@ -15,13 +15,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from dronetrack.cli.app import app, report_run, run_outputs
+from dronetrack.cli.app import app, report_run, run_outputs, site_outputs
 from dronetrack.cli.options import (
     SCENARIOS_OWN,
     ParticlesOption,
     PublishOption,
     RosDomainOption,
     RunDirOption,
+    SapientOption,
     TrackerOption,
     scenario_from_options,
 )
@@ -138,6 +139,7 @@ def live(
     particles: ParticlesOption = None,
     ros_domain_id: RosDomainOption = None,
     publish: PublishOption = None,
+    sapient: SapientOption = None,
 ) -> None:
     """Track live: scan the background with the turret, then detect, track and follow.
 
@@ -149,18 +151,18 @@ def live(
     from dronetrack.errors import DeviceError
     from dronetrack.interrupt import handling_sigterm
     from dronetrack.jobs.live.run import LiveSetup, base_config, live_config, run_live
-    from dronetrack.jobs.run import RunFolder
-    from dronetrack.sinks.run_folder import default_run_dir
+    from dronetrack.jobs.site import run_folder
 
     setup = LiveSetup(lidar, turret, duration, truth, host_ip, ros_domain_id=ros_domain_id)
     named = scenario_from_options(scenario, None) if scenario is not None else None
     cfg = apply_overrides(base_config(named, lidar), tracker=tracker, particles=particles)
     cfg = live_config(cfg, duration_s=duration, background_file=background, scan_s=scan_s)
-    folder = RunFolder(out if out is not None else default_run_dir())
+    folder = run_folder(out, cfg)
     with (
         _live_viewers(foxglove_port, cfg, publish, ros_domain_id) as viewers,
         handling_sigterm(),
         run_outputs(folder, None, None),
+        site_outputs(cfg, folder, sapient) as site,
         progress_bar() as bar,
     ):
         task = bar.add_task("live", total=None)
@@ -168,7 +170,7 @@ def live(
             cfg,
             setup,
             progress=lambda i, n: bar.update(task, completed=i, total=None),
-            sinks=viewers,
+            sinks=[*viewers, *site],
             compiling=compile_reporter(bar, task),
             log_sink=folder.log_sink,
             on_start=lambda resolved: _say(_start_line(resolved, lidar, turret)),
@@ -198,6 +200,7 @@ def _live_viewers(
     """The live viewer server ``--foxglove-port`` asks for and ``--publish ros2``'s
     publisher (none without them), closed after the block."""
     from dronetrack.config.rig import turret_spec
+    from dronetrack.jobs.site import site_view
 
     sinks: list[Sink] = []
     try:
@@ -211,6 +214,9 @@ def _live_viewers(
             from dronetrack.sinks.foxglove.live import FoxgloveServer
 
             server = FoxgloveServer(port, turret_spec(cfg.turret).mount)
+            view = site_view(cfg)
+            if view is not None:
+                server.show_site(view)
             _say(f"foxglove: {server.url}  (Foxglove app: Open connection, Foxglove WebSocket)")
             sinks.append(server)
         yield sinks

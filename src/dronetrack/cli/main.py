@@ -16,6 +16,7 @@ from dronetrack.cli import (  # noqa: F401  (they register on app)
     emulate,
     live,
     recordings,
+    sapient,
     simulate,
     sweep,
 )

@@ -31,6 +31,7 @@ __all__ = [
     "RerunOption",
     "RosDomainOption",
     "RunDirOption",
+    "SapientOption",
     "ScenarioArgument",
     "SeedOption",
     "SensorOption",
@@ -124,6 +125,16 @@ PublishOption = Annotated[
         "--publish",
         help="ros2: publish the run for RViz on ROS 2 (estimate, track, particles, "
         "foreground, points, /tf; extra: ros2).",
+    ),
+]
+
+SapientOption = Annotated[
+    str | None,
+    typer.Option(
+        "--sapient",
+        metavar="HOST:PORT",
+        help="Send every track and zone alert to a SAPIENT (BSI Flex 335 v2.0) fusion node "
+        "over TCP, and take its look-at tasks; needs the site's coordinates (extra: sapient).",
     ),
 ]
 

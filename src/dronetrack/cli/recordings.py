@@ -21,6 +21,7 @@ from dronetrack.cli.app import (
     app,
     report_run,
     run_outputs,
+    site_outputs,
     stop_if_interrupted,
 )
 from dronetrack.cli.options import (
@@ -33,6 +34,7 @@ from dronetrack.cli.options import (
     RerunOption,
     RosDomainOption,
     RunDirOption,
+    SapientOption,
     ScenarioArgument,
     SeedOption,
     SensorOption,
@@ -54,10 +56,11 @@ from dronetrack.sources.recordings.opener import recording_info
 from dronetrack.sources.recordings.recording import RecordingInfo, TopicInfo
 
 if TYPE_CHECKING:
+    from dronetrack.config.run import ScenarioConfig
     from dronetrack.jobs.record import RecordingPlan
     from dronetrack.jobs.replay import ReplayRun
     from dronetrack.jobs.run import RunFolder, RunResult
-    from dronetrack.sources.recordings.recording import ReplayOptions
+    from dronetrack.sources.recordings.recording import Recording, ReplayOptions
 
 __all__ = ["info", "record", "track"]
 
@@ -211,20 +214,57 @@ def track(
     rerun: RerunOption = None,
     publish: PublishOption = None,
     ros_domain_id: RosDomainOption = None,
+    sapient: SapientOption = None,
 ) -> None:
     """Replay a recording through the pipeline; turret commands are logged, not executed.
 
     Writes config.toml, frames.csv, commands.csv, metrics.json and plots, as simulate
     does; the metrics that need ground truth appear only when there is some.
     """
-    from dronetrack.jobs.replay import open_replay, run_replay
+    from dronetrack.jobs.replay import run_replay
     from dronetrack.jobs.run import RunFolder
+    from dronetrack.jobs.site import place, site_view
     from dronetrack.sinks.run_folder import default_run_dir
 
     folder = RunFolder(out if out is not None else default_run_dir())
     options = _replay_options(
         lidar_topic, gt_topic, pose_frame, sensor_pose, gt_origin, gt_heading, period, timestamps
     )
+    source, cfg = _open_replay(
+        recording, options, truth, config, tracker, background, background_from
+    )
+    outputs = run_outputs(
+        place(folder, cfg), foxglove, rerun, source.origin, publish, ros_domain_id, site_view(cfg)
+    )
+    site_feed = site_outputs(cfg, folder, sapient, steerable=False)
+    with outputs as viewers, site_feed as site, progress_bar() as bar:
+        task = bar.add_task(f"replaying {recording.name}", total=None)
+        result = run_replay(
+            source,
+            cfg,
+            progress=lambda i, n: bar.update(task, completed=i, total=n),
+            viewers=viewers,
+            sinks=site,
+            compiling=compile_reporter(bar, task),
+            log_sink=folder.log_sink,
+            truth_file=truth,
+        )
+    _report_replay(folder, result)
+
+
+def _open_replay(
+    recording: Path,
+    options: ReplayOptions,
+    truth: Path | None,
+    config: Path | None,
+    tracker: str | None,
+    background: Path | None,
+    background_from: float | None,
+) -> tuple[Recording, ScenarioConfig]:
+    """``track``'s recording and configuration (``jobs.replay.open_replay``), with its
+    warning said."""
+    from dronetrack.jobs.replay import open_replay
+
     source, cfg, warning = open_replay(
         recording,
         options,
@@ -236,21 +276,7 @@ def track(
     )
     if warning is not None:
         _warn(warning)
-    outputs = run_outputs(
-        folder, foxglove, rerun, start=source.origin, publish=publish, ros_domain_id=ros_domain_id
-    )
-    with outputs as viewers, progress_bar() as bar:
-        task = bar.add_task(f"replaying {recording.name}", total=None)
-        result = run_replay(
-            source,
-            cfg,
-            progress=lambda i, n: bar.update(task, completed=i, total=n),
-            viewers=viewers,
-            compiling=compile_reporter(bar, task),
-            log_sink=folder.log_sink,
-            truth_file=truth,
-        )
-    _report_replay(folder, result)
+    return source, cfg
 
 
 def _report_replay(folder: RunFolder, result: ReplayRun) -> None:

@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from dronetrack.cli.app import app, report_run, run_outputs
+from dronetrack.cli.app import app, report_run, run_outputs, site_outputs
 from dronetrack.cli.options import (
     SCENARIOS_OWN,
     ConfigOption,
@@ -20,6 +20,7 @@ from dronetrack.cli.options import (
     RerunOption,
     RosDomainOption,
     RunDirOption,
+    SapientOption,
     ScenarioArgument,
     SeedOption,
     SensorOption,
@@ -207,6 +208,7 @@ def simulate(
     rerun: RerunOption = None,
     publish: PublishOption = None,
     ros_domain_id: RosDomainOption = None,
+    sapient: SapientOption = None,
 ) -> None:
     """Run the closed loop: scan the background, then detect, track and follow the drone.
 
@@ -215,9 +217,8 @@ def simulate(
     """
 
     from dronetrack.config.rig import turret_spec
-    from dronetrack.jobs.run import RunFolder
     from dronetrack.jobs.simulate import run_simulation
-    from dronetrack.sinks.run_folder import default_run_dir
+    from dronetrack.jobs.site import run_folder, site_view
     from dronetrack.sinks.view import ViewerFeed
 
     cfg = scenario_from_options(
@@ -233,16 +234,18 @@ def simulate(
         particles=particles,
         turret_mode=turret.value if turret else None,
     )
-    folder = RunFolder(out if out is not None else default_run_dir())
+    folder = run_folder(out, cfg)
     # the turret's links for the viewers; on a moving observer, the sensor's pose alone
     mount = None if cfg.observer is not None else turret_spec(cfg.turret).mount
-    outputs = run_outputs(folder, foxglove, rerun, publish=publish, ros_domain_id=ros_domain_id)
-    with outputs as viewers, progress_bar() as bar:
+    outputs = run_outputs(
+        folder, foxglove, rerun, publish=publish, ros_domain_id=ros_domain_id, site=site_view(cfg)
+    )
+    with outputs as viewers, site_outputs(cfg, folder, sapient) as site, progress_bar() as bar:
         task = bar.add_task(f"simulating {cfg.name}", total=None)
         run = run_simulation(
             cfg,
             progress=lambda i, n: bar.update(task, completed=i, total=n),
-            sinks=[ViewerFeed(viewers, mount)] if viewers else (),
+            sinks=[*([ViewerFeed(viewers, mount)] if viewers else []), *site],
             compiling=compile_reporter(bar, task),
             log_sink=folder.log_sink,
         )

@@ -27,6 +27,7 @@ from pydantic import Field, ValidationError, model_validator
 
 from dronetrack.config.movers import VehicleConfig, WalkerConfig
 from dronetrack.config.pipeline import PipelineConfig, StrictModel
+from dronetrack.config.site import SapientConfig, SiteConfig, ZoneConfig
 from dronetrack.config.tomlfile import read_toml
 from dronetrack.errors import ScenarioError
 
@@ -242,11 +243,25 @@ class ScenarioConfig(StrictModel):
     # People and cars on the ground ([[walkers]], [[vehicles]]), labelled in the truth.
     walkers: tuple[WalkerConfig, ...] = ()
     vehicles: tuple[VehicleConfig, ...] = ()
+    # Where the turret stands on the Earth, and the zones the site protects
+    # (``config/site.py``); without [site], tracks are in the local world frame only.
+    site: SiteConfig | None = None
+    zones: tuple[ZoneConfig, ...] = ()
+    sapient: SapientConfig | None = None  # the node's name and ID for --sapient
     # How the run is processed by ``dronetrack simulate``; the simulator ignores it.
     pipeline: PipelineConfig = PipelineConfig()
 
     @model_validator(mode="after")
     def _objects_come_in_the_run(self) -> Self:
+        if self.zones and self.site is None:
+            raise ValueError(
+                "[[zones]] need the site's coordinates: add [site] with latitude_deg and "
+                "longitude_deg (of the turret base)"
+            )
+        names = [zone.name for zone in self.zones]
+        if len(set(names)) < len(names):
+            twice = next(n for n in names if names.count(n) > 1)
+            raise ValueError(f"two [[zones]] are named {twice!r}: each zone needs its own name")
         for i, target in enumerate(self.targets):
             if target.start_s >= self.duration_s:
                 raise ValueError(
@@ -272,7 +287,7 @@ def format_validation_error(err: ValidationError, source: str) -> str:
         # A check across sections names its keys itself.
         msg = f"{source}: {first['msg'].removeprefix('Value error, ')}"
     else:
-        msg = f"{source}: {key}: {first['msg']}"
+        msg = f"{source}: {key}: {first['msg'].removeprefix('Value error, ')}"
     more = len(err.errors()) - 1
     return msg + (f" (and {more} more problem{'s' if more > 1 else ''})" if more else "")
 
@@ -472,10 +487,10 @@ def apply_overrides(
 
 def dump_scenario(config: ScenarioConfig) -> str:
     """The scenario as TOML (keys left unset are omitted, and so are ``targets``,
-    ``walkers`` and ``vehicles`` when there are none); further drones are ``[[targets]]``
-    tables, people and cars ``[[walkers]]`` and ``[[vehicles]]``."""
+    ``walkers``, ``vehicles`` and ``zones`` when there are none); further drones are
+    ``[[targets]]`` tables, people and cars ``[[walkers]]`` and ``[[vehicles]]``."""
     data = config.model_dump(exclude_none=True)
-    for key in ("targets", "walkers", "vehicles"):
+    for key in ("targets", "walkers", "vehicles", "zones"):
         if not data[key]:
             del data[key]
     return tomli_w.dumps(data)

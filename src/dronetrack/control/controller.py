@@ -113,6 +113,20 @@ class TurretController:
         self._lost_since: float | None = None  # when the tracker last stopped being on it
         self._path: SearchPath | None = None
         self._fixed_sent = False
+        self._task_aim: tuple[float, float] | None = None  # a look-at task's, until searched
+
+    def look_at(self, t: float, point: FloatArray) -> bool:
+        """Search around world ``point`` (3,) [m] from time ``t``: a look-at task.  A
+        turret that is searching starts a new search centred there at once; one that
+        follows a target goes on following it, and its next search starts there.  False
+        in a mode that does not search (fixed, external, scan strategies)."""
+        if self.mode != "tracking" or not np.all(np.isfinite(point)):
+            return False
+        self._task_aim = aim_angles(np.asarray(point, dtype=np.float64), self.mount)
+        self._path, self._look = None, None
+        if self._lost_since is not None:
+            self._lost_since = t - self.search_hold_s  # the search begins with this frame
+        return True
 
     def _command(self, t: float, pan: float, tilt: float) -> TurretCommand:
         pan = min(max(pan, self.pan_limits[0]), self.pan_limits[1])
@@ -171,6 +185,8 @@ class TurretController:
             return self._command(t, *self._last_aim)  # home, or the last candidate
         if self._path is None:
             first, lane, rate = self.search
+            if self._task_aim is not None:  # a look-at task's point centres this search
+                self._last_aim, self._task_aim = self._task_aim, None
             self._path = search_path(self._last_aim, *self.search_area, lane, first, rate)
         return self._command(t, *self._path.at(lost_for - self.search_hold_s))
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -85,13 +85,17 @@ def open_replay(
     to the recording's LiDAR, and a warning if that LiDAR differs from the config's."""
     from dronetrack.config.run import load_scenario_file
     from dronetrack.config.scenarios import SCENARIOS
+    from dronetrack.jobs.site import site_frame
     from dronetrack.sources.live import read_truth_csv
     from dronetrack.sources.recordings.opener import open_recording
 
+    base = load_scenario_file(config, SCENARIOS) if config is not None else None
+    if base is not None and base.site is not None and options.gt_origin is None:
+        # GNSS truth in the site's world frame, as the tracks' WGS-84 columns are
+        options = replace(options, gt_site=site_frame(base))
     source = open_recording(path, options)
     if truth is not None:
         source.ground_truth = read_truth_csv(truth)
-    base = load_scenario_file(config, SCENARIOS) if config is not None else None
     cfg = recording_config(
         source,
         base,
@@ -154,6 +158,7 @@ def run_replay(
     compiling: CompileProgress | None = None,
     log_sink: LogSink | None = None,
     truth_file: Path | None = None,
+    sinks: Sequence[Sink] = (),
 ) -> ReplayRun:
     """Replay every frame of ``recording`` through the pipeline ``cfg`` describes.
 
@@ -163,7 +168,8 @@ def run_replay(
     ``log_sink`` gets the log after each tracking frame.  A Ctrl-C handled by
     ``dronetrack.interrupt`` ends the replay after the frame in hand.  ``truth_file``:
     the CSV the recording's ground truth was replaced from (``--truth``), for the
-    warning when no truth sample falls inside the frames' span.
+    warning when no truth sample falls inside the frames' span.  ``sinks`` see every
+    frame after the run's log and the viewers.
     """
     period = recording.period
     if not 1e-3 <= period <= 1.0:
@@ -185,7 +191,9 @@ def run_replay(
     feed: list[Sink] = [ViewerFeed(viewers)] if viewers else []
     kernels = warm_up(REPLAY_WARM_UPS, compiling)
     source = RecordingSource(recording, radius)
-    stats = run(source, pipeline, commands, [log, *feed], progress=progress, total=len(source))
+    stats = run(
+        source, pipeline, commands, [log, *feed, *sinks], progress=progress, total=len(source)
+    )
     if stats.frames == 0:
         raise RecordingError(f"{recording.path}: no LiDAR frame could be read")
     if len(log.log) == 0 and not stats.interrupted:

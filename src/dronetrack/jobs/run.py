@@ -22,6 +22,7 @@ from dronetrack.eval.classes import class_figures
 from dronetrack.eval.log import TrackLog
 from dronetrack.eval.objects import drone_figures, mot_figures
 from dronetrack.formats.background import read_background_settings
+from dronetrack.geometry.geodesy import SiteFrame
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.background import load_saved
 from dronetrack.pipeline import Pipeline
@@ -200,8 +201,17 @@ class RunFolder:
     and tracks.csv.
     """
 
-    def __init__(self, out_dir: Path) -> None:
+    def __init__(
+        self,
+        out_dir: Path,
+        site: SiteFrame | None = None,
+        base: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> None:
+        """``site``: the world frame on the Earth, for tracks.csv's WGS-84 columns;
+        ``base``: the turret base in the world frame, whence its ranges."""
         self.out_dir = check_run_dir(out_dir)
+        self.site = site
+        self.base = base
         self._frames: FramesCsvWriter | None = None
         self._tracks: TracksCsvWriter | None = None
 
@@ -209,7 +219,7 @@ class RunFolder:
         if self._frames is None or self._tracks is None:
             folder = prepare_run_dir(self.out_dir)
             self._frames = FramesCsvWriter(folder / "frames.csv")
-            self._tracks = TracksCsvWriter(folder / "tracks.csv")
+            self._tracks = TracksCsvWriter(folder / "tracks.csv", self.site, self.base)
         self._frames.write(log)
         self._tracks.write(log.tracks)
 

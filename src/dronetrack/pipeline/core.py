@@ -158,6 +158,13 @@ class Pipeline:
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
 
+    def look_at(self, t: float, point: FloatArray) -> bool:
+        """A look-at task (a C2 system's, ``sinks.sapient``): the turret's next search
+        is centred on world ``point`` (3,) [m] from time ``t`` [s].  False when the
+        controller cannot do it (it does not search)."""
+        look = getattr(self.controller, "look_at", None)
+        return bool(look(t, point)) if look is not None else False
+
     @property
     def scanning(self) -> bool:
         return self.background is not None and not self.background.ready
@@ -593,6 +600,10 @@ def run(
     after each frame.  A Ctrl-C handled by ``dronetrack.interrupt`` ends the loop after
     the frame in hand, so no sink holds half a frame.
     """
+    for sink in sinks:  # a sink that takes tasks (a C2 link) gets the pipeline's look_at
+        attach = getattr(sink, "attach", None)
+        if attach is not None:
+            attach(pipeline)
     begin = time.perf_counter()
     n = 0
     start = end = float("nan")

@@ -14,15 +14,19 @@ import numpy as np
 from dronetrack.errors import ConfigError
 from dronetrack.eval.log import EXTRA_COLUMNS, FRAME_COLUMNS, TrackLog
 from dronetrack.eval.tracks import TRACK_COLUMNS, TracksLog
+from dronetrack.geometry.geodesy import SiteFrame
+from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES
 
 __all__ = [
     "FRAMES_CSV_COLUMNS",
+    "GEO_COLUMNS",
     "FramesCsvWriter",
     "TracksCsvWriter",
     "check_run_dir",
     "default_run_dir",
     "frame_row",
+    "geo_columns",
     "json_safe",
     "prepare_output_file",
     "prepare_run_dir",
@@ -43,6 +47,9 @@ def default_run_dir(root: Path = Path("runs")) -> Path:
 
 
 FRAMES_CSV_COLUMNS = (*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS)
+# tracks.csv's columns after TRACK_COLUMNS: where each track is on the Earth (with a
+# [site]) and from the turret.
+GEO_COLUMNS = ("lat_deg", "lon_deg", "alt_m", "azimuth_deg", "elevation_deg", "range_m")
 
 
 def frame_row(log: TrackLog, i: int) -> list[str]:
@@ -96,13 +103,25 @@ class FramesCsvWriter:
 
 class TracksCsvWriter:
     """tracks.csv written as the run goes (``TRACK_COLUMNS``: one row per track per
-    tracking frame), flushed after each frame's rows."""
+    tracking frame, then ``GEO_COLUMNS``), flushed after each frame's rows.
 
-    def __init__(self, path: Path) -> None:
+    ``site`` places the world frame on the Earth: each row then has the track's WGS-84
+    latitude, longitude and altitude and its azimuth from true north; without it those
+    are nan.  Elevation and range are from the turret base (``base``, world) either way.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        site: SiteFrame | None = None,
+        base: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> None:
         self.path = path
+        self.site = site
+        self.base = site.base if site is not None else base
         self._fh = path.open("w", newline="")
         self._csv = csv.writer(self._fh)
-        self._csv.writerow(TRACK_COLUMNS)
+        self._csv.writerow((*TRACK_COLUMNS, *GEO_COLUMNS))
         self._fh.flush()
         self.rows = 0
 
@@ -110,7 +129,9 @@ class TracksCsvWriter:
         """Append the rows of ``tracks`` not written yet."""
         if len(tracks) == self.rows:
             return
-        for r in tracks.rows[self.rows :]:
+        rows = tracks.rows[self.rows :]
+        geo = geo_columns(rows["position"], self.site, self.base)
+        for r, g in zip(rows, geo, strict=True):
             p, v = r["position"], r["velocity"]
             self._csv.writerow(
                 [
@@ -121,6 +142,8 @@ class TracksCsvWriter:
                     *(_number(float(a)) for a in (*p, *v)),
                     _number(float(r["pos_sigma"])),
                     str(int(r["locked"])),
+                    *(_degrees(float(a)) for a in g[:2]),
+                    *(_number(float(a)) for a in g[2:]),
                 ]
             )
         self.rows = len(tracks)
@@ -128,6 +151,25 @@ class TracksCsvWriter:
 
     def close(self) -> None:
         self._fh.close()
+
+
+def geo_columns(
+    positions: FloatArray, site: SiteFrame | None, base: tuple[float, float, float]
+) -> FloatArray:
+    """(N, 6) ``GEO_COLUMNS`` of world positions (N, 3): latitude, longitude [°],
+    altitude [m], azimuth from true north, elevation [°] and range [m] from the turret
+    base; the first four nan without a site."""
+    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    out = np.full((len(p), 6), np.nan)
+    if site is not None:
+        out[:, 0], out[:, 1], out[:, 2] = site.geodetic(p)
+        out[:, 3], out[:, 4], out[:, 5] = site.aer(p)
+    else:
+        d = p - np.asarray(base)
+        # el = atan2(d_z, √(d_x² + d_y²)),  r = ‖d‖
+        out[:, 4] = np.degrees(np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])))
+        out[:, 5] = np.linalg.norm(d, axis=1)
+    return out
 
 
 def check_run_dir(path: Path, option: str = "--out") -> Path:
@@ -172,6 +214,11 @@ def prepare_output_file(path: Path, option: str) -> Path:
     except OSError as err:
         raise ConfigError(f"{option} {path}: cannot write it ({err.strerror})") from None
     return path
+
+
+def _degrees(v: float) -> str:
+    """A latitude or longitude: 9 decimals, 0.1 mm on the ground."""
+    return "nan" if math.isnan(v) else f"{v:.9f}"
 
 
 def _number(v: float) -> str:

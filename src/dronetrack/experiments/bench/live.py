@@ -46,6 +46,8 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dronetrack.errors import ConfigError
 from dronetrack.experiments.bench.emulator import (
     TURRETS,
@@ -63,6 +65,8 @@ __all__ = [
     "LIVE_QUICK",
     "LIVE_TARGETS",
     "RSS_GROWTH_TARGET_PCT",
+    "SAPIENT_FIRST_REPORT_MS",
+    "SAPIENT_P99_GROWTH_MS",
     "TURRETS",
     "EmulatorProcess",
     "LiveRequest",
@@ -81,12 +85,26 @@ __all__ = [
 
 LATENCY_P99_TARGET_MS = 20.0  # issue 14: p99 ≤ 20 ms at the Avia's full point rate
 RSS_GROWTH_TARGET_PCT = 5.0  # issue 14: resident memory flat after warm-up, ≤ 5 %
+SAPIENT_P99_GROWTH_MS = 2.0  # issue 31: --sapient adds ≤ 2 ms to the latency's p99
+SAPIENT_FIRST_REPORT_MS = 100.0  # issue 31: a track's first report ≤ 100 ms after its frame
 
 LIVE_TARGETS: tuple[Target, ...] = (
     Target(("live_latency", "latency_ms_p99"), LATENCY_P99_TARGET_MS, "ms", "live latency p99"),
     Target(("live_soak", "rss_growth_pct"), RSS_GROWTH_TARGET_PCT, "%", "soak memory growth"),
     Target(("live_soak", "packets_lost"), 0.0, "packets", "soak packets lost"),
     Target(("live_soak", "frames_dropped"), 0.0, "frames", "soak frames dropped"),
+    Target(
+        ("live_latency_sapient", "p99_growth_ms"),
+        SAPIENT_P99_GROWTH_MS,
+        "ms",
+        "SAPIENT: latency p99 growth",
+    ),
+    Target(
+        ("live_latency_sapient", "sapient_first_report_ms_max"),
+        SAPIENT_FIRST_REPORT_MS,
+        "ms",
+        "SAPIENT: first report after its frame",
+    ),
 )
 
 
@@ -170,6 +188,7 @@ def run_against_emulator(
     workdir: Path | None = None,
     progress: Progress | None = None,
     chain: str = "livox",
+    sapient: bool = False,
 ) -> LiveRunFigures:
     """Emulate ``scenario`` (seed ``seed``) for ``flight_s`` seconds of flight and run
     ``live`` against it (the Dynamixel turret, or with ``turret_kind="ptu"`` the
@@ -179,8 +198,11 @@ def run_against_emulator(
     ``frames.csv`` in a temporary folder (in ``workdir``), scored against the
     emulator's truth if ``truth``; with ``sample_s``, resident memory every
     ``sample_s`` seconds; ``chain`` "ros2": over ROS 2 (``emulate --ros2``, ``live
-    --lidar ros2:///livox/lidar --turret ros2:///turret``; no turret: ``none``).  The
-    device error that ended the run is raised."""
+    --lidar ros2:///livox/lidar --turret ros2:///turret``; no turret: ``none``); with
+    ``sapient``, a site and a SAPIENT edge node sending to a fusion node of this
+    process (``sapient_first_report_ms``: each track's first DetectionReport, from
+    its frame's arrival to its receipt).  The device error that ended the run is
+    raised."""
     from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.live.run import LiveSetup, live_config, run_live
     from dronetrack.jobs.run import RunFolder
@@ -208,6 +230,7 @@ def run_against_emulator(
         named = scenario_with_turret(scenario, turret_kind, Path(tmp))
         cfg = live_config(get_scenario(named), duration_s=flight_s, scan_s=scan_s)
         folder = RunFolder(Path(tmp) / "run")
+        c2 = _C2(cfg) if sapient else None
         with emulator_process(Path(tmp), named, seed, flight_s, ptu_baud, chain) as emu:
             setup = LiveSetup(
                 emu.lidar,
@@ -218,16 +241,81 @@ def run_against_emulator(
             )
             try:
                 result = run_live(
-                    cfg, setup, log_sink=folder.log_sink, on_start=started, progress=frame_done
+                    c2.cfg if c2 is not None else cfg,
+                    setup,
+                    log_sink=folder.log_sink,
+                    on_start=started,
+                    progress=frame_done,
+                    sinks=c2.sinks(folder) if c2 is not None else (),
                 )
             finally:
                 if sampler is not None:
                     sampler.stop()
                 folder.close()
+                if c2 is not None:
+                    c2.close()
     wall = time.monotonic() - begin[0]
     if result.error is not None:
         raise result.error
-    return LiveRunFigures(result.metrics(), wall, sampler.samples if sampler is not None else [])
+    metrics = result.metrics()
+    if c2 is not None:
+        metrics.update(c2.figures())
+    return LiveRunFigures(metrics, wall, sampler.samples if sampler is not None else [])
+
+
+class _C2:
+    """A fusion node in a thread of this process, and the run's SAPIENT edge node
+    sending to it (a site at 47.4° N, 19.2° E is given to the configuration)."""
+
+    def __init__(self, cfg: Any) -> None:
+        from dronetrack.config.site import SiteConfig
+        from dronetrack.sinks.sapient.listen import FusionNode
+
+        site = SiteConfig(latitude_deg=47.4, longitude_deg=19.2, altitude_m=120.0)
+        self.cfg = cfg.model_copy(update={"site": site})
+        self.first_receipt: dict[str, float] = {}
+        self.fusion = FusionNode(0, received=self._received)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(
+            target=self.fusion.serve, args=(self._stop.is_set, 0.05), daemon=True
+        )
+        self._thread.start()
+        self.feed: Any = None
+
+    def _received(self, message: Any) -> None:
+        if message.WhichOneof("content") == "detection_report":
+            self.first_receipt.setdefault(message.detection_report.object_id, time.perf_counter())
+
+    def sinks(self, folder: Any) -> list[Any]:
+        from dronetrack.jobs.site import open_site_feed
+
+        self.feed = open_site_feed(
+            self.cfg, lambda: folder.out_dir, f"127.0.0.1:{self.fusion.port}"
+        )
+        return [self.feed]
+
+    def figures(self) -> dict[str, Any]:
+        """The first reports' delays [ms] and what the link sent and dropped."""
+        node = self.feed.link
+        delays = [
+            1000.0 * (self.first_receipt[oid] - t)
+            for oid, t in node.first_frames.items()
+            if oid in self.first_receipt
+        ]
+        return {
+            "sapient_first_report_ms_max": max(delays) if delays else None,
+            "sapient_first_report_ms_median": float(np.median(delays)) if delays else None,
+            "sapient_objects": len(node.first_frames),
+            "sapient_sent": node.link.stats.sent,
+            "sapient_dropped": node.link.stats.dropped,
+        }
+
+    def close(self) -> None:
+        if self.feed is not None:
+            self.feed.close()
+        self._stop.set()
+        self._thread.join(5.0)
+        self.fusion.close()
 
 
 _LIVE_KEYS = ("latency_ms_p50", "latency_ms_p99", "frames", "frames_dropped", "packets_lost",
@@ -253,6 +341,7 @@ def live_latency(
     workdir: Path | None = None,
     progress: Progress | None = None,
     chain: str = "livox",
+    sapient: bool = False,
 ) -> dict[str, Any]:
     """The latency of a live run against the emulator (``run_against_emulator``):
     ``latency_ms_p50``, ``latency_ms_p99``, the frames logged and dropped, the packets
@@ -269,8 +358,10 @@ def live_latency(
         workdir=workdir,
         progress=progress,
         chain=chain,
+        sapient=sapient,
     )
     out = _figures(run, scenario=scenario, seed=seed, flight_s=flight_s, chain=chain)
+    out.update({k: v for k, v in run.metrics.items() if k.startswith("sapient_")})
     p99 = out["latency_ms_p99"]
     out.update(
         target_p99_ms=LATENCY_P99_TARGET_MS,
@@ -361,6 +452,7 @@ class LiveSettings:
     turret: str = "dynamixel"
     ptu_baud: int = 9600
     scenario: str = "default"
+    sapient: bool = False  # the latency run again with a SAPIENT edge node on
 
     def checked(self) -> LiveSettings:
         """These settings, or ConfigError naming the bad value."""
@@ -407,8 +499,8 @@ def check_mode(live: bool, *, suite_options: bool, live_options: bool) -> None:
         raise ConfigError("--rounds, --repeats and --replay-seconds time the suite, not --live")
     if not live and live_options:
         raise ConfigError(
-            "--latency-s, --soak-s, --warmup-s, --turret, --ptu-baud, --scenario and --ros2 "
-            "go with --live"
+            "--latency-s, --soak-s, --warmup-s, --turret, --ptu-baud, --scenario, --ros2 and "
+            "--sapient go with --live"
         )
 
 
@@ -422,6 +514,7 @@ def live_request(
     ptu_baud: int | None = None,
     scenario: str | None = None,
     ros2: bool = False,
+    sapient: bool = False,
 ) -> LiveRequest:
     """``bench --live``'s options over the full (or ``quick``) settings, checked: a
     ConfigError names an option that does not fit (``ptu_baud`` without the PTU,
@@ -437,6 +530,11 @@ def live_request(
     fixed = turret == "none"
     given: dict[str, Any] = {"latency_s": latency_s, "soak_s": soak_s, "warmup_s": warmup_s}
     given.update(turret=None if fixed else turret, ptu_baud=ptu_baud, scenario=scenario)
+    if sapient:
+        from dronetrack.formats.sapient import require_sapient
+
+        require_sapient()
+        given["sapient"] = True
     settings = LIVE_QUICK if quick else LIVE_FULL
     settings = replace(settings, **{k: v for k, v in given.items() if v is not None})
     return LiveRequest(settings.checked(), not fixed, "ros2" if ros2 else "livox")
@@ -476,6 +574,24 @@ def live_bench(
         progress=stage(f"live latency, {cfg.latency_s:g} s of flight"),
         chain=chain,
     )
+    with_c2 = None
+    if cfg.sapient:
+        with_c2 = live_latency(
+            cfg.latency_s,
+            turret=turret,
+            turret_kind=cfg.turret,
+            ptu_baud=cfg.ptu_baud,
+            scenario=cfg.scenario,
+            scan_s=cfg.scan_s,
+            workdir=workdir,
+            progress=stage(f"live latency with SAPIENT, {cfg.latency_s:g} s of flight"),
+            chain=chain,
+            sapient=True,
+        )
+        before, after = latency["latency_ms_p99"], with_c2["latency_ms_p99"]
+        with_c2["p99_growth_ms"] = (
+            after - before if before is not None and after is not None else None
+        )
     soak = None
     if cfg.soak_s > 0:
         soak = live_soak(
@@ -502,7 +618,13 @@ def live_bench(
         },
         "live_latency": latency,
         "live_soak": soak,
+        "live_latency_sapient": with_c2,
     }
-    targets = [t for t in LIVE_TARGETS if soak is not None or t.path[0] != "live_soak"]
+    targets = [
+        t
+        for t in LIVE_TARGETS
+        if (soak is not None or t.path[0] != "live_soak")
+        and (with_c2 is not None or t.path[0] != "live_latency_sapient")
+    ]
     results["targets"] = evaluate_targets(results, tuple(targets))
     return results

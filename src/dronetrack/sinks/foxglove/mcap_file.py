@@ -19,6 +19,8 @@ it is.  Topics (a user contract), one message each per frame unless said:
   quaternion.
 - ``/tracks/markers`` and ``/tracks``: every object's track, from the first frame
   with a track layer on (``sinks.foxglove.tracks``).
+- ``/tracks/fix`` and ``/zones``: with a ``[site]``, every track's WGS-84 fix and the
+  protected zones, for the Map panel (``sinks.foxglove.geo``).
 
 Point clouds and markers are in frame ``world``.  Every message's log time and
 header timestamp is ``start + frame.t`` in nanoseconds since the Unix epoch, so
@@ -37,6 +39,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -44,6 +47,14 @@ import numpy as np
 
 from dronetrack.errors import InputError, MissingExtraError
 from dronetrack.geometry.transforms import FloatArray, matrix_to_quaternion
+from dronetrack.sinks.foxglove.geo import (
+    FIX_TOPIC,
+    ZONES_EVERY_S,
+    ZONES_TOPIC,
+    SiteView,
+    track_fixes,
+    zones_geojson,
+)
 from dronetrack.sinks.foxglove.tracks import (
     MARKERS_TOPIC,
     table_channel,
@@ -153,12 +164,23 @@ class FoxgloveChannels:
         self._trail = EstimateTrail()
         self._shown = ShownTracks()
         self._tracks: tuple[Any, Any] | None = None  # opened with the first tracks
+        # The map's: the site and its zones (``show_site``), their channels, and when
+        # the zones were last written
+        self.geo: SiteView | None = None
+        self._geo: tuple[Any, Any] | None = None
+        self._zones_at = -math.inf
         self._closed = False
+
+    def show_site(self, view: SiteView) -> None:
+        """Put the tracks and the zones on Foxglove's Map panel too (``sinks.foxglove.geo``)."""
+        self.geo = view
 
     def _close_channels(self) -> None:
         for channel in (self._points, self._foreground, self._particles, self._markers, self._tf):
             channel.close()
         for channel in self._tracks or ():
+            channel.close()
+        for channel in self._geo or ():
             channel.close()
 
     def _track_channels(self) -> tuple[Any, Any]:
@@ -201,6 +223,28 @@ class FoxgloveChannels:
         if tracks is not None:
             for channel, message in zip(self._track_channels(), tracks, strict=True):
                 channel.log(message, log_time=ns)
+        if self.geo is not None:
+            self._log_map(frame, stamp, ns)
+
+    def _log_map(self, frame: ViewFrame, stamp: Timestamp, ns: int) -> None:
+        """The tracks' fixes, and the zones now and then."""
+        assert self.geo is not None
+        if self._geo is None:
+            from foxglove.channels import GeoJsonChannel, LocationFixChannel
+
+            self._geo = (
+                LocationFixChannel(FIX_TOPIC, context=self._context),
+                GeoJsonChannel(ZONES_TOPIC, context=self._context),
+            )
+        fixes, zones = self._geo
+        if self.geo.zones and frame.t - self._zones_at >= ZONES_EVERY_S:
+            from foxglove.messages import GeoJson
+
+            zones.log(GeoJson(geojson=zones_geojson(self.geo)), log_time=ns)
+            self._zones_at = frame.t
+        if frame.tracks is not None:
+            for fix in track_fixes(frame.tracks, self.geo.site, stamp):
+                fixes.log(fix, log_time=ns)
 
     def _scene(self, frame: ViewFrame, stamp: Timestamp) -> SceneUpdate:
         """The markers: what is known is drawn, what is not is deleted."""

@@ -57,7 +57,7 @@ from dronetrack.formats.ros.pointcloud2_raw import (
     decode_pointcloud2_cdr,
     decode_pointcloud2_ros1,
 )
-from dronetrack.geometry.geodesy import enu_from_geodetic
+from dronetrack.geometry.geodesy import SiteFrame
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sources.assembly import NS, PointBatch, StreamFrame, cut_by_time
 from dronetrack.sources.frames import fixed_pose_frame
@@ -224,18 +224,23 @@ class BagRecording(BagFile):
         return GroundTruth(ts[order], values[order], max_gap_s=max(1.0, 10 * self.period))
 
     def _enu(self, lla: FloatArray) -> FloatArray:
+        """GNSS fixes (N, 3: lat°, lon°, alt m) in the world frame: the site's
+        (``gt_site``) unless ``--gt-origin`` gives the frame's origin; without either, an
+        ENU frame at the first fix.  ``--gt-heading`` ψ_E, the yaw of world x from east,
+        is a site heading (from north) of 90° − ψ_E; the conversion is the site frame's."""
         origin = self.options.gt_origin
-        if origin is None:
-            origin = (float(lla[0, 0]), float(lla[0, 1]), float(lla[0, 2]))
-            log.warning(
-                "%s: ground truth in an ENU frame at the first fix (%.7f°, %.7f°, %.2f m);"
-                " give the sensor's position with --gt-origin",
-                self.path.name,
-                *origin,
-            )
-        return enu_from_geodetic(
-            lla[:, 0], lla[:, 1], lla[:, 2], origin, self.options.gt_heading_deg
-        )
+        site = self.options.gt_site
+        if origin is not None or site is None:
+            if origin is None:
+                origin = (float(lla[0, 0]), float(lla[0, 1]), float(lla[0, 2]))
+                log.warning(
+                    "%s: ground truth in an ENU frame at the first fix (%.7f°, %.7f°, %.2f m);"
+                    " give the sensor's position with --gt-origin or a [site] section",
+                    self.path.name,
+                    *origin,
+                )
+            site = SiteFrame(*origin, heading_deg=90.0 - self.options.gt_heading_deg)
+        return site.from_geodetic(lla[:, 0], lla[:, 1], lla[:, 2])
 
     def _to_pose_frame(self, t: FloatArray, xyz: FloatArray, frames: list[str]) -> FloatArray:
         """Poses given in another frame of the /tf tree are moved into the pose frame."""

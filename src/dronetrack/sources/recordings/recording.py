@@ -17,6 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from dronetrack.errors import InputError
+from dronetrack.geometry.geodesy import SiteFrame
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sources.truth import TIME_TOL_S, GroundTruth
 from dronetrack.types import Frame
@@ -76,6 +77,9 @@ class ReplayOptions:
     sensor_pose: FloatArray | None = None  # (4, 4) world_T_sensor when there is no /tf
     gt_origin: tuple[float, float, float] | None = None  # NavSatFix ENU origin (lat°, lon°, alt m)
     gt_heading_deg: float = 0.0  # ENU rotated about z by this, to align with the world frame
+    # A site's world frame on the Earth ([site]): NavSatFix truth in it, when no
+    # gt_origin is given
+    gt_site: SiteFrame | None = None
     period_s: float | None = None  # frame period when the recording does not say
     timestamps: Path | None = None  # a .pcd folder's timestamps file
 
