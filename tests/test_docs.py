@@ -390,7 +390,7 @@ class Background:
     the page."""
 
     def __init__(self, args: list[str], cwd: Path, env: dict[str, str]) -> None:
-        ready = BACKGROUND[args[1]]
+        marker = BACKGROUND[args[1]]
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "dronetrack", *args[1:]],
             cwd=cwd,
@@ -401,14 +401,14 @@ class Background:
         self.out = b""
         deadline = time.monotonic() + 120.0
         assert self.proc.stdout is not None
-        while ready not in self.out and time.monotonic() < deadline:
+        while marker not in self.out and time.monotonic() < deadline:
             ready, _, _ = select.select([self.proc.stdout], [], [], 0.5)
             if ready:
                 got = os.read(self.proc.stdout.fileno(), 4096)
                 if not got:
                     break
                 self.out += got
-        assert ready in self.out, (args, self.out.decode(), self.proc.poll())
+        assert marker in self.out, (args, self.out.decode(), self.proc.poll())
 
     def stop(self) -> None:
         if self.proc.poll() is None:

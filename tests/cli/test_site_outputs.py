@@ -300,3 +300,24 @@ def test_sapient_listen_writes_what_it_receives(tmp_path: Path) -> None:
     ]
     assert records[1]["task_ack"]["task_id"] == "hello"
     assert all(r["peer"].startswith("127.0.0.1:") for r in records)
+
+
+def test_a_fusion_node_that_is_not_there_does_not_stop_the_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("google.protobuf")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # nobody listens there after this
+    config = tmp_path / "site.toml"
+    config.write_text(SITE)
+    out = tmp_path / "run"
+    argv = ["simulate", "--config", str(config), "--out", str(out)]
+    assert run([*argv, "--sapient", f"127.0.0.1:{port}"]) == 0
+    err = capsys.readouterr().err
+    assert f"sapient: cannot reach the fusion node at 127.0.0.1:{port}" in err
+    assert "messages sent, " in err
+    assert len(_rows(out / "frames.csv")) == 40  # every frame of the 4 s run
+    for bad in ("127.0.0.1", "127.0.0.1:0", "host:port"):
+        assert run([*argv, "--sapient", bad]) == 2
+        assert "give the fusion node as HOST:PORT" in capsys.readouterr().err

@@ -69,13 +69,42 @@ def test_quick_live_bench_writes_every_figure(
     assert soak["coverage_pct"] is None  # a soak runs as a rig does, without truth
 
     targets = data["targets"]
-    assert set(targets) == {t.key for t in LIVE_TARGETS}
+    assert set(targets) == {t.key for t in LIVE_TARGETS if t.path[0] != "live_latency_sapient"}
+    assert data["live_latency_sapient"] is None  # without --sapient
     assert targets["live_latency.latency_ms_p99"]["value"] == lat["latency_ms_p99"]
     assert targets["live_soak.rss_growth_pct"]["value"] == soak["rss_growth_pct"]
     for target in targets.values():
         assert math.isfinite(target["value"])
         assert target["met"] == (target["value"] <= target["limit"])
-    assert out.count("met") + out.count("MISSED") >= len(LIVE_TARGETS)
+    assert out.count("met") + out.count("MISSED") >= len(targets)
+
+
+@pytest.mark.slow
+def test_quick_live_bench_with_sapient_times_its_reports_and_a_restart(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The latency run again with a SAPIENT edge node, its fusion node killed half-way
+    and started again: the figures are there and sane (their targets are the
+    benchmark's business)."""
+    pytest.importorskip("google.protobuf")
+    args = ["bench", "--live", "--quick", "--sapient", "--soak-s", "0", "--latency-s", "6"]
+    assert run([*args, "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "bench_live.json").read_text())
+    c2 = data["live_latency_sapient"]
+    assert c2["frames"] + c2["frames_dropped"] >= 55  # 6 s of flight at 10 Hz
+    assert c2["sapient_sent"] > 0
+    assert c2["sapient_connects"] == 2  # once, then again after the kill
+    assert 0.0 < c2["sapient_reconnect_s"] < 30.0
+    assert 0.0 < c2["sapient_first_report_ms_median"] <= c2["sapient_first_report_ms_max"]
+    assert c2["p99_growth_ms"] == pytest.approx(
+        c2["latency_ms_p99"] - data["live_latency"]["latency_ms_p99"]
+    )
+    assert {t.key for t in LIVE_TARGETS} <= set(data["targets"]) | {
+        "live_soak.rss_growth_pct",
+        "live_soak.packets_lost",
+        "live_soak.frames_dropped",
+    }
+    assert "with SAPIENT" in capsys.readouterr().out
 
 
 @pytest.mark.slow

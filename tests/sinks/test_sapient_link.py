@@ -5,6 +5,7 @@ against pymap3d.  Every wait is bounded."""
 
 from __future__ import annotations
 
+import json
 import math
 import socket
 import struct
@@ -23,6 +24,9 @@ pytest.importorskip("google.protobuf")
 from dronetrack.errors import ConfigError
 from dronetrack.formats.sapient import messages as m
 from dronetrack.formats.sapient.framing import FrameDecoder, encode_frame
+from dronetrack.formats.sapient.sapient_msg.bsi_flex_335_v2_0.sapient_message_pb2 import (
+    SapientMessage,
+)
 from dronetrack.geometry.geodesy import SiteFrame
 from dronetrack.geometry.transforms import make_pose
 from dronetrack.sinks.sapient.link import SapientLink, parse_endpoint
@@ -32,11 +36,13 @@ from dronetrack.types import TRACK_CLASSES, Frame, Sample, StepResult, Tracks
 from dronetrack.zones import AlertEvent
 
 SITE = SiteFrame(51.5, -0.12, 30.0, heading_deg=120.0, base=(0.0, 0.0, 1.0))
+NODE = "0b6c9f9e-6f0e-4a59-9a5b-6f5d2c1a0e11"  # version-4 UUIDs, as the ICD wants them
+FUSION = "5c3d2e1f-0a9b-4c8d-9e7f-6a5b4c3d2e1f"
 
 
 def _registration() -> Any:
     return m.registration(
-        "0b6c9f9e-6f0e-5a59-9a5b-6f5d2c1a0e11",
+        NODE,
         time.time(),
         name="test",
         short_name="test",
@@ -58,9 +64,13 @@ def _wait(condition: Callable[[], bool], timeout_s: float) -> bool:
 
 
 @contextmanager
-def fusion(port: int = 0, **kw: Any) -> Iterator[tuple[FusionNode, list[str]]]:
-    """The minimal fusion node serving in a thread; its lines in the list."""
+def fusion(
+    port: int = 0, icd_clean: bool = True, **kw: Any
+) -> Iterator[tuple[FusionNode, list[str]]]:
+    """The minimal fusion node serving in a thread; its lines in the list.  It holds
+    what it receives to the ICD's rules, and if ``icd_clean``, the test to none broken."""
     lines: list[str] = []
+    kw.setdefault("check_rules", True)
     node = FusionNode(port, say=lines.append, rng=np.random.default_rng(1), **kw)
     stop = threading.Event()
     thread = threading.Thread(target=node.serve, args=(stop.is_set, 0.02), daemon=True)
@@ -71,6 +81,8 @@ def fusion(port: int = 0, **kw: Any) -> Iterator[tuple[FusionNode, list[str]]]:
         stop.set()
         thread.join(5.0)
         node.close()
+    if icd_clean:
+        assert not [line for line in lines if "breaks the ICD" in line]
 
 
 @contextmanager
@@ -97,56 +109,73 @@ def test_endpoints_are_host_and_port() -> None:
             parse_endpoint(bad)
 
 
+def _task_id(seed: int) -> str:
+    """A ULID known by ``seed``; lines show its last 6 characters."""
+    return m.new_ulid(np.random.default_rng(seed), 1_800_000_000.0)
+
+
+def _ack(seed: int) -> Any:
+    """A TaskAck that keeps the ICD's rules, of the task ``_task_id(seed)``."""
+    return m.task_ack(NODE, time.time(), _task_id(seed), True)
+
+
 def test_registration_then_reports_in_order() -> None:
     with fusion() as (node, lines), link_to(node.port) as (link, said):
         assert _wait(lambda: link.stats.registered, 5.0), said
         for k in range(50):
-            assert link.send(m.task_ack("n", time.time(), f"t{k}", True))
+            assert link.send(_ack(k))
         assert _wait(lambda: node.received == 51, 5.0)
     acks = [line.split("task ")[1].split()[0] for line in lines if "task_ack" in line]
-    assert acks == [f"t{k}" for k in range(50)]
+    assert acks == [_task_id(k)[-6:] for k in range(50)]
     assert "registration: test (BSI Flex 335 v2.0)" in lines[1]
-    assert link.stats.sent == 50
-    assert link.stats.dropped == 0
+    assert (link.stats.sent, link.stats.dropped, link.stats.reconnects) == (50, 0, 0)
+    assert any("registered with the fusion node" in s for s in said)
 
 
 def test_a_restarted_fusion_node_is_rejoined_within_5_s_and_the_gap_counted() -> None:
+    """The link's back-off doubles from 0.25 s and is capped at 2 s, so once the fusion
+    node is back the link tries again within 2 s and registers a few milliseconds
+    later on loopback; 5 s leaves room for a loaded machine."""
     port = _free_port()
     with link_to(port) as (link, said):
         with fusion(port) as (node, _):
             assert _wait(lambda: link.stats.registered, 5.0), said
-            link.send(m.task_ack("n", time.time(), "before", True))
+            link.send(_ack(1000))
             assert _wait(lambda: node.received == 2, 5.0)
         # the fusion node is gone: what is sent meanwhile is dropped and counted
         assert _wait(lambda: not link.stats.registered, 5.0)
+        dropped = link.stats.dropped
         for _ in range(20):
-            link.send(m.task_ack("n", time.time(), "gap", True))
-        assert link.stats.dropped >= 20
-        time.sleep(1.0)  # down a second, the link retrying
-        with fusion(port) as (node, _lines):
+            assert not link.send(_ack(1001))
+        assert link.stats.dropped == dropped + 20
+        time.sleep(0.5)  # down half a second, the link retrying
+        with fusion(port) as (node, lines):
             start = time.monotonic()
             assert _wait(lambda: link.stats.registered, 5.0), said
             rejoined = time.monotonic() - start
-            link.send(m.task_ack("n", time.time(), "after", True))
+            assert link.send(_ack(1002))
             assert _wait(lambda: node.received == 2, 5.0)
-    # the back-off is capped at 2 s, so the link tries at least that often
     assert rejoined < 5.0
-    assert link.stats.connects == 2
+    assert any(_task_id(1002)[-6:] in line for line in lines)  # after, not the gap's
+    assert (link.stats.connects, link.stats.reconnects) == (2, 1)
     assert any("link to" in s and "lost" in s for s in said)
 
 
 def test_send_never_blocks_and_counts_what_it_could_not_send() -> None:
+    message = _ack(0)
     with link_to(_free_port()) as (link, said):  # nobody listens there
         start = time.perf_counter()
-        sent = [link.send(m.task_ack("n", time.time(), "x", True)) for _ in range(10_000)]
+        sent = [link.send(message) for _ in range(10_000)]
         elapsed = time.perf_counter() - start
         assert not any(sent)
         assert link.stats.dropped == 10_000
         # generous: 10 000 sends that only encode and count take well under a second
         assert elapsed < 5.0
-        assert _wait(lambda: bool(said), 3.0)
+        assert _wait(lambda: link.stats.connects == 0 and bool(said), 3.0)
+        time.sleep(0.6)  # a few more attempts (0.25 s, then 0.5 s apart)
     # an outage is said once, however many times the link retries
     assert len([s for s in said if "cannot reach" in s]) == 1
+    assert not link._thread.is_alive()  # close ended the thread
 
 
 def test_a_fusion_node_that_comes_late_is_joined() -> None:
@@ -155,6 +184,31 @@ def test_a_fusion_node_that_comes_late_is_joined() -> None:
         assert _wait(lambda: any("cannot reach" in s for s in said), 3.0)
         with fusion(port):
             assert _wait(lambda: link.stats.registered, 5.0), said
+
+
+@contextmanager
+def fake_fusion() -> Iterator[socket.socket]:
+    """A listening socket for a fusion node the test plays by hand."""
+    server = socket.create_server(("127.0.0.1", 0))
+    server.settimeout(5.0)
+    with server:
+        yield server
+
+
+def _registered(server: socket.socket, link: SapientLink) -> socket.socket:
+    """Accept the link, read its Registration and accept it."""
+    conn, _ = server.accept()
+    conn.settimeout(5.0)
+    decoder: FrameDecoder = FrameDecoder()
+    got: list[Any] = []
+    for _ in range(100):
+        got += decoder.feed(conn.recv(65536))
+        if got:
+            break
+    assert got[0].WhichOneof("content") == "registration"
+    conn.sendall(encode_frame(m.registration_ack(FUSION, time.time(), True)))
+    assert _wait(lambda: link.stats.registered, 5.0)
+    return conn
 
 
 @pytest.mark.parametrize(
@@ -170,36 +224,65 @@ def test_a_fusion_node_that_sends_garbage_is_left_and_joined_again(
 ) -> None:
     """A fake fusion node: it acknowledges the registration, then sends ``payload`` and
     closes; the link says what was wrong in one line and connects again."""
-    server = socket.create_server(("127.0.0.1", 0))
-    server.settimeout(5.0)
-    port = server.getsockname()[1]
-    with server, link_to(port) as (link, said):
+    with fake_fusion() as server, link_to(server.getsockname()[1]) as (link, said):
         for _ in range(2):
-            conn, _ = server.accept()
-            with conn:
-                conn.settimeout(5.0)
-                decoder, got = FrameDecoder(), []
-                while not got:
-                    got = decoder.feed(conn.recv(65536))
-                conn.sendall(encode_frame(m.registration_ack("f", time.time(), True)))
-                assert _wait(lambda: link.stats.registered, 5.0)
+            with _registered(server, link) as conn:
                 conn.sendall(payload)
             assert _wait(lambda: not link.stats.registered, 5.0)
         assert link.stats.connects >= 2
+        assert link.stats.bad_frames == 2
     lost = [s for s in said if "lost" in s]
     assert len(lost) == 2
     assert all(expected in s and "\n" not in s for s in lost)
+    assert expected in link.stats.last_error
 
 
-def test_a_refused_registration_is_said_with_its_reason() -> None:
-    server = socket.create_server(("127.0.0.1", 0))
-    server.settimeout(5.0)
-    with server, link_to(server.getsockname()[1]) as (link, said):
-        conn, _ = server.accept()
-        with conn:
-            conn.sendall(encode_frame(m.registration_ack("f", time.time(), False, "full")))
-            assert _wait(lambda: any("refused us: full" in s for s in said), 5.0)
+def test_a_refused_registration_is_said_once_and_tried_again() -> None:
+    with fake_fusion() as server, link_to(server.getsockname()[1]) as (link, said):
+        for _ in range(3):
+            conn, _ = server.accept()
+            with conn:
+                conn.settimeout(5.0)
+                conn.sendall(encode_frame(m.registration_ack(FUSION, time.time(), False, "full")))
+                for _ in range(100):  # the Registration, then the link's end: it left
+                    if not conn.recv(65536):
+                        break
         assert not link.stats.registered
+        assert link.stats.connects >= 3
+        assert link.stats.last_error == "registration refused: full"
+    assert len([s for s in said if "refused us: full" in s]) == 1
+
+
+def test_the_fusion_nodes_errors_are_said_once_and_its_tasks_kept() -> None:
+    error = SapientMessage(node_id=FUSION)
+    error.error.packet = b"\x00"
+    error.error.error_message.append("Invalid ULID: t1")
+    task = m.look_at_task(FUSION, NODE, time.time(), _task_id(7), point=(51.5, -0.12, None))
+    with fake_fusion() as server, link_to(server.getsockname()[1]) as (link, said):
+        conn = _registered(server, link)
+        with conn:
+            conn.sendall(encode_frame(error) * 2 + encode_frame(task))
+            assert _wait(lambda: link.stats.errors == 2 and bool(link._inbox), 5.0)
+            [got] = link.tasks()
+            assert got.task_id == _task_id(7)
+            assert link.tasks() == []
+    assert len([s for s in said if "reports an error: Invalid ULID: t1" in s]) == 1
+
+
+def test_the_fusion_node_flags_what_breaks_the_icd(tmp_path: Any) -> None:
+    out = (tmp_path / "c2.jsonl").open("w")
+    with fusion(out=out, icd_clean=False) as (node, lines), link_to(node.port) as (link, _):
+        assert _wait(lambda: link.stats.registered, 5.0)
+        for _ in range(3):
+            link.send(m.task_ack("node-1", time.time(), "t1", True))
+        assert _wait(lambda: node.received == 4, 5.0)
+    out.close()
+    flagged = [line for line in lines if "breaks the ICD" in line]
+    assert len(flagged) == 2  # each field once: node_id and task_id
+    assert "node_id: 'node-1' is no lower-case version-4 UUID" in flagged[0]
+    records = [json.loads(line) for line in (tmp_path / "c2.jsonl").read_text().splitlines()]
+    assert "icd_problems" not in records[0]  # the registration keeps the rules
+    assert len(records[1]["icd_problems"]) == 2
 
 
 def test_the_fusion_node_drops_a_peer_that_sends_garbage_and_serves_the_others() -> None:
@@ -208,8 +291,51 @@ def test_the_fusion_node_drops_a_peer_that_sends_garbage_and_serves_the_others()
         with socket.create_connection(("127.0.0.1", node.port), 5.0) as bad:
             bad.sendall(struct.pack("<I", 5000))
             assert _wait(lambda: any("over the limit of 1000" in s for s in lines), 5.0)
-        link.send(m.task_ack("n", time.time(), "still", True))
-        assert _wait(lambda: any("task still" in s for s in lines), 5.0)
+        with socket.create_connection(("127.0.0.1", node.port), 5.0) as half:
+            half.sendall(encode_frame(_ack(1))[:7])
+        assert _wait(lambda: any("closed 7 bytes into a frame" in s for s in lines), 5.0)
+        link.send(_ack(2000))
+        assert _wait(lambda: any(f"task {_task_id(2000)[-6:]}" in s for s in lines), 5.0)
+
+
+def test_sapient_listen_tasks_a_node_and_prints_its_ack(
+    tmp_path: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``dronetrack sapient-listen --look-at``, for 1 s: a link registers, gets the
+    look-at task, answers it; the command prints the TaskAck and writes JSON lines."""
+    from dronetrack.cli.main import run
+
+    port, out = _free_port(), tmp_path / "c2.jsonl"
+    answered: list[str] = []
+
+    def edge_node() -> None:
+        link = SapientLink("127.0.0.1", port, _registration, backoff_s=(0.05, 0.2))
+        deadline = time.monotonic() + 5.0
+        while not answered and time.monotonic() < deadline:
+            for task in link.tasks():
+                wanted = m.look_at(task)
+                assert isinstance(wanted, m.LookAt)
+                assert wanted.point is not None
+                link.send(m.task_ack(NODE, time.time(), task.task_id, True))
+                answered.append(task.task_id)
+            time.sleep(0.02)
+        time.sleep(0.2)
+        link.close()
+
+    thread = threading.Thread(target=edge_node, daemon=True)
+    thread.start()
+    argv = ["sapient-listen", "--port", str(port), "--out", str(out)]
+    argv += ["--look-at", "51.5005,-0.1195,60", "--task-after", "0", "--duration", "1.0"]
+    assert run(argv) == 0
+    thread.join(5.0)
+    err = capsys.readouterr().err
+    [task_id] = answered
+    assert f"task_ack: task {task_id[-6:]} accepted" in err
+    assert "breaks the ICD" not in err
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    kinds = [next(k for k in r if k in ("registration", "task_ack")) for r in records]
+    assert kinds == ["registration", "task_ack"]
+    assert records[1]["task_ack"]["task_id"] == task_id
 
 
 # ------------------------------------------------------------------ the edge node
@@ -283,7 +409,7 @@ def _node(link: SapientLink, steerable: bool = True) -> SapientNode:
     return SapientNode(
         link,
         SITE,
-        node_id="0b6c9f9e-6f0e-5a59-9a5b-6f5d2c1a0e11",
+        node_id=NODE,
         rng=np.random.default_rng(0),
         steerable=steerable,
     )
@@ -304,8 +430,6 @@ def test_the_edge_node_reports_each_updated_track_where_pymap3d_puts_it(
         # status + 2 (the static track is not reported) + 1 (track 7 coasts) + 1 + lost
         assert _wait(lambda: fusion_node.received == 7, 5.0), lines
     out.close()
-    import json
-
     records = [json.loads(line) for line in (tmp_path / "c2.jsonl").read_text().splitlines()]
     reports = [r["detection_report"] for r in records if "detection_report" in r]
     assert len(reports) == 5
@@ -388,9 +512,9 @@ def test_alerts_go_out_with_their_track(tmp_path: Any) -> None:
         )
         node.frame(_sample(), _result(2.0, tracks), [clear])
         assert _wait(lambda: sum("alert:" in s for s in lines) == 2, 5.0), lines
+        node.close()  # a GOODBYE, sent before the link closes
+        assert _wait(lambda: any("closed the connection" in s for s in lines), 5.0), lines
     out.close()
-    import json
-
     records = [json.loads(line) for line in (tmp_path / "c2.jsonl").read_text().splitlines()]
     alerts = [r["alert"] for r in records if "alert" in r]
     reports = [r["detection_report"] for r in records if "detection_report" in r]
@@ -399,3 +523,5 @@ def test_alerts_go_out_with_their_track(tmp_path: Any) -> None:
         ("ALERT_TYPE_WARNING", "ALERT_STATUS_CLEAR"),
     ]
     assert alerts[0]["associated_detection"][0]["object_id"] == reports[0]["object_id"]
+    assert records[-1]["status_report"]["system"] == "SYSTEM_GOODBYE"
+    assert link.stats.sent == len(records) - 1  # all but the registration

@@ -105,6 +105,7 @@ def sapient_listen(
                 look_at=point,
                 task_after_s=task_after,
                 max_frame_bytes=max_frame_bytes,
+                check_rules=True,
             )
         except OSError as err:
             raise ConfigError(f"cannot listen on {host}:{port}: {err.strerror or err}") from None

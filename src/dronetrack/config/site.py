@@ -44,10 +44,10 @@ class SiteConfig(StrictModel):
 class SapientConfig(StrictModel):
     """``[sapient]``: the node as a SAPIENT fusion node sees it (``--sapient``)."""
 
-    # The node's UUID; default one fixed by the site's name and place
+    # The node's UUID, a lower-case version 4 as dstl's Apex middleware checks node
+    # IDs; by default one fixed by the site's name and place
     node_id: str | None = Field(
-        None,
-        pattern=r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$",
+        None, pattern=r"^[0-9a-f]{8}-[0-9a-f]{4}-4[0-9a-f]{3}-[89ab][0-9a-f]{3}-[0-9a-f]{12}$"
     )
     name: str = Field("dronetrack", min_length=1, max_length=200)
     status_period_s: float = Field(5.0, gt=0, le=3600, allow_inf_nan=False)

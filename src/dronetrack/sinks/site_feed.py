@@ -118,12 +118,12 @@ class SiteFeed:
             attach(pipeline)
 
     def write(self, sample: Sample, result: StepResult) -> None:
-        if result.phase != "track" or result.tracks is None:
-            return
-        events = self.monitor.update(result.t, result.tracks) if self.monitor else []
+        events = []
+        if result.phase == "track" and result.tracks is not None and self.monitor is not None:
+            events = self.monitor.update(result.t, result.tracks)
         if events:
             self._write(events)
-        if self.link is not None:
+        if self.link is not None:  # the background scan's frames too: its status
             self.link.frame(sample, result, events)
 
     def _write(self, events: list[AlertEvent]) -> None:

@@ -349,6 +349,14 @@ def test_navsatfix_ground_truth_in_a_local_enu_frame(
     assert first is not None
     np.testing.assert_allclose(first.position[0], 0.0, atol=1e-9)
     assert "--gt-origin" in caplog.text
+    # A site's frame: the turret base 1 m up at the origin, world x 60° from north (a
+    # yaw of 30° from east): the same positions, 1 m up, as the tracks' frame is.
+    from dronetrack.geometry.geodesy import SiteFrame
+
+    site = SiteFrame(*origin, heading_deg=60.0, base=(0.0, 0.0, 1.0))
+    placed = BagRecording(path, ReplayOptions(gt_site=site)).ground_truth
+    assert placed is not None
+    np.testing.assert_allclose(placed.position, want + np.array([0.0, 0.0, 1.0]), atol=1e-6)
 
 
 def test_a_moving_observer_is_recorded_as_odometry_in_tf(tmp_path: Path) -> None:

@@ -2,11 +2,13 @@
 4-byte little-endian unsigned integer.
 
 This is the framing of dstl's Apex SAPIENT middleware (github.com/dstl/
-Apex-SAPIENT-Middleware): ``sapient_apex_server/message_io.py`` writes
+Apex-SAPIENT-Middleware, commit 0c8591ae97f2dc336eff299845880d5c73ee75b7):
+``sapient_apex_server/message_io.py`` (``encode_binary``) writes
 ``struct.pack("<I", len(bytes)) + bytes``, and ``sapient_apex_server/trio_util.py``
-reads the 4-byte little-endian size first and refuses a message longer than its
-limit, ``messageMaxSizeKb`` (1024 in its ``apex_config.json``), as ``FrameDecoder``
-does here.
+(``receive_size_prefixed``) reads the 4-byte little-endian size first and refuses a
+message longer than its limit, ``messageMaxSizeKb`` × 1024 bytes
+(``sapient_apex_server/apex_server.py``; 1024 in its ``apex_config.json``), as
+``FrameDecoder`` does here.  Apex's ``.proto`` files are vendored from the same commit.
 """
 
 from __future__ import annotations
@@ -22,8 +24,9 @@ from dronetrack.formats.sapient.sapient_msg.bsi_flex_335_v2_0.sapient_message_pb
 
 __all__ = ["DEFAULT_PORT", "MAX_FRAME_BYTES", "FrameDecoder", "encode_frame", "parse_message"]
 
-MAX_FRAME_BYTES = 1024 * 1024  # Apex's messageMaxSizeKb = 1024
-# The port Apex's configuration gives BSI Flex 335 v2.0 edge nodes (its "Child" 5020)
+MAX_FRAME_BYTES = 1024 * 1024  # 1 MiB: Apex's messageMaxSizeKb = 1024
+# The port Apex's apex_config.json gives BSI Flex 335 v2.0 edge nodes: its "Child"
+# connection with "format": "PROTO", "icd_version": "BSI Flex 335 v2.0"
 DEFAULT_PORT = 5020
 _PREFIX = struct.Struct("<I")
 
@@ -52,8 +55,10 @@ def parse_message(body: bytes) -> SapientMessage:
 class FrameDecoder:
     """Messages out of a byte stream fed in pieces of any size (``feed``).
 
-    ``max_bytes`` bounds a frame's body: a longer length prefix is refused at once
-    (before its bytes arrive), so a peer cannot make it buffer without bound.
+    ``max_bytes`` bounds a frame's body (default ``MAX_FRAME_BYTES``, 1 MiB, Apex's
+    default limit): a longer length prefix is refused at once (before its bytes
+    arrive), so a peer cannot make it buffer without bound.  ``pending`` says whether
+    a frame is begun; ``close`` at the stream's end refuses half a frame.
     """
 
     def __init__(self, max_bytes: int = MAX_FRAME_BYTES) -> None:

@@ -3,7 +3,8 @@ acknowledges their registrations, says one line per message, writes every messag
 receives as a JSON line, and can send each registered node a look-at task.
 
 It is a test partner and a way to see the stream without a C2 system, not a fusion
-engine: it fuses nothing.  One thread serves every connection (``selectors``); a node
+engine: it fuses nothing.  It accepts every Registration (a RegistrationAck) and every
+Alert (an AlertAck).  One thread serves every connection (``selectors``); a node
 that sends garbage, a frame over the limit, or closes in the middle of a frame is
 said in one line and dropped, and the others go on.
 """
@@ -17,7 +18,7 @@ import socket
 import time
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import IO
 
 import numpy as np
@@ -25,39 +26,21 @@ from google.protobuf.json_format import MessageToDict
 
 from dronetrack.errors import SapientProtocolError
 from dronetrack.formats.sapient.framing import MAX_FRAME_BYTES, FrameDecoder, encode_frame
-from dronetrack.formats.sapient.messages import envelope, new_ulid, registration_ack
-from dronetrack.formats.sapient.sapient_msg.bsi_flex_335_v2_0 import location_pb2, task_pb2
+from dronetrack.formats.sapient.messages import (
+    alert_ack,
+    look_at_task,
+    new_ulid,
+    registration_ack,
+)
+from dronetrack.formats.sapient.rules import broken_rules
+from dronetrack.formats.sapient.sapient_msg.bsi_flex_335_v2_0 import task_ack_pb2
 from dronetrack.formats.sapient.sapient_msg.bsi_flex_335_v2_0.sapient_message_pb2 import (
     SapientMessage,
 )
 
-__all__ = ["FusionNode", "describe", "look_at_task"]
+__all__ = ["FusionNode", "describe", "look_at_task", "task_status_name"]
 
 Say = Callable[[str], None]
-
-
-def look_at_task(
-    node_id: str,
-    destination: str,
-    t_unix_s: float,
-    task_id: str,
-    point: tuple[float, float, float | None],
-) -> SapientMessage:
-    """A Task to ``destination``: start looking at ``point`` (lat°, lon°, alt m or None)."""
-    msg = envelope(node_id, t_unix_s, destination)
-    task = msg.task
-    task.task_id, task.task_name = task_id, "look at"
-    task.control = task_pb2.Task.CONTROL_START
-    lat, lon, alt = point
-    location = task.command.look_at.location_list.locations.add(
-        x=lon,
-        y=lat,
-        coordinate_system=location_pb2.LOCATION_COORDINATE_SYSTEM_LAT_LNG_DEG_M,
-        datum=location_pb2.LOCATION_DATUM_WGS84_E,
-    )
-    if alt is not None:
-        location.z = alt
-    return msg
 
 
 def describe(message: SapientMessage) -> str:
@@ -93,12 +76,13 @@ def describe(message: SapientMessage) -> str:
         status = task_status_name(ack.task_status)
         why = f": {'; '.join(ack.reason)}" if ack.reason else ""
         return f"{node} task_ack: task {ack.task_id[-6:]} {status}{why}"
+    if kind == "error":
+        return f"{node} error: {'; '.join(message.error.error_message) or 'no description'}"
     return f"{node} {kind}"
 
 
 def task_status_name(status: int) -> str:
-    from dronetrack.formats.sapient.sapient_msg.bsi_flex_335_v2_0 import task_ack_pb2
-
+    """A TaskAck's status in a word: ``accepted``, ``rejected``, ``completed`` ..."""
     name: str = task_ack_pb2.TaskAck.TaskStatus.Name(status)
     return name.removeprefix("TASK_STATUS_").lower()
 
@@ -112,6 +96,7 @@ class _Peer:
     registered_at: float | None = None
     tasked: bool = False
     received: int = 0
+    flagged: set[str] = field(default_factory=set)  # the fields whose breach was said
 
 
 class FusionNode:
@@ -119,7 +104,9 @@ class FusionNode:
 
     ``out``: the JSON lines file; ``look_at``: a (lat°, lon°, alt m or None) to task
     each registered node with, ``task_after_s`` after its registration; ``received``:
-    told each message as it is read.
+    told each message as it is read.  ``check_rules``: hold each message to the
+    definitions' rules (``formats.sapient.rules``, what Apex checks), say each new
+    breach of a node in one line, and list them in its JSON line (``icd_problems``).
     """
 
     def __init__(
@@ -134,9 +121,11 @@ class FusionNode:
         max_frame_bytes: int = MAX_FRAME_BYTES,
         rng: np.random.Generator | None = None,
         received: Callable[[SapientMessage], None] | None = None,
+        check_rules: bool = False,
     ) -> None:
         self.say = say or (lambda text: None)
         self.on_message = received  # told each message as it is read
+        self.check_rules = check_rules
         self.out = out
         self.look_at = look_at
         self.task_after_s = task_after_s
@@ -164,6 +153,7 @@ class FusionNode:
             self._task_due()
 
     def close(self) -> None:
+        """Close every connection and stop listening."""
         for peer in list(self._peers.values()):
             self._drop(peer)
         self._sel.close()
@@ -205,16 +195,28 @@ class FusionNode:
         peer.received += 1
         if self.on_message is not None:
             self.on_message(message)
+        problems = broken_rules(message) if self.check_rules else []
         if self.out is not None:
             record = MessageToDict(message, preserving_proto_field_name=True)
             record = {"received": round(time.time(), 6), "peer": peer.name, **record}
+            if problems:
+                record["icd_problems"] = problems
             self.out.write(json.dumps(record) + "\n")
             self.out.flush()
         self.say(describe(message))
-        if message.WhichOneof("content") == "registration":
+        kind = message.WhichOneof("content")
+        for problem in problems:
+            key = f"{kind} {problem.split(':', 1)[0]}"  # each field of each kind, once
+            if key not in peer.flagged:
+                peer.flagged.add(key)
+                self.say(f"{peer.name}: the {kind} breaks the ICD's rules: {problem}")
+        if kind == "registration":
             peer.node_id = message.node_id
             peer.registered_at = time.monotonic()
             self._send(peer, registration_ack(self.node_id, time.time(), True))
+        elif kind == "alert":
+            alert_id = message.alert.alert_id
+            self._send(peer, alert_ack(self.node_id, time.time(), alert_id, True, [], peer.node_id))
 
     def _task_due(self) -> None:
         if self.look_at is None:

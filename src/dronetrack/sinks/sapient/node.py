@@ -15,8 +15,10 @@ What each message carries (``formats.sapient.messages`` builds them):
 - Alert: WARNING for ``predicted`` and ``margin``, CRITICAL (high priority) for
   ``inside``, CLEAR for a clear; its location the track's, its associated detection
   the track's object ID.
-- StatusReport: the node's location (the turret base), its field of view as a cone
-  about the sensor's axis, its mode; GOODBYE when the run ends.
+- StatusReport, every ``status_period_s`` and when the mode changes: the node's
+  location (the turret base), its field of view as a cone about the sensor's axis, its
+  mode (``background scan`` while the map is scanned, then ``default``); GOODBYE when
+  the run ends.
 - A Task's look-at (a location, or a range and bearing from the node) is handed to
   the pipeline (``Pipeline.look_at``): the turret's next search is centred there.  It
   is acknowledged, or rejected with the reason (a replay has no turret to point; a
@@ -50,9 +52,10 @@ _STATIC = "static"
 
 def node_uuid(name: str, latitude_deg: float, longitude_deg: float) -> str:
     """A node ID fixed by the site's name and place, so that the same site keeps its
-    ID from run to run (a UUID 5)."""
+    ID from run to run: a UUID 5's hash, written as a version-4 UUID, the only form
+    Apex's strict ID check accepts for node IDs."""
     key = f"dronetrack/{name}/{latitude_deg:.7f}/{longitude_deg:.7f}"
-    return str(uuid.uuid5(uuid.NAMESPACE_URL, key))
+    return str(uuid.UUID(bytes=uuid.uuid5(uuid.NAMESPACE_URL, key).bytes, version=4))
 
 
 def aer_sigma(enu: FloatArray, P: FloatArray) -> tuple[float, float, float]:
@@ -113,11 +116,12 @@ class SapientNode:
         self._objects: dict[int, _Object] = {}
         self._status_at = -math.inf
         self._arrived = 0.0  # the frame in hand's arrival (``first_frames``)
+        self._scanning = False  # the last status's mode: the background scan or not
         self._task: str | None = None  # the look-at task in hand
         self.reports = 0
-        # Each object's first report: when its frame's last point arrived (a live
-        # source's perf_counter), else when the node was given the frame; for the
-        # first report's latency (``bench --live --sapient``)
+        # Each object's first report sent: when its frame's last point arrived (a
+        # live source's perf_counter), else when the node was given the frame; for
+        # the first report's latency (``bench --live --sapient``)
         self.first_frames: dict[str, float] = {}
 
     def attach(self, pipeline: Any) -> None:
@@ -129,7 +133,9 @@ class SapientNode:
         now = self.clock()
         self._arrived = sample.received if sample.received is not None else time.perf_counter()
         self._answer_tasks(result.t, now)
-        if now - self._status_at >= self.status_period_s:
+        scanning = result.phase == "scan"
+        if now - self._status_at >= self.status_period_s or scanning != self._scanning:
+            self._scanning = scanning
             self._status(sample, now)
         if result.tracks is not None:
             self._reports(result.tracks, now, result.t)
@@ -181,6 +187,7 @@ class SapientNode:
                 location=self._node_location(),
                 pointing=pointing,
                 field_of_view_deg=self.field_of_view_deg,
+                mode="background scan" if self._scanning else "default",
                 active_task=self._task,
             )
         )
@@ -222,8 +229,7 @@ class SapientNode:
         sigma = np.sqrt(np.maximum(np.diag(P_pos), 0.0))
         s_az, s_el, s_r = aer_sigma(self.site.enu(tracks.positions[k]), P_pos)
         p = float(tracks.p_drone[k]) if len(tracks.p_drone) else math.nan
-        self.first_frames.setdefault(obj.object_id, self._arrived)
-        self.reports += self.link.send(
+        sent = self.link.send(
             msgs.detection_report(
                 self.node_id,
                 now,
@@ -236,12 +242,15 @@ class SapientNode:
                 ),
                 velocity_enu=self.site.enu_vectors(tracks.velocities[k]),
                 velocity_sigma_enu=np.sqrt(np.maximum(np.diag(P_vel), 0.0)),
-                classification=(cls, p if cls == "drone" else 1.0 - p),
+                classification=[(cls, p if cls == "drone" else 1.0 - p)],
                 track_id=int(tracks.ids[k]),
                 frame_t=t,
                 task_id=self._task,
             )
         )
+        self.reports += sent
+        if sent:  # the first report that went out (not one dropped while the link was down)
+            self.first_frames.setdefault(obj.object_id, self._arrived)
 
     def _lost(self, track_id: int, now: float) -> None:
         """The last report of a track that ended: state ``lost``, at its last location."""
