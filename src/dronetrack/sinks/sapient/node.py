@@ -129,7 +129,8 @@ class SapientNode:
         self._look_at = pipeline.look_at
 
     def frame(self, sample: Sample, result: StepResult, alerts: list[AlertEvent]) -> None:
-        """Tell the fusion node of one tracking frame."""
+        """Tell the fusion node of one frame: its tasks answered, the status when due
+        (the background scan's frames too), each updated track and each alert."""
         now = self.clock()
         self._arrived = sample.received if sample.received is not None else time.perf_counter()
         self._answer_tasks(result.t, now)
