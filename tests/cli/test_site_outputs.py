@@ -23,6 +23,7 @@ from dronetrack.config.rig import turret_spec
 from dronetrack.config.run import load_scenario_file
 from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.sinks.run_folder import GEO_COLUMNS
+from sapient_helpers import node_registration, official_decoder
 
 SITE = """
 base = "indoor-vertical"
@@ -128,35 +129,12 @@ def test_sapient_without_a_site_is_refused_before_the_run(
     assert not out.exists()
 
 
-def _official() -> Any:
-    """An independent decoder: the vendored official .proto files compiled here."""
-    import tempfile
-
-    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-    from grpc_tools import protoc
-
-    root = Path(__file__).resolve().parents[2] / "src" / "dronetrack" / "formats" / "sapient"
-
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "set.pb"
-        protos = sorted(str(p.relative_to(root)) for p in root.rglob("*.proto"))
-        include = Path(protoc.__file__).parent / "_proto"
-        args = ["protoc", f"-I{root}", f"-I{include}", "--include_imports"]
-        assert protoc.main([*args, f"--descriptor_set_out={path}", *protos]) == 0
-        files = descriptor_pb2.FileDescriptorSet.FromString(path.read_bytes())
-    pool = descriptor_pool.DescriptorPool()
-    for file in files.file:
-        pool.Add(file)
-    name = "sapient_msg.bsi_flex_335_v2_0.SapientMessage"
-    return message_factory.GetMessageClass(pool.FindMessageTypeByName(name))
-
-
 class _FusionNode:
     """A fusion node of the test's own: it acknowledges the registration with the
     independent decoder's classes and keeps every message, decoded by them."""
 
     def __init__(self) -> None:
-        self.official = _official()
+        self.official = official_decoder()
         self.server = socket.create_server(("127.0.0.1", 0))
         self.server.settimeout(0.2)
         self.port = self.server.getsockname()[1]
@@ -266,21 +244,8 @@ def test_sapient_listen_writes_what_it_receives(tmp_path: Path) -> None:
         port = s.getsockname()[1]
     out = tmp_path / "c2.jsonl"
 
-    def registration() -> Any:
-        return m.registration(
-            "0b6c9f9e-6f0e-5a59-9a5b-6f5d2c1a0e11",
-            time.time(),
-            name="t",
-            short_name="t",
-            classes=("drone",),
-            status_period_s=5.0,
-            field_of_view_deg=(70.4, 77.2),
-            max_range_m=190.0,
-            latency_s=0.1,
-        )
-
     def join() -> None:
-        link = SapientLink("127.0.0.1", port, registration)
+        link = SapientLink("127.0.0.1", port, node_registration)
         deadline = time.monotonic() + 10.0
         while not link.stats.registered and time.monotonic() < deadline:
             time.sleep(0.02)

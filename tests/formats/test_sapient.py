@@ -24,7 +24,6 @@ from hypothesis import strategies as st
 pytest.importorskip("google.protobuf")
 pytest.importorskip("grpc_tools")
 
-from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
 from dronetrack.errors import SapientProtocolError
 from dronetrack.formats.sapient import ICD_VERSION
@@ -38,6 +37,7 @@ from dronetrack.formats.sapient.sapient_msg.bsi_flex_335_v2_0.sapient_message_pb
     SapientMessage,
 )
 from dronetrack.sinks.sapient.node import node_uuid
+from sapient_helpers import official_decoder
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTO_ROOT = ROOT / "src" / "dronetrack" / "formats" / "sapient"
@@ -51,23 +51,9 @@ def _ulid(seed: int) -> str:
 
 
 @pytest.fixture(scope="module")
-def official(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    """``SapientMessage`` of an independent decoder: the vendored .proto files compiled
-    here by protoc into a descriptor set, loaded into a pool of their own (so neither
-    the committed modules nor the default pool are involved)."""
-    from grpc_tools import protoc
-
-    out = tmp_path_factory.mktemp("descriptors") / "sapient.pb"
-    include = Path(protoc.__file__).parent / "_proto"
-    protos = sorted(str(p.relative_to(PROTO_ROOT)) for p in PROTO_ROOT.rglob("*.proto"))
-    args = ["protoc", f"-I{PROTO_ROOT}", f"-I{include}", "--include_imports"]
-    assert protoc.main([*args, f"--descriptor_set_out={out}", *protos]) == 0
-    files = descriptor_pb2.FileDescriptorSet.FromString(out.read_bytes())
-    pool = descriptor_pool.DescriptorPool()
-    for file in files.file:
-        pool.Add(file)
-    name = "sapient_msg.bsi_flex_335_v2_0.SapientMessage"
-    return message_factory.GetMessageClass(pool.FindMessageTypeByName(name))
+def official() -> Any:
+    """``SapientMessage`` of the independent decoder (``sapient_helpers``)."""
+    return official_decoder()
 
 
 def _decode(official: Any, message: SapientMessage) -> Any:

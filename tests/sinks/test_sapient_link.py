@@ -34,24 +34,10 @@ from dronetrack.sinks.sapient.listen import FusionNode
 from dronetrack.sinks.sapient.node import SapientNode, aer_sigma
 from dronetrack.types import TRACK_CLASSES, Frame, Sample, StepResult, Tracks
 from dronetrack.zones import AlertEvent
+from sapient_helpers import NODE, node_registration
 
 SITE = SiteFrame(51.5, -0.12, 30.0, heading_deg=120.0, base=(0.0, 0.0, 1.0))
-NODE = "0b6c9f9e-6f0e-4a59-9a5b-6f5d2c1a0e11"  # version-4 UUIDs, as the ICD wants them
 FUSION = "5c3d2e1f-0a9b-4c8d-9e7f-6a5b4c3d2e1f"
-
-
-def _registration() -> Any:
-    return m.registration(
-        NODE,
-        time.time(),
-        name="test",
-        short_name="test",
-        classes=("drone", "bird", "unknown"),
-        status_period_s=5.0,
-        field_of_view_deg=(70.4, 77.2),
-        max_range_m=190.0,
-        latency_s=0.1,
-    )
 
 
 def _wait(condition: Callable[[], bool], timeout_s: float) -> bool:
@@ -88,7 +74,7 @@ def fusion(
 @contextmanager
 def link_to(port: int, **kw: Any) -> Iterator[tuple[SapientLink, list[str]]]:
     said: list[str] = []
-    link = SapientLink("127.0.0.1", port, _registration, say=said.append, **kw)
+    link = SapientLink("127.0.0.1", port, node_registration, say=said.append, **kw)
     try:
         yield link, said
     finally:
@@ -309,7 +295,7 @@ def test_sapient_listen_tasks_a_node_and_prints_its_ack(
     answered: list[str] = []
 
     def edge_node() -> None:
-        link = SapientLink("127.0.0.1", port, _registration, backoff_s=(0.05, 0.2))
+        link = SapientLink("127.0.0.1", port, node_registration, backoff_s=(0.05, 0.2))
         deadline = time.monotonic() + 5.0
         while not answered and time.monotonic() < deadline:
             for task in link.tasks():
