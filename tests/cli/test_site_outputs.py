@@ -226,7 +226,7 @@ def test_sapient_listen_refuses_a_bad_look_at(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     pytest.importorskip("google.protobuf")
-    for bad in ("47.4", "47.4,x", "95,19", "1,2,3,4"):
+    for bad in ("47.4", "47.4,x", "95,19", "1,2,3,4", "47.4,19.2,inf", "nan,19"):
         assert run(["sapient-listen", "--port", "0", "--look-at", bad, "--duration", "0"]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1

@@ -3,6 +3,7 @@ to a C2 system (``--sapient``) without one."""
 
 from __future__ import annotations
 
+import math
 import sys
 from contextlib import nullcontext
 from pathlib import Path
@@ -62,7 +63,13 @@ def parse_look_at(text: str) -> tuple[float, float, float | None]:
         values = [float(p) for p in parts]
     except ValueError:
         values = []
-    if len(values) not in (2, 3) or not (-90 <= values[0] <= 90 and -180 <= values[1] <= 180):
+    ok = (
+        len(values) in (2, 3)
+        and all(math.isfinite(v) for v in values)
+        and -90 <= values[0] <= 90
+        and -180 <= values[1] <= 180
+    )
+    if not ok:
         raise ConfigError(
             f"--look-at {text!r}: give LAT,LON[,ALT] in degrees (and metres), "
             "e.g. 47.4005,19.2004,140"

@@ -19,7 +19,7 @@ from dronetrack.geometry.geodesy import SiteFrame
 from dronetrack.types import Sample, StepResult
 from dronetrack.zones import AlertEvent, AlertMonitor
 
-__all__ = ["ALERTS_FILE", "SiteFeed", "SiteLink", "alert_line", "alert_record"]
+__all__ = ["ALERTS_FILE", "SiteFeed", "SiteLink", "alert_line", "alert_record", "alert_text"]
 
 ALERTS_FILE = "alerts.jsonl"
 
@@ -72,11 +72,13 @@ _SAY = {
 }
 
 
-def alert_line(event: AlertEvent) -> str:
-    """One line for the console: ``alert: drone track 7 is inside zone 'depot' ...``."""
+def alert_text(event: AlertEvent) -> str:
+    """An alert in words, as the console and a C2 system are told it:
+    ``drone track 7 is inside zone 'depot' at t = 33.8 s (in it)``, or for a clear
+    ``track 7 clear of zone 'depot' (left)``."""
     if event.kind == "clear":
         why = f" ({event.detail})" if event.detail else ""
-        return f"clear: track {event.track_id} {_SAY['clear']} {event.zone!r}{why}"
+        return f"track {event.track_id} {_SAY['clear']} {event.zone!r}{why}"
     where = f"{event.distance_m:.0f} m from it" if event.kind != "inside" else "in it"
     eta = (
         f", {event.time_to_zone_s:.1f} s to the zone at its velocity"
@@ -84,9 +86,15 @@ def alert_line(event: AlertEvent) -> str:
         else ""
     )
     return (
-        f"alert: drone track {event.track_id} {_SAY[event.kind]} {event.zone!r} "
+        f"drone track {event.track_id} {_SAY[event.kind]} {event.zone!r} "
         f"at t = {event.t:.1f} s ({where}{eta})"
     )
+
+
+def alert_line(event: AlertEvent) -> str:
+    """One line for the console: ``alert: drone track 7 is inside zone 'depot' ...``,
+    ``clear: track 7 ...``."""
+    return f"{'clear' if event.kind == 'clear' else 'alert'}: {alert_text(event)}"
 
 
 class SiteFeed:
@@ -108,7 +116,6 @@ class SiteFeed:
         self.folder = folder
         self.say = say
         self.link = link
-        self.alerts = 0
         self._file: IO[str] | None = None
 
     def attach(self, pipeline: Any) -> None:
@@ -130,7 +137,6 @@ class SiteFeed:
         utc = time.time()
         out = self._open()
         for event in events:
-            self.alerts += event.kind != "clear"
             if out is not None:
                 out.write(json.dumps(alert_record(event, self.site, utc)) + "\n")
             if self.say is not None:

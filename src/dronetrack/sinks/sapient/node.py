@@ -40,6 +40,7 @@ from dronetrack.formats.sapient import messages as msgs
 from dronetrack.geometry.geodesy import SiteFrame
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sinks.sapient.link import SapientLink
+from dronetrack.sinks.site_feed import alert_text
 from dronetrack.types import Sample, StepResult, Tracks
 from dronetrack.zones import AlertEvent
 
@@ -267,17 +268,6 @@ class SapientNode:
     def _alert(self, event: AlertEvent, now: float) -> None:
         lat, lon, alt = self.site.geodetic(event.position)
         obj = self._objects.get(event.track_id)
-        eta = (
-            f", {event.time_to_zone_s:.1f} s to it"
-            if event.kind in ("predicted", "margin") and math.isfinite(event.time_to_zone_s)
-            else ""
-        )
-        words = {
-            "inside": "inside zone",
-            "margin": "in the warning margin of zone",
-            "predicted": "about to enter zone",
-            "clear": "clear of zone",
-        }[event.kind]
         self.link.send(
             msgs.alert(
                 self.node_id,
@@ -285,8 +275,7 @@ class SapientNode:
                 alert_id=msgs.new_ulid(self.rng, now),
                 active=event.kind != "clear",
                 critical=event.kind == "inside",
-                description=f"drone track {event.track_id} {words} {event.zone!r} "
-                f"({event.distance_m:.0f} m from it{eta})",
+                description=alert_text(event),  # as the console says it
                 location=(float(lat), float(lon), float(alt)),
                 object_id=None if obj is None else obj.object_id,
             )
