@@ -33,7 +33,13 @@ def test_a_run_without_a_scan_learns_the_static_world_and_never_the_drone() -> N
 
 
 @pytest.mark.parametrize(
-    "seed", [0, pytest.param(3, marks=pytest.mark.slow), pytest.param(4, marks=pytest.mark.slow)]
+    "seed",
+    [
+        0,
+        pytest.param(3, marks=pytest.mark.slow),
+        pytest.param(4, marks=pytest.mark.slow),
+        pytest.param(6, marks=pytest.mark.slow),
+    ],
 )
 @pytest.mark.slow
 def test_a_static_mid360_switched_on_with_the_drone_in_view_tracks_it(seed: int) -> None:
@@ -43,7 +49,11 @@ def test_a_static_mid360_switched_on_with_the_drone_in_view_tracks_it(seed: int)
     lock-on while visible on seeds 0-4 (0 % before, the scan held the drone).  Seed 3:
     two false alarms joined the drone to the space beside the sensor until single
     returns stopped joining parts; seed 4: the drone hovered in a 2 m lookup cell
-    over what the scan saw until the cells near the sensor were made finer."""
+    over what the scan saw until the cells near the sensor were made finer; seed 6
+    (99.0 %, 0 % false locks): during the scan the drone hovered 1 m beside and 0.5 m
+    above a person standing still, one part of the scan with it (0 % until the scan
+    left out small parts in the air, and a short scan's cells stopped counting as a
+    structure beside a track)."""
     run = run_simulation(get_scenario("mid360-static").model_copy(update={"seed": seed}))
     metrics = run.metrics()
     assert metrics["lock_on_visible_pct"] >= 95.0

@@ -13,6 +13,7 @@ from dronetrack.preprocess import voxel
 from dronetrack.preprocess.background import (
     NEAR_ANGLE,
     VoxelBackground,
+    aloft_objects,
     free_objects,
     lookup_level,
     single_hits,
@@ -22,6 +23,7 @@ from dronetrack.preprocess.voxel import (
     coarsen_keys,
     dilate_keys,
     neighbour_counts,
+    shifted_keys,
     unique_keys,
     voxel_keys,
 )
@@ -176,6 +178,63 @@ def test_single_returns_never_join_a_free_part_to_anything() -> None:
     assert not free_objects(keys, 0.5, 2.0).any()  # drone and alarms one part, 2.5 m long
     free = free_objects(keys, 0.5, 2.0, weak)
     np.testing.assert_array_equal(free, np.isin(keys, _keys(drone + alarms)))
+
+
+# 0.5 m voxels (index · 0.5 m is a voxel's bottom): the crop's floor at level 1 (0.5 m)
+PERSON = [(x, 0, z) for x in (6, 7) for z in range(1, 4)]  # 0.5-2.0 m up, standing
+BESIDE = [(4, 0, 4), (4, 1, 4), (3, 0, 4)]  # 2.0-2.5 m up, 1 m beside its head
+GROUND = [(x, y, 1) for x in range(20, 22) for y in range(2)]  # a patch of ground, far off
+POLE = [(-6, 0, z) for z in range(1, 8)]  # a post 3.5 m tall ...
+ON_POLE = [(-6, 0, 9), (-7, 0, 9)]  # ... and a lamp 0.5 m above its top
+
+
+def test_a_small_part_with_nothing_beneath_it_is_in_the_air() -> None:
+    """A drone hovering 1 m beside and 0.5 m above a person standing still is one part
+    of the scan with the person by the free-standing gap (2.5 m long, too large), yet
+    nothing lies beneath it and it is 1.5 m above the floor: it is in the air.  The
+    person stands on the floor; a patch of ground has nothing beneath it but is the
+    floor; a lamp 0.5 m above its post has the post within 1 m beneath it; the pieces of
+    a sparsely sampled wall have more of it beside them at their level."""
+    keys = _keys(PERSON + BESIDE + GROUND + POLE + ON_POLE)
+    assert not free_objects(keys, 0.5, 2.0)[np.isin(keys, _keys(BESIDE))].any()
+    aloft = aloft_objects(keys, 0.5, 2.0)
+    np.testing.assert_array_equal(aloft, np.isin(keys, _keys(BESIDE)))
+    # the patch's copy 1 m up has it within 1 m beneath; 2 m up, nothing: in the air
+    for rise, up in ((2, False), (4, True)):
+        lifted = _keys([(x, y, z + rise) for x, y, z in GROUND])
+        both = unique_keys(np.concatenate([keys, lifted]))
+        assert (aloft_objects(both, 0.5, 2.0)[np.isin(both, lifted)] == up).all(), rise
+    assert not aloft_objects(keys, 0.5, 0.5).any()  # the drone's part is 1.5 m long
+    # a wall sampled sparsely 3 m up, over the ground: each of its pieces stands alone
+    # and has nothing beneath, but the next piece beside it at its level, 1 voxel away
+    pieces = [(x, 10, 6) for x in range(0, 12, 2)]
+    floor = [(x, 10, 1) for x in range(12)]
+    wall = _keys(pieces + floor)
+    assert not aloft_objects(wall, 0.5, 2.0).any()
+    lone = _keys(pieces[:1] + floor)
+    np.testing.assert_array_equal(aloft_objects(lone, 0.5, 2.0), np.isin(lone, _keys(pieces[:1])))
+
+
+def test_a_short_scan_leaves_a_drone_hovering_beside_a_person_out() -> None:
+    """The scan's map of the person, the drone beside its head, a post and its lamp:
+    the drone is left out (foreground), the rest stays; the map is provisional."""
+    cells = PERSON + BESIDE + POLE + ON_POLE
+    bg = VoxelBackground(resolution=0.5, inflate=0, free_object_m=2.0)
+    bg.insert((np.array(cells, dtype=float) + 0.5) * 0.5)
+    bg.build()
+    assert bg.provisional
+    assert bg.left_out == len(BESIDE)
+    centres = (np.array(cells, dtype=float) + 0.5) * 0.5
+    np.testing.assert_array_equal(bg.is_background(centres), [c not in BESIDE for c in cells])
+    assert not VoxelBackground(resolution=0.5).provisional
+
+
+def test_shifted_keys_move_each_voxel_by_whole_voxels() -> None:
+    keys = _keys([(0, 0, 0), (-3, 5, 2)])
+    np.testing.assert_array_equal(shifted_keys(keys, 1, -2, 3), _keys([(1, -2, 3), (-2, 3, 5)]))
+    np.testing.assert_array_equal(
+        np.column_stack(voxel.key_indices(keys)), np.array([(-3, 5, 2), (0, 0, 0)])
+    )
 
 
 def test_the_lookup_level_keeps_cells_within_an_angle_of_the_sensor() -> None:

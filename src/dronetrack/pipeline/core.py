@@ -383,11 +383,14 @@ class Pipeline:
         return (bg is not None and bg.ready) or self.learning is not None
 
     def _in_background(self, points: FloatArray) -> NDArray[np.bool_]:
-        """(N,) whether each world point is in the scanned or the learnt map, or in a voxel
-        that what no track holds has hit lately (``LearningBackground.is_structure``)."""
+        """(N,) whether each world point is in the scanned map (not a short scan's:
+        ``VoxelBackground.provisional``) or the learnt one, or in a voxel that what no
+        track holds has hit lately (``LearningBackground.is_structure``): the classes'
+        test of a structure beside a track (*joined*)."""
         out = np.zeros(len(points), dtype=bool)
-        if self.background is not None and self.background.ready:
-            out |= self.background.is_background(points)
+        bg = self.background
+        if bg is not None and bg.ready and not bg.provisional:
+            out |= bg.is_background(points)
         if self.learning is not None:
             out |= self.learning.is_structure(points)
         return out

@@ -28,9 +28,16 @@ occupied voxels with at least two empty voxels between it and any other: a short
 scan's sparse returns leave one-voxel holes in a wall) and is no larger than that
 (its bounding box's longest edge) is left out of the map: a drone hovering in view
 while the sensor scans (a sensor switched on with the drone up) would otherwise be
-background for good.  What is left out is foreground like anything new: the track
-layer tracks it, the classes tell a hovering drone from an object on a pole, and the
-learning map (``preprocess.learning``) learns what is static.
+background for good.  So is a small part in the air (``aloft_objects``): nothing
+beneath it, nothing beside it at its level, and its bottom a metre or more above the
+floor around it, even where it stands within that gap of something lower
+(``mid360-static`` seed 6: during the 1 s scan the drone hovered 1 m beside and 0.5 m
+above a person standing still; the two made one part 2.5 m long, and the map held the
+drone for the rest of the run).  What is left out is foreground like anything new:
+the track layer tracks it, the classes tell a hovering drone from an object on a
+pole, and the learning map (``preprocess.learning``) learns what is static.  Such a
+map is *provisional*: what it holds may have moved away since (the person), so the
+classes do not take its cells for a structure beside a track.
 """
 
 from __future__ import annotations
@@ -46,12 +53,21 @@ from dronetrack.preprocess.voxel import (
     coarsen_keys,
     dilate_keys,
     key_centres,
+    key_indices,
     neighbour_counts,
+    shifted_keys,
     voxel_components,
     voxel_keys,
 )
 
-__all__ = ["VoxelBackground", "free_objects", "lookup_level", "occupied_voxels", "single_hits"]
+__all__ = [
+    "VoxelBackground",
+    "aloft_objects",
+    "free_objects",
+    "lookup_level",
+    "occupied_voxels",
+    "single_hits",
+]
 
 
 def occupied_voxels(
@@ -70,6 +86,8 @@ def occupied_voxels(
 
 
 FREE_GAP = 2  # empty voxels around a free-standing object
+AIR_BELOW_M = 1.0  # d_a: nothing this far beneath an object in the air, nor the floor
+FLOOR_CELL_M = 2.0  # the floor around a voxel: the lowest voxel within one such cell
 NEAR_ANGLE = 0.25  # θ [rad]: the widest a lookup cell may look from the sensor
 
 
@@ -113,13 +131,74 @@ def free_objects(
     return free
 
 
-def _free_components(
-    voxels: NDArray[np.int64], resolution: float, largest: float
+def aloft_objects(
+    voxels: NDArray[np.int64], resolution: float, largest: float, depth_m: float = AIR_BELOW_M
 ) -> NDArray[np.bool_]:
-    """``free_objects`` of ``voxels`` taken alone (no weak ones among them)."""
+    """(N,) the voxels (sorted, distinct keys of edge ``resolution``) of the small
+    objects in the air: the parts of touching voxels (26-neighbourhood) whose bounding
+    box's longest edge is at most ``largest`` [m], under none of whose voxels another
+    part's voxel lies within d_a = ``depth_m`` in its column, beside none of whose
+    voxels another part's lies at its level within ``FREE_GAP`` empty voxels (the
+    free-standing gap, level by level), and whose bottom is d_a or more above the
+    floor around it (the lowest voxel in its ``FLOOR_CELL_M`` cell and the eight beside
+    it: the ground, or the crop's floor where the crop cuts the ground off; the
+    ground's own patches have nothing beneath them either).
+
+    A drone hovering a metre beside a person, above the person's head, is one part of
+    the scan with the person by ``free_objects``' gap, yet nothing lies beneath it or
+    beside it at its level.  A person, a post or a mast's top stands on something; a
+    short scan samples a wall sparsely, and its pieces have more of it beside them."""
     if len(voxels) == 0:
         return np.zeros(0, dtype=bool)
-    labels = voxel_components(voxels, reach=FREE_GAP + 1)
+    labels = voxel_components(voxels, reach=1)
+    parts = int(labels.max()) + 1
+    n = len(voxels)
+    held = np.zeros(parts, dtype=bool)  # another part's voxel beneath, or beside it
+    depth = max(1, int(np.ceil(depth_m / resolution - 1e-9)))
+    side = range(-FREE_GAP - 1, FREE_GAP + 2)
+    offsets = [(0, 0, -d) for d in range(1, depth + 1)]
+    offsets += [(dx, dy, 0) for dx in side for dy in side if (dx, dy) != (0, 0)]
+    for dx, dy, dz in offsets:
+        near = shifted_keys(voxels, dx, dy, dz)
+        at = np.minimum(np.searchsorted(voxels, near), n - 1)
+        hit = np.flatnonzero((voxels[at] == near) & (labels[at] != labels))
+        held[labels[hit]] = True
+    ix, iy, iz = key_indices(voxels)
+    cell = np.floor(np.column_stack([ix, iy]) * (resolution / FLOOR_CELL_M)).astype(np.int64)
+    bottom = np.full(parts, np.iinfo(np.int64).max)
+    np.minimum.at(bottom, labels, iz)
+    floor = np.full(parts, np.iinfo(np.int64).max)
+    np.minimum.at(floor, labels, _local_floor(cell, iz))
+    low = (bottom - floor) * resolution < depth_m - 1e-9  # z_bottom − z_floor < d_a
+    out: NDArray[np.bool_] = _small(voxels, labels, resolution, largest) & ~(held | low)[labels]
+    return out
+
+
+def _local_floor(cell: NDArray[np.int64], iz: NDArray[np.int64]) -> NDArray[np.int64]:
+    """(N,) the lowest voxel level ``iz`` among the voxels whose floor cell (``cell``
+    (N, 2)) is each voxel's or one of the eight beside it."""
+    key = cell[:, 0] * _CELL_STRIDE + cell[:, 1]
+    cells, inverse = np.unique(key, return_inverse=True)
+    lowest = np.full(len(cells), np.iinfo(np.int64).max)
+    np.minimum.at(lowest, inverse, iz)
+    out = np.full(len(iz), np.iinfo(np.int64).max)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            near = (cell[:, 0] + dx) * _CELL_STRIDE + cell[:, 1] + dy
+            at = np.minimum(np.searchsorted(cells, near), len(cells) - 1)
+            ok = cells[at] == near
+            out[ok] = np.minimum(out[ok], lowest[at[ok]])
+    return out
+
+
+_CELL_STRIDE = 1 << 32  # a floor cell's key: i · stride + j (|j| < 2³¹)
+
+
+def _small(
+    voxels: NDArray[np.int64], labels: NDArray[np.int64], resolution: float, largest: float
+) -> NDArray[np.bool_]:
+    """(N,) whether each voxel's part (``labels``) is at most ``largest`` [m] along its
+    bounding box's longest edge."""
     centres = key_centres(voxels, resolution)
     k = int(labels.max()) + 1
     lo = np.full((k, 3), np.inf)
@@ -129,6 +208,15 @@ def _free_components(
     edge = (hi - lo).max(axis=1) + resolution  # the voxels' extent, end to end
     small: NDArray[np.bool_] = edge[labels] <= largest + 1e-9
     return small
+
+
+def _free_components(
+    voxels: NDArray[np.int64], resolution: float, largest: float
+) -> NDArray[np.bool_]:
+    """``free_objects`` of ``voxels`` taken alone (no weak ones among them)."""
+    if len(voxels) == 0:
+        return np.zeros(0, dtype=bool)
+    return _small(voxels, voxel_components(voxels, reach=FREE_GAP + 1), resolution, largest)
 
 
 def single_hits(keys: NDArray[np.int64], voxels: NDArray[np.int64]) -> NDArray[np.bool_]:
@@ -180,6 +268,13 @@ class VoxelBackground:
         return self.cell_size / NEAR_ANGLE if self._finer else 0.0
 
     @property
+    def provisional(self) -> bool:
+        """Whether the map is a short scan's, too short to tell a hovering drone from
+        the world (``free_object_m`` set): its cells say where something was, not that
+        a structure stands there (see the module docstring)."""
+        return self.free_object_m is not None
+
+    @property
     def ready(self) -> bool:
         return self._cells is not None
 
@@ -206,6 +301,7 @@ class VoxelBackground:
             free = free_objects(
                 voxels, self.resolution, self.free_object_m, single_hits(keys, voxels)
             )
+            free |= aloft_objects(voxels, self.resolution, self.free_object_m)
             self.left_out = int(np.count_nonzero(free))
             voxels = voxels[~free]
         grown = dilate_keys(voxels, self.inflate)

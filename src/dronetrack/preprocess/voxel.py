@@ -22,7 +22,9 @@ __all__ = [
     "coarsen_keys",
     "dilate_keys",
     "key_centres",
+    "key_indices",
     "neighbour_counts",
+    "shifted_keys",
     "unique_keys",
     "voxel_components",
     "voxel_keys",
@@ -50,6 +52,17 @@ def _unpack(keys: IntArray) -> tuple[IntArray, IntArray, IntArray]:
 
 def _pack_array(ix: IntArray, iy: IntArray, iz: IntArray) -> IntArray:
     return ((ix + OFFSET) << (2 * BITS)) | ((iy + OFFSET) << BITS) | (iz + OFFSET)
+
+
+def key_indices(keys: IntArray) -> tuple[IntArray, IntArray, IntArray]:
+    """The voxel indices (i, j, k) of each key (the voxel's corner over its edge)."""
+    return _unpack(np.asarray(keys, dtype=np.int64))
+
+
+def shifted_keys(keys: IntArray, dx: int, dy: int, dz: int) -> IntArray:
+    """The keys of the voxels (dx, dy, dz) voxels from each of ``keys``."""
+    ix, iy, iz = _unpack(np.asarray(keys, dtype=np.int64))
+    return _pack_array(ix + dx, iy + dy, iz + dz)
 
 
 def voxel_keys(points: FloatArray, size: float) -> IntArray:
