@@ -174,6 +174,9 @@ def aloft_objects(
     return out
 
 
+_CELL_STRIDE = 1 << 32  # a floor cell's key: i · stride + j (|j| < 2³¹)
+
+
 def _local_floor(cell: NDArray[np.int64], iz: NDArray[np.int64]) -> NDArray[np.int64]:
     """(N,) the lowest voxel level ``iz`` among the voxels whose floor cell (``cell``
     (N, 2)) is each voxel's or one of the eight beside it."""
@@ -189,9 +192,6 @@ def _local_floor(cell: NDArray[np.int64], iz: NDArray[np.int64]) -> NDArray[np.i
             ok = cells[at] == near
             out[ok] = np.minimum(out[ok], lowest[at[ok]])
     return out
-
-
-_CELL_STRIDE = 1 << 32  # a floor cell's key: i · stride + j (|j| < 2³¹)
 
 
 def _small(
