@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.preprocess.crop import finite_mask
+from dronetrack.preprocess.ground import GroundGrid
 from dronetrack.preprocess.voxel import (
     KeySet,
     coarsen_keys,
@@ -87,7 +88,7 @@ def occupied_voxels(
 
 FREE_GAP = 2  # empty voxels around a free-standing object
 AIR_BELOW_M = 1.0  # d_a: nothing this far beneath an object in the air, nor the floor
-FLOOR_CELL_M = 2.0  # the floor around a voxel: the lowest voxel within one such cell
+FLOOR_CELL_M = 2.0  # the floor around a voxel: the lowest voxel in its cell and the 8 around
 NEAR_ANGLE = 0.25  # θ [rad]: the widest a lookup cell may look from the sensor
 
 
@@ -140,9 +141,10 @@ def aloft_objects(
     part's voxel lies within d_a = ``depth_m`` in its column, beside none of whose
     voxels another part's lies at its level within ``FREE_GAP`` empty voxels (the
     free-standing gap, level by level), and whose bottom is d_a or more above the
-    floor around it (the lowest voxel in its ``FLOOR_CELL_M`` cell and the eight beside
-    it: the ground, or the crop's floor where the crop cuts the ground off; the
-    ground's own patches have nothing beneath them either).
+    floor around it: the lowest voxel in its ``FLOOR_CELL_M`` cell and the eight beside
+    it, found as ``preprocess.ground.GroundGrid`` finds the ground.  That is the ground,
+    or the crop's floor where the crop cuts the ground off; the ground's own patches
+    have nothing beneath them either.
 
     A drone hovering a metre beside a person, above the person's head, is one part of
     the scan with the person by ``free_objects``' gap, yet nothing lies beneath it or
@@ -163,34 +165,16 @@ def aloft_objects(
         at = np.minimum(np.searchsorted(voxels, near), n - 1)
         hit = np.flatnonzero((voxels[at] == near) & (labels[at] != labels))
         held[labels[hit]] = True
-    ix, iy, iz = key_indices(voxels)
-    cell = np.floor(np.column_stack([ix, iy]) * (resolution / FLOOR_CELL_M)).astype(np.int64)
-    bottom = np.full(parts, np.iinfo(np.int64).max)
-    np.minimum.at(bottom, labels, iz)
-    floor = np.full(parts, np.iinfo(np.int64).max)
-    np.minimum.at(floor, labels, _local_floor(cell, iz))
-    low = (bottom - floor) * resolution < depth_m - 1e-9  # z_bottom − z_floor < d_a
+    # each voxel's bottom corner; the floor under it as the ground grid finds the ground
+    corners = np.column_stack(key_indices(voxels)).astype(np.float64) * resolution
+    grid = GroundGrid(FLOOR_CELL_M, stride=1)
+    grid.insert(corners)
+    bottom = np.full(parts, np.inf)
+    np.minimum.at(bottom, labels, corners[:, 2])
+    floor = np.full(parts, np.inf)
+    np.minimum.at(floor, labels, grid.height(corners[:, :2]))
+    low = bottom - floor < depth_m - 1e-9  # z_bottom − z_floor < d_a
     out: NDArray[np.bool_] = _small(voxels, labels, resolution, largest) & ~(held | low)[labels]
-    return out
-
-
-_CELL_STRIDE = 1 << 32  # a floor cell's key: i · stride + j (|j| < 2³¹)
-
-
-def _local_floor(cell: NDArray[np.int64], iz: NDArray[np.int64]) -> NDArray[np.int64]:
-    """(N,) the lowest voxel level ``iz`` among the voxels whose floor cell (``cell``
-    (N, 2)) is each voxel's or one of the eight beside it."""
-    key = cell[:, 0] * _CELL_STRIDE + cell[:, 1]
-    cells, inverse = np.unique(key, return_inverse=True)
-    lowest = np.full(len(cells), np.iinfo(np.int64).max)
-    np.minimum.at(lowest, inverse, iz)
-    out = np.full(len(iz), np.iinfo(np.int64).max)
-    for dx in (-1, 0, 1):
-        for dy in (-1, 0, 1):
-            near = (cell[:, 0] + dx) * _CELL_STRIDE + cell[:, 1] + dy
-            at = np.minimum(np.searchsorted(cells, near), len(cells) - 1)
-            ok = cells[at] == near
-            out[ok] = np.minimum(out[ok], lowest[at[ok]])
     return out
 
 
