@@ -15,9 +15,11 @@ def hand_tracks(
     positions: ArrayLike,
     classes: Sequence[int],
     updated: Sequence[bool] | None = None,
+    in_view: Sequence[bool] | None = None,
 ) -> Tracks:
     """Tracks at ``positions`` (K, 3), at rest, born at 0, with these classes; every one
-    updated this frame unless ``updated`` says otherwise."""
+    updated this frame and in the sensor's view unless ``updated``, ``in_view`` say
+    otherwise."""
     k = len(ids)
     return Tracks(
         ids=np.array(ids, dtype=np.int64),
@@ -29,4 +31,5 @@ def hand_tracks(
         hovered=np.zeros(k, dtype=bool),
         locked=np.zeros(k, dtype=bool),
         classes=np.array(classes, dtype=np.int64),
+        in_view=np.ones(k, dtype=bool) if in_view is None else np.array(in_view, dtype=bool),
     )

@@ -253,6 +253,10 @@ class Tracks:
     open_air: (K,) whether its life says it is in the open air, not standing on the
         ground, part of a structure, beyond a drone's reach or larger than a drone
         (``classify``); left out: True.
+    missed_s: (K,) how long it has been in the sensor's field of view without an
+        update since its last one [s]: a track out of view is not missed; left out: 0.
+    in_view: (K,) whether it was in the sensor's field of view this frame; left out:
+        True.
     """
 
     ids: NDArray[np.int64]
@@ -268,6 +272,8 @@ class Tracks:
     clusters: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     last_seen: FloatArray = field(default_factory=lambda: np.zeros(0))
     open_air: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    missed_s: FloatArray = field(default_factory=lambda: np.zeros(0))
+    in_view: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def __post_init__(self) -> None:
         k = len(self.ids)
@@ -281,6 +287,10 @@ class Tracks:
             object.__setattr__(self, "p_drone", np.full(k, 0.5))
         if len(self.open_air) == 0 and k:
             object.__setattr__(self, "open_air", np.ones(k, dtype=bool))
+        if len(self.missed_s) == 0 and k:
+            object.__setattr__(self, "missed_s", np.zeros(k))
+        if len(self.in_view) == 0 and k:
+            object.__setattr__(self, "in_view", np.ones(k, dtype=bool))
         for name, shape, dtype in (
             ("ids", (k,), np.int64),
             ("positions", (k, 3), np.float64),
@@ -295,6 +305,8 @@ class Tracks:
             ("clusters", (k,), np.int64),
             ("last_seen", (k,), np.float64),
             ("open_air", (k,), np.bool_),
+            ("missed_s", (k,), np.float64),
+            ("in_view", (k,), np.bool_),
         ):
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 

@@ -6,7 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dronetrack.control.choose import ChooseSettings, TargetChooser, drone_instead, threat
+from dronetrack.control.choose import (
+    ChooseSettings,
+    TargetChooser,
+    drone_instead,
+    threat,
+    worth_a_look,
+)
 from dronetrack.errors import ConfigError
 from dronetrack.types import TRACK_CLASSES, Tracks
 
@@ -20,8 +26,13 @@ def _tracks(
     classes: list[int],
     p: list[float],
     seen: list[float] | None = None,
+    away: list[float] | None = None,
 ) -> Tracks:
+    """Tracks last updated at ``seen`` (default: now), out of the sensor's view for
+    ``away`` of the time since (default: none of it)."""
     k = len(positions)
+    last = np.full(k, t) if seen is None else np.array(seen, dtype=float)
+    out = np.zeros(k) if away is None else np.array(away, dtype=float)
     return Tracks(
         ids=np.arange(1, k + 1),
         positions=np.array(positions, dtype=float),
@@ -33,7 +44,8 @@ def _tracks(
         locked=np.zeros(k, dtype=bool),
         classes=np.array(classes),
         p_drone=np.array(p),
-        last_seen=np.full(k, t) if seen is None else np.array(seen),
+        last_seen=last,
+        missed_s=t - last - out,
     )
 
 
@@ -82,10 +94,13 @@ def test_a_much_greater_threat_takes_the_turret_after_the_hold() -> None:
     near = [[100, -30, 20], [20, 0, 10]]
     assert chooser.choose(0.5, _tracks(0.5, near, both, [0.98, 0.98]), 1) == 1
     assert chooser.choose(1.0, _tracks(1.0, near, both, [0.98, 0.98]), 1) == 2
-    # a threat only 10 % greater does not take it
+    # a threat a few per cent greater does not take it: track 2 (97.6 m out) is served
+    # first, track 1 (102.5 m) gets its first look, and keeps the turret
     chooser2 = TargetChooser(ChooseSettings(hysteresis=1.5, hold_s=0.0, revisit_s=100.0))
     close = [[100, -10, 20], [95, 10, 20]]
-    for k in range(20):
+    assert chooser2.choose(0.0, _tracks(0.0, close, both, [0.98, 0.98]), 2) == 2
+    assert chooser2.choose(0.1, _tracks(0.1, close, both, [0.98, 0.98]), 2) == 1
+    for k in range(2, 22):
         assert chooser2.choose(0.1 * k, _tracks(0.1 * k, close, both, [0.98, 0.98]), 1) == 1
 
 
@@ -116,7 +131,57 @@ def test_stale_and_bird_tracks_are_no_candidates() -> None:
     assert chooser.choose(5.0, tracks, locked=1) is None  # the other drone is 2 s unseen
 
 
+def test_a_drone_out_of_view_stays_a_candidate_and_is_looked_at_again() -> None:
+    """Track 2 was last seen 6 s ago, out of the sensor's view all that time (the turret
+    served track 1): it is not missed, so it is revisited after revisit_s."""
+    chooser = TargetChooser(ChooseSettings(revisit_s=5.0, hold_s=1.0, fresh_s=1.0))
+    pos, both = [[60, -40, 20], [60, 40, 20]], [DRONE, DRONE]
+    assert chooser.choose(0.0, _tracks(0.0, pos, both, [0.98, 0.98]), 1) == 1
+    chooser.choose(1.0, _tracks(1.0, pos, both, [0.98, 0.98]), 2)  # track 2 served, held
+    served = None
+    for k in range(2, 80):
+        t = 0.1 * k + 1.0
+        tracks = _tracks(t, pos, both, [0.98, 0.98], [t, 1.0], [0.0, t - 1.0])
+        served = chooser.choose(t, tracks, 1)
+        if served == 2:
+            break
+    assert served == 2
+    assert t == pytest.approx(1.0 + 5.0, abs=0.15)
+    # missed in view for 2 s (> fresh_s): no candidate, the choice is the acquisition's
+    missed = _tracks(9.0, pos, both, [0.98, 0.98], [9.0, 7.0], [0.0, 0.0])
+    assert TargetChooser().choose(9.0, missed, 1) is None
+
+
+def test_a_new_track_worth_a_look_is_served_after_the_hold() -> None:
+    """A track the classes cannot tell yet (unknown, p 0.5) appears while a drone is
+    held: it is looked at once the hold is over, not after revisit_s; a bird's flight
+    (p 0.12) is not."""
+    chooser = TargetChooser(ChooseSettings(revisit_s=100.0, hold_s=1.0, hysteresis=1.5))
+    pos = [[60, -40, 20], [60, 40, 20]]
+    assert chooser.choose(0.0, _tracks(0.0, pos, [DRONE, UNKNOWN], [0.98, 0.5]), 1) == 1
+    assert chooser.choose(0.9, _tracks(0.9, pos, [DRONE, UNKNOWN], [0.98, 0.5]), 1) == 1
+    assert chooser.choose(1.0, _tracks(1.0, pos, [DRONE, UNKNOWN], [0.98, 0.5]), 1) == 2
+    birds = TargetChooser(ChooseSettings(revisit_s=100.0, hold_s=1.0))
+    for k in range(30):
+        tracks = _tracks(0.1 * k, pos, [DRONE, BIRD], [0.98, 0.12])
+        assert birds.choose(0.1 * k, tracks, 1) is None
+
+
+def test_worth_a_look_is_a_drone_or_a_servable_track_not_told_yet() -> None:
+    tracks = _tracks(
+        0.0,
+        [[60, 0, 20]] * 5,
+        [DRONE, UNKNOWN, BIRD, UNKNOWN, TRACK_CLASSES.index("static")],
+        [0.98, 0.5, 0.12, 0.05, 0.5],
+    )
+    assert worth_a_look(tracks, 0.2).tolist() == [True, True, False, False, False]
+    assert worth_a_look(tracks, 0.1).tolist() == [True, True, True, False, False]
+    assert worth_a_look(tracks, 1.0).tolist() == [True, False, False, False, False]
+
+
 def test_bad_settings_are_refused() -> None:
+    with pytest.raises(ConfigError, match="min_p"):
+        ChooseSettings(min_p=1.5)
     with pytest.raises(ConfigError, match="revisit_s"):
         ChooseSettings(revisit_s=0.0)
     with pytest.raises(ConfigError, match="hysteresis"):

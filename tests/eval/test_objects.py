@@ -87,6 +87,23 @@ def test_a_drone_without_returns_is_not_expected_and_a_track_far_off_is_a_false_
     assert mot["drones"][0]["own_track_pct"] == 0.0
 
 
+def test_a_track_out_of_view_is_no_hypothesis() -> None:
+    """A drone out of the sensor's view returns nothing and is no truth; its track,
+    kept while the turret serves another, is no hypothesis either: no false positive
+    while it is out of view, a match again once it is back in view."""
+    objects, tracks = ObjectsLog(), TracksLog()
+    for f in range(6):
+        back = f >= 4
+        drone = np.array([[40.0, 0.0, 10.0]])
+        objects.append(T * (f + 1), _truth(drone, [3 if back else 0], ("drone",)), np.zeros(3))
+        drifted = np.array([[40.0, 2.0 if back else 9.0, 10.0]])  # its prediction, off
+        tracks.append(T * (f + 1), hand_tracks([1], drifted, [DRONE], in_view=[back]))
+    mot = mot_figures(objects, tracks, radius=4.0)
+    assert mot["false_positives"] == 0
+    assert mot["misses"] == 0
+    assert mot["drones"][0]["own_track_pct"] == 100.0
+
+
 def test_each_drones_figures_score_the_turrets_estimate_against_it() -> None:
     objects, _ = _scene(30)
     t = T * np.arange(1, 31)

@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dronetrack.geometry.field import FieldOfRegard
+from dronetrack.geometry.field import FieldOfRegard, in_field_of_view
+from dronetrack.geometry.transforms import make_pose, rot_z
 
 DEG = math.radians
 
@@ -53,3 +54,25 @@ def test_the_bounding_box_holds_every_point_of_the_field(
     # and is tight: every face is within a few metres of a point of the field
     if len(inside) > 500:
         assert np.all(inside.min(axis=0) - low < 25.0)
+
+
+def test_the_field_of_view_is_the_ellipse_of_its_half_widths_about_the_sensor_axis() -> None:
+    """An Avia (70.4° × 77.2°) at (1, 2, 3), panned 90° left: its axis is +y."""
+    fov = (math.radians(70.4), math.radians(77.2))
+    pose = make_pose(rot_z(math.pi / 2), [1.0, 2.0, 3.0])
+    o = np.array([1.0, 2.0, 3.0])
+
+    def at(az_deg: float, el_deg: float) -> np.ndarray:
+        a, e = math.radians(az_deg + 90.0), math.radians(el_deg)
+        return o + 50.0 * np.array(
+            [math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)]
+        )
+
+    points = np.array(
+        [at(0, 0), at(35, 0), at(36, 0), at(0, 38), at(0, 39), at(25, 27), at(-30, -25)]
+    )
+    # (25/35.2)² + (27/38.6)² = 0.99; (30/35.2)² + (25/38.6)² = 1.15
+    expect = [True, True, False, True, False, True, False]
+    assert in_field_of_view(points, pose, fov).tolist() == expect
+    behind = o - np.array([[0.0, 50.0, 0.0]])  # straight behind it
+    assert not in_field_of_view(behind, pose, fov)[0]

@@ -19,7 +19,7 @@ from dronetrack.track.cv_bank import (
     gate_costs,
 )
 from dronetrack.track.kalman import cv_transition, kf_predict, kf_update, position_selector
-from dronetrack.track.multi import MultiTargetTracker, TrackSettings, close_pairs
+from dronetrack.track.multi import InView, MultiTargetTracker, TrackSettings, close_pairs
 from dronetrack.types import Candidates, Detections, TrackEstimate
 
 T = 0.1  # frame period [s]
@@ -46,10 +46,10 @@ class _Layer:
         self.tentative = TentativeTracks(ConfirmationSettings(v_max=15.0, hits=2, frames=4))
         self.tracks = MultiTargetTracker(TrackSettings(**track_settings))  # type: ignore[arg-type]
 
-    def step(self, t: float, centroids: np.ndarray) -> None:
+    def step(self, t: float, centroids: np.ndarray, in_view: InView | None = None) -> None:
         found = _found(centroids)
         confirmed = self.tentative.update(t, found)
-        self.tracks.step(t, found, confirmed, t_meas=t - 0.5 * T)
+        self.tracks.step(t, found, confirmed, t_meas=t - 0.5 * T, in_view=in_view)
 
 
 def test_process_noise_is_the_white_acceleration_model() -> None:
@@ -151,6 +151,64 @@ def test_a_track_is_born_on_a_confirmed_candidate_and_dies_after_coasting() -> N
     for k in range(14, 17):  # it comes back: a new identity, never a reused one
         layer.step(k * T, p)
     assert layer.tracks.ids.tolist() == [2]
+
+
+def _nowhere(p: np.ndarray) -> np.ndarray:
+    return np.zeros(len(p), dtype=bool)
+
+
+def test_a_track_out_of_view_is_not_missed_and_lives_until_unseen_s() -> None:
+    """coast_s 1 s counts only the frames that saw where the track is; unseen_s 3 s
+    bounds its life wherever it is.  Its object is gone at 0.25 s (its last update)."""
+    layer = _Layer(coast_s=1.0, unseen_s=3.0)
+    p = np.array([[30.0, 5.0, 10.0]])
+    for k in range(3):
+        layer.step(k * T, p)
+    last = layer.tracks.t_update[0]
+    k = 3
+    while (k * T - 0.5 * T) - last <= 3.0 - 1e-9:  # out of view: alive 3 s after it
+        layer.step(k * T, np.empty((0, 3)), _nowhere)
+        assert layer.tracks.ids.tolist() == [1], k
+        snap = layer.tracks.snapshot()
+        assert snap.missed_s[0] == pytest.approx(0.0, abs=1e-9)
+        assert not snap.in_view[0]
+        k += 1
+    layer.step(k * T, np.empty((0, 3)), _nowhere)
+    assert len(layer.tracks) == 0
+    # in view again after 2 s away: missed from then on, it ends 1 s later
+    layer = _Layer(coast_s=1.0, unseen_s=30.0)
+    for k in range(3):
+        layer.step(k * T, p)
+    for k in range(3, 23):
+        layer.step(k * T, np.empty((0, 3)), _nowhere)
+    alive = 0
+    for k in range(23, 60):
+        layer.step(k * T, np.empty((0, 3)), lambda q: np.ones(len(q), dtype=bool))
+        if len(layer.tracks) == 0:
+            break
+        alive += 1
+        assert layer.tracks.snapshot().missed_s[0] == pytest.approx(alive * T)
+    assert 1.0 - T - 1e-9 <= alive * T <= 1.0 + 1e-9  # coast_s, to a frame
+
+
+def test_a_track_that_lived_on_out_of_view_takes_no_cluster_far_from_its_prediction() -> None:
+    """Unseen for 3 s (out of view), a track at rest takes a confirmed candidate's
+    cluster within stale_gate_m + birth_sigma_v × 3 s = 5 + 5 × 3 = 20 m of its
+    prediction, never one farther, which its grown gates would let it take (σ_a 15 m/s²,
+    a run's: σ ≈ 13 m per axis after 3 s, so 40 m is within the 4.5 σ gate)."""
+    for offset, same in ((12.0, True), (40.0, False)):
+        layer = _Layer(coast_s=1.0, unseen_s=30.0, sigma_acc=15.0)
+        p = np.array([[60.0, 0.0, 20.0]])
+        for k in range(6):
+            layer.step(k * T, p)
+        for k in range(6, 36):
+            layer.step(k * T, np.empty((0, 3)), _nowhere)
+        q = p + np.array([[0.0, offset, 0.0]])
+        for k in range(36, 40):
+            layer.step(k * T, q)
+        assert (layer.tracks.ids.tolist() == [1]) is same, offset
+        if not same:
+            assert layer.tracks.ids.tolist() == [1, 2]  # a new object, the old one unseen
 
 
 def test_a_lone_return_never_makes_a_track() -> None:
@@ -273,6 +331,8 @@ def test_bad_settings_are_refused() -> None:
         TrackSettings(max_tracks=0)
     with pytest.raises(ConfigError, match="merge_m"):
         TrackSettings(merge_s=-1.0)
+    with pytest.raises(ConfigError, match="unseen_s"):
+        TrackSettings(coast_s=5.0, unseen_s=4.0)
 
 
 def test_empty_inputs_leave_no_track() -> None:

@@ -18,6 +18,7 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
 
 __all__ = [
+    "FIELD_OF_VIEW_DEG",
     "SENSOR_MODELS",
     "TARGETS",
     "TURRET_NAMES",
@@ -25,6 +26,7 @@ __all__ = [
     "TargetSpec",
     "TurretSpec",
     "make_turret",
+    "narrow_field_of_view",
     "resolve_turret",
     "target_spec",
     "turret_spec",
@@ -202,6 +204,27 @@ TARGETS: dict[str, TargetSpec] = {
 # The sensors the simulator models, by the name a scenario's [sensor] model gives them
 # (``sim/sensors.py`` builds each); a model ``file:PATH`` replays a scan-pattern table.
 SENSOR_MODELS = ("avia", "mid40", "mid360", "vlp16", "vlp16-side")
+
+# The sensors' fields of view, horizontal × vertical [°], from their datasheets
+# (shared/research: sensor_physics.md): the Avia's non-repetitive pattern, the Mid-40's
+# circle, the Mid-360's and the VLP-16's rings.
+FIELD_OF_VIEW_DEG = {
+    "avia": (70.4, 77.2),
+    "mid40": (38.4, 38.4),
+    "mid360": (360.0, 59.0),
+    "vlp16": (360.0, 30.0),
+    "vlp16-side": (360.0, 30.0),
+}
+
+
+def narrow_field_of_view(model: str) -> tuple[float, float] | None:
+    """A sensor's field of view, horizontal × vertical [rad], where it is narrower than a
+    full circle (a turret turns it away from what it saw); None for the rings and for a
+    model it does not know (a pattern file)."""
+    fov = FIELD_OF_VIEW_DEG.get(model)
+    if fov is None or fov[0] >= 360.0:
+        return None
+    return math.radians(fov[0]), math.radians(fov[1])
 
 
 def target_spec(name: str) -> TargetSpec:

@@ -87,7 +87,18 @@ def held_track(tracks: Tracks, position: FloatArray, within: float) -> int:
 
 # --- which track the turret serves -----------------------------------------------------
 
+
 DRONE = TRACK_CLASSES.index("drone")
+
+
+def worth_a_look(tracks: Tracks, min_p: float) -> NDArray[np.bool_]:
+    """(K,) the tracks the turret shares itself among: those classed drone, and those
+    it may serve (``servable``) with p_drone ≥ ``min_p``: with the default 0.2 a track
+    the classes cannot tell yet (unknown, 0.5), not one with evidence against it (a
+    bird's flight, 0.12; grounded, joined or propped, ≤ 0.05)."""
+    maybe = servable(tracks) & (tracks.p_drone >= min_p)
+    out: NDArray[np.bool_] = (tracks.classes == DRONE) | maybe
+    return out
 
 
 def threat(
@@ -156,11 +167,13 @@ class ChooseSettings:
 
     protected: the point the site protects [m]; d_ref, v_ref: the threat's scales;
     hysteresis: another track must be this much more threatening (1.5: 50 % more) to
-    take the turret; hold_s: the least time a served track keeps it; revisit_s: a drone
-    not served for this long is looked at again; look_s: how long a look at a track out
-    of view lasts before it is given up; fresh_s: a track unseen for longer is no
-    candidate (its prediction is stale); apart_m: a track this close to the held one
-    is a second track on the same drone, no candidate.
+    take the turret; hold_s: the least time a served track keeps it; revisit_s: a
+    candidate not served for this long is looked at again; look_s: how long a look at a
+    track out of view lasts before it is given up; fresh_s: a track missed for longer
+    (in the sensor's view without an update: ``Tracks.missed_s``) is no candidate; apart_m:
+    a track this close to the held one is a second track on the same drone, no
+    candidate; min_p: the least p_drone of a candidate not classed drone
+    (``worth_a_look``).
     """
 
     protected: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -172,11 +185,14 @@ class ChooseSettings:
     look_s: float = 1.5
     fresh_s: float = 1.0
     apart_m: float = 5.0
+    min_p: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("d_ref", "v_ref", "revisit_s", "look_s", "fresh_s"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"choose: {name} must be positive, got {getattr(self, name)}")
+        if not 0.0 <= self.min_p <= 1.0:
+            raise ConfigError(f"choose: min_p must be in [0, 1], got {self.min_p}")
         if not self.hysteresis >= 1.0 or not self.hold_s >= 0.0:
             raise ConfigError(
                 f"choose: need hysteresis ≥ 1 and hold_s ≥ 0, got {self.hysteresis}, {self.hold_s}"
@@ -186,12 +202,15 @@ class ChooseSettings:
 class TargetChooser:
     """The track the turret serves, once a frame (``choose``).
 
-    The candidates are the tracks classed drone that a cluster updated within
-    ``fresh_s`` (and the held track, whatever its class).  The served track keeps the
-    turret for ``hold_s`` at least; then
-    it gives way to a candidate ``hysteresis`` times as threatening (``threat``), or to
-    a drone-class candidate not served for ``revisit_s`` (the most overdue first), so
-    that two drones far apart in angle share the turret.  A served track that the
+    The candidates are the tracks worth a look (``worth_a_look``: classed drone, or
+    not told yet) missed for no longer than ``fresh_s`` (and the held track, whatever
+    its class).  A track out of the sensor's view is not missed: the track layer keeps
+    it while the turret serves another (``track.multi``), so that a drone far away in
+    angle is looked at again where it is predicted.  The served track keeps the turret
+    for ``hold_s`` at least; then it gives way to a candidate never served yet (so each
+    new object gets a look at once), to a candidate not served for ``revisit_s`` (the
+    most overdue first), so that two drones far apart in angle share the turret, or to
+    a candidate ``hysteresis`` times as threatening (``threat``).  A served track that the
     tracker does not hold after ``look_s`` (it was not found where it was predicted)
     gives way too and is not chosen again until it is seen anew.  With one candidate
     or none nothing is chosen: the single-target acquisition decides alone.
@@ -217,7 +236,7 @@ class TargetChooser:
             self.first_seen.setdefault(ident, t)
         if locked is not None:
             self.held_at[locked] = t
-        ok = (tracks.classes == DRONE) & (t - tracks.last_seen <= s.fresh_s)
+        ok = worth_a_look(tracks, s.min_p) & (tracks.missed_s <= s.fresh_s)
         held = self._position(tracks.ids, locked)
         if held is not None:  # a second track on the held drone is none of another
             ok &= np.linalg.norm(tracks.positions - tracks.positions[held], axis=1) > s.apart_m
@@ -244,12 +263,13 @@ class TargetChooser:
             self.given_up[int(ids[current])] = float(tracks.last_seen[idx[current]])
             others = np.flatnonzero(ids != ids[current])
             return self._serve(t, int(ids[others[np.argmax(score[others])]]))
+        # due: not served for revisit_s, or never served at all
         overdue = [
-            (t - self.held_at.get(int(i), self.first_seen[int(i)]), n)
+            (t - self.held_at.get(int(i), self.first_seen[int(i)]), int(i) not in self.held_at, n)
             for n, i in enumerate(ids)
-            if i != self.served and tracks.classes[idx[n]] == DRONE
+            if i != self.served
         ]
-        late = [(wait, n) for wait, n in overdue if wait >= s.revisit_s]
+        late = [(wait, n) for wait, new, n in overdue if new or wait >= s.revisit_s]
         if late:
             return self._serve(t, int(ids[max(late)[1]]))
         best = int(np.argmax(score))

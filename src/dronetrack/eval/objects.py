@@ -4,8 +4,10 @@ of ``motmetrics`` (MOTA, MOTP, IDF1, identity switches).
 
 Multi-object scoring (CLEAR MOT and the identity metrics, Bernardin & Stiefelhagen
 2008, Ristani et al. 2016) is ``motmetrics``'s: each frame, the drones that return
-points are the ground truth and the tracks not classed static or bird are the
-hypotheses (a static or bird class is the tracker's claim that a track is no drone);
+points are the ground truth and the tracks in the sensor's view not classed static or
+bird are the hypotheses (a static or bird class is the tracker's claim that a track is
+no drone; a track out of view, one the turret turned away from, is the tracker's memory
+of an object no frame can confirm or deny, as a drone out of view is no truth);
 a pair may match within the correct radius, on the 3-D Euclidean distance.  MOTP is
 the mean distance of the matched pairs [m].
 """
@@ -158,7 +160,7 @@ def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[s
     assert objects.ids is not None
     for f in range(len(objects)):
         seen = drones[returns[f, drones] > 0]
-        here = rows[(frame_of == f) & ~np.isin(rows["cls"], NOT_DRONE_CLASSES)]
+        here = rows[(frame_of == f) & ~np.isin(rows["cls"], NOT_DRONE_CLASSES) & rows["in_view"]]
         gt = positions[f, seen]
         d = np.linalg.norm(gt[:, None, :] - here["position"][None, :, :], axis=2)
         acc.update(

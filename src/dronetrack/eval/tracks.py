@@ -39,6 +39,7 @@ _ROW = np.dtype(
         ("pos_sigma", np.float64),
         ("locked", np.bool_),
         ("updated", np.bool_),  # a cluster of the frame updated it (else it coasted)
+        ("in_view", np.bool_),  # in the sensor's field of view
     ]
 )
 
@@ -70,6 +71,7 @@ class TracksLog:
         chunk["pos_sigma"] = tracks.position_sigma
         chunk["locked"] = tracks.locked
         chunk["updated"] = tracks.updated
+        chunk["in_view"] = tracks.in_view
         self._chunks.append(chunk)
         self._n += k
 
@@ -85,7 +87,7 @@ class TracksLog:
     @property
     def rows(self) -> NDArray[Any]:
         """Every row so far, a structured array (t, id, cls, p_drone, position,
-        velocity, pos_sigma, locked, updated); read-only."""
+        velocity, pos_sigma, locked, updated, in_view); read-only."""
         if self._chunks:
             self._rows = np.concatenate([self._rows, *self._chunks])
             self._chunks = []

@@ -18,15 +18,34 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.geometry.transforms import FloatArray
+from dronetrack.geometry.transforms import FloatArray, azimuth_elevation
 
-__all__ = ["FieldOfRegard", "wrap_angle"]
+__all__ = ["FieldOfRegard", "in_field_of_view", "wrap_angle"]
 
 
 def wrap_angle(a: FloatArray | float) -> FloatArray:
     """Angles [rad] wrapped into [−π, π)."""
     wrapped: FloatArray = (np.asarray(a, dtype=np.float64) + math.pi) % (2.0 * math.pi) - math.pi
     return wrapped
+
+
+def in_field_of_view(
+    points: FloatArray, pose: FloatArray, fov: tuple[float, float]
+) -> NDArray[np.bool_]:
+    """(K,) whether each world point (K, 3) [m] lies in the field of view of a sensor at
+    ``pose`` (4, 4: sensor to world), looking along its x axis, ``fov`` (horizontal,
+    vertical) wide [rad]: within the ellipse of those half-widths in azimuth and
+    elevation, d = Rᵀ (p − o) in the sensor's frame,
+
+        (az / (h/2))² + (el / (v/2))² ≤ 1,  az = atan2(d_y, d_x),
+        el = atan2(d_z, √(d_x² + d_y²))
+
+    (a rosette's field is round)."""
+    d = (np.asarray(points, dtype=np.float64) - pose[:3, 3]) @ pose[:3, :3]
+    az, el = azimuth_elevation(d)
+    h, v = fov
+    out: NDArray[np.bool_] = (az / (0.5 * h)) ** 2 + (el / (0.5 * v)) ** 2 <= 1.0
+    return out
 
 
 @dataclass(frozen=True, slots=True)

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.config.pipeline import crop_box, field_of_regard, scan_area
-from dronetrack.config.rig import TurretSpec, target_spec, turret_spec
+from dronetrack.config.rig import TurretSpec, narrow_field_of_view, target_spec, turret_spec
 from dronetrack.config.run import ScenarioConfig, dump_scenario
 from dronetrack.config.tomlfile import tidy_model
 from dronetrack.eval.classes import class_figures
@@ -120,6 +120,7 @@ def turret_pipeline(
         (turret.tilt.lower, turret.tilt.upper),
         rng,
         saved=load_saved(Path(file).expanduser()) if file is not None else None,
+        field_of_view=narrow_field_of_view(cfg.sensor.model),
     )
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from shapely import Polygon
 
 from dronetrack.config.pipeline import crop_box
-from dronetrack.config.rig import turret_spec
+from dronetrack.config.rig import FIELD_OF_VIEW_DEG, turret_spec
 from dronetrack.config.run import ScenarioConfig
 from dronetrack.config.site import SapientConfig, ZoneConfig
 from dronetrack.errors import ConfigError
@@ -135,18 +135,6 @@ def place(folder: RunFolder, cfg: ScenarioConfig) -> RunFolder:
     """``folder`` told where ``cfg``'s turret stands: its site and its base."""
     folder.site, folder.base = site_frame(cfg), turret_base(cfg)
     return folder
-
-
-# The sensors' fields of view, horizontal × vertical [°], from their datasheets
-# (shared/research: sensor_physics.md): the Avia's non-repetitive pattern, the Mid-40's
-# circle, the Mid-360's and the VLP-16's rings.
-FIELD_OF_VIEW_DEG = {
-    "avia": (70.4, 77.2),
-    "mid40": (38.4, 38.4),
-    "mid360": (360.0, 59.0),
-    "vlp16": (360.0, 30.0),
-    "vlp16-side": (360.0, 30.0),
-}
 
 
 def open_node(

@@ -27,6 +27,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -48,7 +49,7 @@ from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.detect.lock import SAME_TARGET_M, LockBook
 from dronetrack.detect.tentative import TentativeTracks, reach
 from dronetrack.errors import InputError
-from dronetrack.geometry.field import FieldOfRegard
+from dronetrack.geometry.field import FieldOfRegard, in_field_of_view
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.interrupt import stop_requested, stoppable
 from dronetrack.preprocess.background import VoxelBackground
@@ -135,6 +136,7 @@ class Pipeline:
         classifier: TrackClassifier | None = None,
         chooser: TargetChooser | None = None,
         learning: LearningBackground | None = None,
+        field_of_view: tuple[float, float] | None = None,
     ) -> None:
         self.tracker = tracker
         self.controller = controller
@@ -154,6 +156,7 @@ class Pipeline:
         self.chooser = chooser  # the track the turret serves among several
         # The background that keeps learning after the scan (``preprocess.learning``).
         self.learning = learning
+        self.field_of_view = field_of_view  # the sensor's [rad], where narrower than a circle
         self._look: Candidates | None = None  # where the served track is, out of view
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
@@ -296,20 +299,22 @@ class Pipeline:
             held = held_track(tracks, lock.estimate.position, apart)
         held_id = int(tracks.ids[held]) if held >= 0 else None
         served = self.chooser.choose(t, tracks, held_id)
-        if served is None or served == held_id:
+        if served is None:
             return offered
         k = int(np.flatnonzero(tracks.ids == served)[0])
+        mine = offered.take(np.flatnonzero(candidate_tracks(offered, found, tracks) == k))
+        if served == held_id:
+            return mine  # no other (not one that hovered: ``detect.lock``) while it serves
         if (
             lock.locked
             and lock.estimate is not None
             and np.linalg.norm(tracks.positions[k] - lock.estimate.position) <= apart
         ):
-            return offered  # the served track is where the tracker already is
+            return mine  # the served track is where the tracker already is
         if lock.locked:
             log.info("frame ending %.3f s: the turret turns to track %d", t, served)
             self.tracker.reset()
             lock.reset()
-        mine = offered.take(np.flatnonzero(candidate_tracks(offered, found, tracks) == k))
         if len(mine) == 0:
             self._look = Candidates(
                 tracks.positions[k : k + 1],
@@ -370,7 +375,10 @@ class Pipeline:
         if objects is None:
             return None
         t = frame.end
-        tracks = objects.step(t, found, confirmed, t_meas=t - 0.5 * frame.duration)
+        fov, pose = self.field_of_view, frame.poses[-1]
+        in_view = None if fov is None else partial(in_field_of_view, pose=pose, fov=fov)
+        t_meas = t - 0.5 * frame.duration
+        tracks = objects.step(t, found, confirmed, t_meas=t_meas, in_view=in_view)
         if self.classifier is None:
             return tracks
         sensor = frame.poses[-1, :3, 3]

@@ -21,6 +21,7 @@ from dronetrack.classify.classifier import TrackClassifier
 from dronetrack.classify.rules import ClassRules
 from dronetrack.config.pipeline import (
     AcquisitionConfig,
+    ChooseConfig,
     ControllerConfig,
     ControllerMode,
     PipelineConfig,
@@ -228,8 +229,12 @@ def build_pipeline(
     rng: np.random.Generator,
     start: float = 0.0,
     saved: SavedBackground | None = None,
+    field_of_view: tuple[float, float] | None = None,
 ) -> Pipeline:
     """The pipeline for frames of ``period`` seconds from a turret with this mount and limits.
+    ``field_of_view`` (horizontal, vertical) [rad] is the sensor's, where it is narrower
+    than a full circle (``config.rig.narrow_field_of_view``): a track out of it is not
+    missed.
 
     The background is ``saved`` (the site's map that ``background.file`` names, read by
     the job), else scanned for ``background.scan_s`` seconds after ``start``; with the
@@ -287,13 +292,14 @@ def build_pipeline(
         latency_s=cfg.latency.sensor_s + cfg.latency.processing_s,
         hull=HullCrop(cfg.crop.hull_m) if cfg.crop.hull_m is not None else None,
         acquisition=build_acquisition(
-            cfg.acquisition, cfg.tracker.v_max, cfg.tracks, cfg.tracker.a_max
+            cfg.acquisition, cfg.tracker.v_max, cfg.tracks, cfg.tracker.a_max, cfg.choose
         ),
         field=field_of_regard(cfg, mount.base),
         ranges=RangeImage(np.asarray(mount.base)) if scanning and bg_cfg.near_track else None,
         classifier=build_classifier(cfg, crop[0][2]),
         chooser=build_chooser(cfg),
         learning=learning,
+        field_of_view=field_of_view,
     )
 
 
@@ -343,6 +349,7 @@ def build_chooser(cfg: PipelineConfig) -> TargetChooser | None:
             hysteresis=c.hysteresis,
             hold_s=c.hold_s,
             look_s=c.look_s,
+            min_p=c.min_p,
         )
     )
 
@@ -372,14 +379,26 @@ def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | N
     )
 
 
+def unseen_s(tracks: TracksConfig, choose: ChooseConfig | None) -> float | None:
+    """How long a track out of the sensor's view lives (``TrackSettings.unseen_s``)."""
+    if tracks.unseen_s is not None:
+        return tracks.unseen_s
+    if choose is None or not choose.enabled:
+        return None
+    return choose.revisit_s + choose.look_s + tracks.coast_s
+
+
 def build_acquisition(
     cfg: AcquisitionConfig,
     v_max: float,
     tracks: TracksConfig | None = None,
     a_max: float = 15.0,
+    choose: ChooseConfig | None = None,
 ) -> Acquisition | None:
     """The detect stage's clustering and tentative tracks, and every object's track; None
-    when acquisition is off."""
+    when acquisition is off.  A track out of the sensor's view lives ``unseen_s``: by
+    default ``coast_s``, or, while the turret is shared (``choose``), until the look of
+    its revisit has ended and ``coast_s`` more, revisit_s + look_s + coast_s."""
     if not cfg.enabled:
         return None
     detector = CandidateDetector(
@@ -405,6 +424,7 @@ def build_acquisition(
         v_max=v_max,
         gate_m=cfg.gate_m,
         coast_s=tracks.coast_s,
+        unseen_s=unseen_s(tracks, choose),
         max_tracks=tracks.max_tracks,
         merge_m=cfg.eps_m,  # two objects closer than ε give one cluster
     )

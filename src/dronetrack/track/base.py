@@ -3,7 +3,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
 
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
@@ -64,10 +68,16 @@ class ObjectTracker(Protocol):
     turret follows."""
 
     def step(
-        self, t: float, found: Detections, confirmed: Candidates, t_meas: float | None = None
+        self,
+        t: float,
+        found: Detections,
+        confirmed: Candidates,
+        t_meas: float | None = None,
+        in_view: Callable[[FloatArray], NDArray[np.bool_]] | None = None,
     ) -> Tracks:
         """Take the clusters ``found`` of the frame ending at ``t`` (describing the time
-        ``t_meas``) and the detect stage's confirmed candidates; the tracks after it."""
+        ``t_meas``) and the detect stage's confirmed candidates; the tracks after it.
+        ``in_view`` tells which positions the sensor saw this frame (None: all)."""
         ...
 
     def snapshot(self, estimate: TrackEstimate | None = None) -> Tracks:

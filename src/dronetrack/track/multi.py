@@ -15,8 +15,12 @@ hover).  A matched track is updated (Joseph form, ``track.kalman``).  A track is
 a confirmed candidate of the detect stage (M-of-N, ``detect.tentative``) whose
 cluster no track took and lies farther than ``merge_m`` from every track (closer, it
 is a piece of that track's object: see below); it starts at the candidate's centroid
-with the tentative track's velocity.  A track **dies** ``coast_s`` after its last
-update, or when it has followed another track's object: two tracks whose positions
+with the tentative track's velocity.  A track **dies** once it has been missed for
+``coast_s``: in the sensor's field of view without an update since its last one
+(without a field of view given, all the time since), or ``unseen_s`` after its last
+update wherever it was: a drone the turret has turned away from lives on, to be looked
+at again (``control.choose``).  It also dies when it has followed another track's
+object: two tracks whose positions
 have stayed within ``merge_m`` of each other for ``merge_s`` are one object, as the
 clustering joins any two returns closer than its ε (``merge_m`` = ε in a run), so two
 objects that close give one cluster, never two.  The one with fewer updates ends (of
@@ -47,6 +51,7 @@ on the two-drone scenarios are in docs/results.md (Several objects).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,8 +72,10 @@ from dronetrack.track.cv_bank import (
 from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
 
 LockNote = tuple[int, FloatArray, FloatArray, float]  # held id, estimate p, v, its time
+InView = Callable[[FloatArray], NDArray[np.bool_]]  # positions (K, 3) → seen this frame
 
 __all__ = [
+    "InView",
     "MultiTargetTracker",
     "TrackSettings",
     "close_pairs",
@@ -81,7 +88,9 @@ class TrackSettings:
 
     sigma_acc: σ_a; sigma_meas: σ₀; gate_probability: the χ²₃ quantile of the
     Mahalanobis gate; v_max, gate_m: the speed gate (as the detect stage's);
-    coast_s: the longest a track lives without an update; stale_s: after this long
+    coast_s: the longest a track lives missed (in view without an update);
+    unseen_s: the longest it lives without an update, in view or not (None: coast_s);
+    stale_s: after this long
     without one, only a confirmed candidate's cluster updates it; birth_sigma_v: the
     velocity's σ at birth; max_tracks: the most tracks kept (the longest unseen die
     first; of equals, the least updated); merge_m, merge_s: two tracks this close for
@@ -94,6 +103,7 @@ class TrackSettings:
     v_max: float = 15.0
     gate_m: float = 1.0
     coast_s: float = 5.0
+    unseen_s: float | None = None
     stale_s: float = 0.3
     stale_gate_m: float = 5.0
     birth_sigma_v: float = 5.0
@@ -112,6 +122,10 @@ class TrackSettings:
         if self.merge_m < 0 or self.merge_s < 0:
             raise ConfigError(
                 f"tracks: need merge_m ≥ 0 and merge_s ≥ 0, got {self.merge_m}, {self.merge_s}"
+            )
+        if self.unseen_s is not None and not self.unseen_s >= self.coast_s:
+            raise ConfigError(
+                f"tracks: need unseen_s ≥ coast_s, got {self.unseen_s}, {self.coast_s}"
             )
         if self.gate_m < 0 or self.max_tracks < 1:
             raise ConfigError(
@@ -168,6 +182,9 @@ class MultiTargetTracker:
         self.updated = np.empty(0, dtype=bool)  # updated in the last step
         self.cluster = np.empty(0, dtype=np.intp)  # cluster index of that update (-1: none)
         self.hovered = np.empty(0, dtype=bool)  # a candidate of it hovered (detect.tentative)
+        self.away = np.empty(0)  # time out of view since the last update [s]
+        self.looked = np.empty(0, dtype=bool)  # in the sensor's view at the last step
+        self._t_step: float | None = None  # the clusters' time of the last step [s]
         self._together = {}
         self._lock = None
 
@@ -175,12 +192,18 @@ class MultiTargetTracker:
         return len(self.ids)
 
     def step(
-        self, t: float, found: Detections, confirmed: Candidates, t_meas: float | None = None
+        self,
+        t: float,
+        found: Detections,
+        confirmed: Candidates,
+        t_meas: float | None = None,
+        in_view: InView | None = None,
     ) -> Tracks:
         """Predict every track to the clusters' time ``t_meas`` (default ``t``), update it
         with the cluster assigned to it, start tracks on the confirmed candidates no track
-        explains, end those unseen for ``coast_s``, and predict them all to ``t``; the
-        tracks after the step.
+        explains, end those missed for ``coast_s`` or unseen for ``unseen_s``, and predict
+        them all to ``t``; the tracks after the step.  ``in_view`` tells which positions
+        (K, 3) the sensor saw this frame (None: all).
 
         A LiDAR frame's returns span its integration period, so its clusters' centroids
         describe its middle (a rosette crosses its dense centre many times a frame), not
@@ -197,11 +220,16 @@ class MultiTargetTracker:
         of = _cluster_of(confirmed, found)  # each candidate's cluster
         confirmed_cluster = np.zeros(len(found), dtype=bool)
         confirmed_cluster[of[of >= 0]] = True
-        near = (
-            np.linalg.norm(self.x[:, None, :3] - found.centroids[None, :, :], axis=2)
-            <= s.stale_gate_m
-        )
+        gap = np.linalg.norm(self.x[:, None, :3] - found.centroids[None, :, :], axis=2)
+        near = gap <= s.stale_gate_m
         cost[stale[:, None] & ~confirmed_cluster[None, :] & ~near] = INFEASIBLE
+        if s.unseen_s is not None and s.unseen_s > s.coast_s:
+            # a track that lived on out of view (unseen for longer than coast_s) takes a
+            # cluster only within |z − p̂| ≤ stale_gate_m + σ_v,birth (t − t_update) of
+            # its prediction: its covariance and its speed gate have grown to take anything
+            since = t_z - self.t_update
+            wide = s.stale_gate_m + s.birth_sigma_v * since
+            cost[(since > s.coast_s)[:, None] & (gap > wide[:, None])] = INFEASIBLE
         rows, cols = associate(cost)
         if len(rows):
             self.x[rows], self.P[rows] = cv_update(
@@ -215,7 +243,17 @@ class MultiTargetTracker:
         self.p_update[rows] = self.x[rows, :3]
         self.updates[rows] += 1
         self._note_hover(confirmed, of)
-        self._drop(t_z - self.t_update <= s.coast_s)
+        # missed = (t − t_update) − away, away += Δt where out of view, 0 where updated
+        self.looked = np.ones(len(self), dtype=bool)
+        if in_view is not None:
+            self.looked = in_view(self.x[:, :3])
+        if self._t_step is not None:
+            self.away += max(t_z - self._t_step, 0.0) * ~self.looked
+        self._t_step = t_z
+        self.away[self.updated] = 0.0
+        unseen = s.coast_s if s.unseen_s is None else s.unseen_s
+        since = t_z - self.t_update
+        self._drop((since - self.away <= s.coast_s) & (since <= unseen))
         self._drop(~self._duplicates(t_z))
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True
@@ -269,6 +307,7 @@ class MultiTargetTracker:
         self.updated[k] = True
         self.cluster[k] = clusters[i]
         self.hovered[k] |= bool(c.hovered[i])
+        self.away[k] = 0.0
         taken[i] = True
         return taken
 
@@ -356,6 +395,8 @@ class MultiTargetTracker:
         self.updated = np.concatenate([self.updated, np.ones(k, dtype=bool)])
         self.cluster = np.concatenate([self.cluster, of[new]])
         self.hovered = np.concatenate([self.hovered, c.hovered])
+        self.away = np.concatenate([self.away, np.zeros(k)])
+        self.looked = np.concatenate([self.looked, np.ones(k, dtype=bool)])
         excess = len(self) - s.max_tracks
         if excess > 0:  # the longest unseen die first; of equals, the least updated, then
             # the younger: an established track outlives the births of a cluttered frame
@@ -363,6 +404,11 @@ class MultiTargetTracker:
             keep = np.zeros(len(self), dtype=bool)
             keep[order[: s.max_tracks]] = True
             self._drop(keep)
+
+    def _missed_now(self) -> FloatArray:
+        """(K,) each track's time in view without an update, to the last step's clusters."""
+        t_z = self._t_step if self._t_step is not None else self.t
+        return np.asarray(t_z - self.t_update - self.away, dtype=np.float64)
 
     def _drop(self, keep: NDArray[np.bool_]) -> None:
         if keep.all():
@@ -379,6 +425,8 @@ class MultiTargetTracker:
             "updated",
             "cluster",
             "hovered",
+            "away",
+            "looked",
         ):
             setattr(self, name, getattr(self, name)[keep])
 
@@ -397,5 +445,7 @@ class MultiTargetTracker:
             locked=np.zeros(k, dtype=bool),
             clusters=np.where(self.updated, self.cluster, -1),
             last_seen=self.t_update.copy(),
+            missed_s=np.maximum(self._missed_now(), 0.0),
+            in_view=self.looked.copy(),
         )
         return tracks if estimate is None else tracks.with_locked(estimate, SAME_TARGET_M)
