@@ -3,6 +3,8 @@ looks that find nothing."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -165,6 +167,25 @@ def test_a_new_track_worth_a_look_is_served_after_the_hold() -> None:
     for k in range(30):
         tracks = _tracks(0.1 * k, pos, [DRONE, BIRD], [0.98, 0.12])
         assert birds.choose(0.1 * k, tracks, 1) is None
+
+
+def test_new_tracks_that_cannot_be_found_get_one_look_each_then_the_held_one_is_kept() -> None:
+    """Two new tracks the tracker never finds (the held track stays 1): each gets its
+    first look once, each look is given up after look_s, and the turret is back on the
+    held track for good, rather than taking turns between the two."""
+    s = ChooseSettings(revisit_s=100.0, hold_s=1.0, look_s=1.5)
+    chooser = TargetChooser(s)
+    pos, cls = [[60, 0, 20], [60, 40, 20], [60, -40, 20]], [DRONE, UNKNOWN, UNKNOWN]
+    served = []
+    for k in range(150):
+        t = 0.1 * k
+        seen = [t, 0.0, 0.0]  # tracks 2 and 3 last seen at 0, out of view since
+        served.append(chooser.choose(t, _tracks(t, pos, cls, [0.98, 0.5, 0.5], seen, [0, t, t]), 1))
+    looks = [i for i in (2, 3) if i in served]
+    assert looks == [2, 3]
+    turns = sum(1 for a, b in itertools.pairwise(served) if a != b)
+    assert turns <= 4  # 1 → a look → the other look → back (→ no choice)
+    assert set(served[-30:]) <= {1, None}
 
 
 def test_worth_a_look_is_a_drone_or_a_servable_track_not_told_yet() -> None:

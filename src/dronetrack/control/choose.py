@@ -226,6 +226,7 @@ class TargetChooser:
         self.held_at: dict[int, float] = {}  # when each track was last held [s]
         self.first_seen: dict[int, float] = {}
         self.given_up: dict[int, float] = {}  # track → its last_seen when a look failed
+        self.looked: set[int] = set()  # the tracks served so far, held or not
 
     def choose(self, t: float, tracks: Tracks, locked: int | None) -> int | None:
         """The identity of the track to serve after the frame ending at ``t`` (None: let
@@ -263,9 +264,10 @@ class TargetChooser:
             self.given_up[int(ids[current])] = float(tracks.last_seen[idx[current]])
             others = np.flatnonzero(ids != ids[current])
             return self._serve(t, int(ids[others[np.argmax(score[others])]]))
-        # due: not served for revisit_s, or never served at all
+        # due: not served for revisit_s, or never served at all (a first look is given
+        # once, so two tracks that cannot be found do not take turns for good)
         overdue = [
-            (t - self.held_at.get(int(i), self.first_seen[int(i)]), int(i) not in self.held_at, n)
+            (t - self.held_at.get(int(i), self.first_seen[int(i)]), self._new(int(i)), n)
             for n, i in enumerate(ids)
             if i != self.served
         ]
@@ -284,7 +286,12 @@ class TargetChooser:
         at = np.flatnonzero(ids == ident)
         return int(at[0]) if len(at) else None
 
+    def _new(self, ident: int) -> bool:
+        """Whether the track has never been served nor held."""
+        return ident not in self.looked and ident not in self.held_at
+
     def _serve(self, t: float, ident: int) -> int:
         if ident != self.served:
             self.served, self.since = ident, t
+        self.looked.add(ident)
         return ident
