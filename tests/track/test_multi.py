@@ -375,6 +375,35 @@ def test_tracks_within_the_clustering_radius_for_a_second_are_one_object() -> No
     assert together[-1] == [1]  # then one object, the older identity
 
 
+def _alternating(share_m: float, both_after: bool) -> list[list[int]]:
+    """Two objects 2 m apart, each its own cluster for 1 s (two tracks); then for 3 s
+    one cluster a frame, at one or the other in turn (``both_after``: both, every
+    frame)."""
+    layer = _Layer(merge_m=1.0, merge_s=1.0, share_m=share_m)
+    a, b = np.array([40.0, 0.0, 20.0]), np.array([40.0, 2.0, 20.0])
+    for k in range(10):
+        layer.step(k * T, np.stack([a, b]))
+    ids = []
+    for k in range(10, 40):
+        layer.step(k * T, np.stack([a, b]) if both_after else (a if k % 2 else b)[None, :])
+        ids.append(layer.tracks.ids.tolist())
+    return ids
+
+
+def test_two_tracks_that_take_one_cluster_in_turn_are_one_object() -> None:
+    """Within share_m (3 m) for merge_s (1 s) without a frame that updated both, two
+    tracks follow one object seen through one cluster (a track lagging a fast drone
+    and the one born beside it): the one with fewer updates ends (here a cluster 2 m
+    from the one left then starts a track again).  Two objects that give two clusters
+    a frame keep their two tracks; without the rule both live on."""
+    merged = _alternating(3.0, both_after=False)
+    first = next(k for k, ids in enumerate(merged) if len(ids) == 1)
+    assert merged[:first] == [[1, 2]] * first
+    assert (first + 1) * T == pytest.approx(1.0 + T)  # merge_s after the last frame of two
+    assert all(ids == [1, 2] for ids in _alternating(3.0, both_after=True))
+    assert all(ids == [1, 2] for ids in _alternating(0.0, both_after=False))
+
+
 def test_close_pairs_are_the_pairs_within_the_radius() -> None:
     p = np.array([[0.0, 0, 0], [0.9, 0, 0], [3.0, 0, 0], [3.0, 1.0, 0]])
     assert close_pairs(p, 1.0).tolist() == [[0, 1], [2, 3]]

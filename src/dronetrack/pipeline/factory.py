@@ -427,6 +427,7 @@ def build_acquisition(
         unseen_s=unseen_s(tracks, choose),
         max_tracks=tracks.max_tracks,
         merge_m=cfg.eps_m,  # two objects closer than ε give one cluster
+        share_m=tracks.share_m,
     )
     return Acquisition(detector, TentativeTracks(settings), MultiTargetTracker(objects))
 

@@ -15,20 +15,25 @@ hover).  A matched track is updated (Joseph form, ``track.kalman``).  A track is
 a confirmed candidate of the detect stage (M-of-N, ``detect.tentative``) whose
 cluster no track took and lies farther than ``merge_m`` from every track (closer, it
 is a piece of that track's object: see below); it starts at the candidate's centroid
-with the tentative track's velocity.  A track **dies** once it has been missed for
-``coast_s``: in the sensor's field of view without an update since its last one
-(without a field of view given, all the time since), or ``unseen_s`` after its last
-update wherever it was: a drone the turret has turned away from lives on, to be looked
-at again (``control.choose``).  It also dies when it has followed another track's
-object: two tracks whose positions
-have stayed within ``merge_m`` of each other for ``merge_s`` are one object, as the
-clustering joins any two returns closer than its ε (``merge_m`` = ε in a run), so two
-objects that close give one cluster, never two.  The one with fewer updates ends (of
-equals, the younger), and the object keeps the identity it had longest.  (On ``outdoor-clutter``
-a drone 60 m out, its cluster now and then split or missed, kept two tracks 0.5-0.9 m
-apart for 20 s, which took its cluster in turn.)  ``merge_s`` (1 s) keeps apart two
-objects that cross: at 2 m/s between them they are within 1 m of each other for
-1 s at most.  Identities are consecutive integers from 1, never reused in a run.
+with the tentative track's velocity.
+
+A track **dies** once it has been missed for ``coast_s``: in the sensor's field of view
+without an update since its last one (without a field of view given, all the time
+since), or ``unseen_s`` after its last update wherever it was: a drone the turret has
+turned away from lives on, to be looked at again (``control.choose``).  It also dies
+when it has followed another track's object.  Two tracks whose positions have stayed
+within ``merge_m`` of each other for ``merge_s`` are one object, as the clustering
+joins any two returns closer than its ε (``merge_m`` = ε in a run), so two objects
+that close give one cluster, never two.  Two tracks within ``share_m`` (3 m) for
+``merge_s`` that were never both updated in one frame meanwhile are one object too:
+they have taken its one cluster in turn (a track lagging a drone in fast flight, and
+the one born on its cluster beside it), where two objects would give two clusters.
+Of the two, the one with fewer updates ends (of equals, the younger), and the object
+keeps the identity it had longest.  (On ``outdoor-clutter`` a drone 60 m out, its
+cluster now and then split or missed, kept two tracks 0.5-0.9 m apart for 20 s,
+which took its cluster in turn.)  ``merge_s`` (1 s) keeps apart two objects that
+cross: at 2 m/s between them they are within 1 m of each other for 1 s at most.
+Identities are consecutive integers from 1, never reused in a run.
 
 **The lock carries an identity.**  The turret's tracker follows one object with its
 own filter (``note_lock``: after each frame its estimate and the track it holds, or,
@@ -94,7 +99,8 @@ class TrackSettings:
     without one, only a confirmed candidate's cluster updates it; birth_sigma_v: the
     velocity's σ at birth; max_tracks: the most tracks kept (the longest unseen die
     first; of equals, the least updated); merge_m, merge_s: two tracks this close for
-    this long follow one object.
+    this long follow one object; share_m: so do two this close for merge_s that take
+    one cluster in turn.
     """
 
     sigma_acc: float = 5.0
@@ -110,6 +116,7 @@ class TrackSettings:
     max_tracks: int = 64
     merge_m: float = 1.0
     merge_s: float = 1.0
+    share_m: float = 3.0
 
     def __post_init__(self) -> None:
         for name in ("sigma_acc", "sigma_meas", "v_max", "coast_s", "stale_s", "birth_sigma_v"):
@@ -166,6 +173,7 @@ class MultiTargetTracker:
         self._gate = settings.gate
         self._next_id = 1
         self._together: dict[tuple[int, int], float] = {}  # (id, id) → close since [s]
+        self._sharing: dict[tuple[int, int], float] = {}  # (id, id) → one cluster since [s]
         self._lock: LockNote | None = None
         self.reset()
 
@@ -186,6 +194,7 @@ class MultiTargetTracker:
         self.looked = np.empty(0, dtype=bool)  # in the sensor's view at the last step
         self._t_step: float | None = None  # the clusters' time of the last step [s]
         self._together = {}
+        self._sharing = {}
         self._lock = None
 
     def __len__(self) -> int:
@@ -313,19 +322,27 @@ class MultiTargetTracker:
 
     def _duplicates(self, t: float) -> NDArray[np.bool_]:
         """(K,) the tracks that end as duplicates at ``t``: of each pair within ``merge_m``
-        since ``merge_s`` ago (``close_pairs``), the one with fewer updates, of equals
-        the younger; the pairs' clocks are kept from frame to frame."""
+        since ``merge_s`` ago (``close_pairs``), or within ``share_m`` since ``merge_s``
+        ago without a frame in which both were updated (one cluster, taken in turn), the
+        one with fewer updates, of equals the younger; the pairs' clocks are kept from
+        frame to frame."""
         s = self.settings
         out = np.zeros(len(self), dtype=bool)
-        pairs = close_pairs(self.x[:, :3], s.merge_m) if len(self) > 1 else ()
-        if not len(pairs):
-            self._together = {}
-            return out
         ids = self.ids
-        now = {(int(ids[i]), int(ids[j])) for i, j in pairs}
+        p = self.x[:, :3]
+        close = close_pairs(p, s.merge_m) if len(self) > 1 else np.empty((0, 2), np.intp)
+        near = close_pairs(p, s.share_m) if len(self) > 1 and s.share_m > 0 else close[:0]
+        now = {(int(ids[i]), int(ids[j])) for i, j in close}
         self._together = {key: self._together.get(key, t) for key in now}
+        # a frame that updated both is evidence of two objects: the clock starts again
+        both = {(int(ids[i]), int(ids[j])) for i, j in near if self.updated[i] and self.updated[j]}
+        shared = {(int(ids[i]), int(ids[j])) for i, j in near} - both
+        self._sharing = {key: self._sharing.get(key, t) for key in shared}
+        if not now and not shared:
+            return out
         row = {int(k): n for n, k in enumerate(ids)}
-        for (a, b), since in sorted(self._together.items()):
+        clocks = {**self._sharing, **self._together}
+        for (a, b), since in sorted(clocks.items()):
             if t - since < s.merge_s:
                 continue
             i, j = row[a], row[b]
