@@ -4,6 +4,7 @@ looks that find nothing."""
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -230,3 +231,18 @@ def test_a_lock_on_a_drone_or_a_greater_threat_stays() -> None:
     birds = _tracks(0.0, [[190.0, 0, 10], [60.0, 0, 15]], [UNKNOWN, BIRD], [0.12, 0.1])
     assert drone_instead(np.array([1]), birds, 0, s) == -1  # no drone among the candidates
     assert drone_instead(np.array([0]), tracks, 0, s) == -1  # the held track is no other
+
+
+def test_the_books_keep_only_the_tracks_alive() -> None:
+    """A live rig runs for hours and identities are never reused: what the chooser
+    keeps of ended tracks is dropped."""
+    chooser = TargetChooser(ChooseSettings(hold_s=0.0))
+    pos = [[60, -40, 20], [60, 40, 20]]
+    for k in range(50):
+        t = 0.1 * k
+        tracks = _tracks(t, pos, [DRONE, DRONE], [0.98, 0.98])
+        tracks = replace(tracks, ids=np.array([2 * k + 1, 2 * k + 2]))
+        chooser.choose(t, tracks, 2 * k + 1)
+    assert set(chooser.first_seen) <= {99, 100}
+    assert set(chooser.held_at) <= {99, 100}
+    assert chooser.looked <= {99, 100}

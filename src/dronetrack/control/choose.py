@@ -233,7 +233,12 @@ class TargetChooser:
         the single-target acquisition decide); ``locked`` is the identity of the track the
         tracker holds."""
         s = self.settings
-        for ident in tracks.ids.tolist():
+        alive = set(tracks.ids.tolist())  # identities are never reused: forget the ended
+        self.first_seen = {i: v for i, v in self.first_seen.items() if i in alive}
+        self.held_at = {i: v for i, v in self.held_at.items() if i in alive}
+        self.given_up = {i: v for i, v in self.given_up.items() if i in alive}
+        self.looked &= alive
+        for ident in alive:
             self.first_seen.setdefault(ident, t)
         if locked is not None:
             self.held_at[locked] = t
