@@ -381,7 +381,7 @@ class Pipeline:
         tracks = objects.step(t, found, confirmed, t_meas=t_meas, in_view=in_view)
         if self.classifier is None:
             return tracks
-        sensor = frame.poses[-1, :3, 3]
+        sensor = pose[:3, 3]
         test = self._in_background if self._has_background else None
         return self.classifier.step(t, tracks, found, fg.world, fg.index, sensor, test)
 

@@ -253,16 +253,13 @@ class MultiTargetTracker:
         self.updates[rows] += 1
         self._note_hover(confirmed, of)
         # missed = (t − t_update) − away, away += Δt where out of view, 0 where updated
-        self.looked = np.ones(len(self), dtype=bool)
-        if in_view is not None:
-            self.looked = in_view(self.x[:, :3])
+        self.looked = np.ones(len(self), dtype=bool) if in_view is None else in_view(self.x[:, :3])
         if self._t_step is not None:
             self.away += max(t_z - self._t_step, 0.0) * ~self.looked
         self._t_step = t_z
         self.away[self.updated] = 0.0
         unseen = s.coast_s if s.unseen_s is None else s.unseen_s
-        since = t_z - self.t_update
-        self._drop((since - self.away <= s.coast_s) & (since <= unseen))
+        self._drop((self._missed_now() <= s.coast_s) & (t_z - self.t_update <= unseen))
         self._drop(~self._duplicates(t_z))
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True
