@@ -1,19 +1,15 @@
 """The pipeline: one frame in, the tracks and the turret's command out.
 
-- ``core``: ``Pipeline.step`` and ``run``, the one loop every job shares;
+- ``core``: ``Pipeline.step``, one frame through every stage;
+- ``selection``: which target the single-target tracker follows among the tracks;
+- ``loop``: ``run``, the one loop every job shares;
 - ``factory``: the pipeline's components built from a validated configuration;
 - ``kernels``: the numba kernels compiled (or loaded from numba's cache) before a
   timed loop.
 """
 
-from dronetrack.pipeline.core import (
-    Acquisition,
-    OutlierSettings,
-    Pipeline,
-    RunStats,
-    Stage,
-    StepResult,
-    run,
-)
+from dronetrack.pipeline.core import Acquisition, OutlierSettings, Pipeline
+from dronetrack.pipeline.loop import RunStats, Stage, run
+from dronetrack.types import StepResult
 
 __all__ = ["Acquisition", "OutlierSettings", "Pipeline", "RunStats", "Stage", "StepResult", "run"]

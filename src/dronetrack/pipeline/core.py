@@ -9,10 +9,12 @@ Per frame:
    and command the scanning raster; when the scan ends, build the model;
 4. otherwise subtract the background, optionally remove outliers, detect: cluster
    the foreground and keep the clusters as tentative tracks, confirmed when they
-   persist (``detect.tentative``); while the tracker is not locked, hand it the
-   confirmed candidates to start on (after a loss, only those the target could
-   have reached since its last fix); then step the tracker: predict once per
-   elapsed filter period (through gaps), update with the remaining points;
+   persist (``detect.tentative``); follow and class every object (``track.multi``,
+   ``classify``); choose the candidates the tracker starts or restarts on
+   (``pipeline.selection``: a drone's track first, else, after a loss, only those
+   the target could have reached since its last fix); then step the tracker:
+   predict once per elapsed filter period (through gaps), update with the
+   remaining points;
 5. command the turret: the estimate when locked, else a confirmed candidate, a
    look at a cue (a tentative track seen twice), or the search.
 
@@ -25,25 +27,14 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.classify.classifier import TrackClassifier
-from dronetrack.control.choose import (
-    DRONE,
-    ChooseSettings,
-    TargetChooser,
-    candidate_tracks,
-    drone_instead,
-    held_track,
-    not_static,
-    servable,
-)
+from dronetrack.control.choose import TargetChooser, not_static
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.detect.lock import SAME_TARGET_M, LockBook
@@ -51,14 +42,13 @@ from dronetrack.detect.tentative import TentativeTracks, reach
 from dronetrack.errors import InputError
 from dronetrack.geometry.field import FieldOfRegard, in_field_of_view
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.interrupt import stop_requested, stoppable
+from dronetrack.pipeline.selection import TargetSelection, rank
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop, ball_mask, box_mask
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.learning import LearningBackground, protected_balls
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.preprocess.range_image import RangeImage
-from dronetrack.seams import Actuator, Sink, Source
 from dronetrack.track.base import CandidateStart, ObjectTracker, Tracker
 from dronetrack.track.clock import FilterClock
 from dronetrack.types import (
@@ -72,12 +62,9 @@ from dronetrack.types import (
     TurretCommand,
 )
 
-__all__ = ["Acquisition", "OutlierSettings", "Pipeline", "RunStats", "Stage", "StepResult", "run"]
+__all__ = ["Acquisition", "OutlierSettings", "Pipeline", "StepResult"]
 
 log = logging.getLogger(__name__)
-# A lock on a track classed static this long [s] is given up: the turret holds a static
-# object at most this long after its class, within the second the issue allows.
-STATIC_HOLD_S = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,12 +139,11 @@ class Pipeline:
         self.clock = FilterClock(tracker.period)  # the filters' time, in whole periods
         self.acquisition = acquisition
         self.classifier = classifier  # each track's class (``classify``)
-        self._static_since: tuple[int, float] | None = None  # (held track, since when)
-        self.chooser = chooser  # the track the turret serves among several
+        # the target the tracker follows among the tracks, and the chooser's turns
+        self.selection = TargetSelection(chooser)
         # The background that keeps learning after the scan (``preprocess.learning``).
         self.learning = learning
         self.field_of_view = field_of_view  # the sensor's [rad], where narrower than a circle
-        self._look: Candidates | None = None  # where the served track is, out of view
         # The scan's range image, for the points near a locked target (``_near_track``).
         self.ranges = ranges if background is not None and not background.ready else None
 
@@ -220,8 +206,8 @@ class Pipeline:
                     t_cmd,
                     estimate,
                     points,
-                    self._look
-                    if self._look is not None
+                    self.selection.look
+                    if self.selection.look is not None
                     else self._reachable(frame.end, offered, found, tracks),
                     self._cues(frame.end, found, tracks),
                 )
@@ -244,13 +230,9 @@ class Pipeline:
     ) -> tuple[Detections | None, Candidates | None, Candidates | None, Tracks | None]:
         """Cluster the foreground and confirm candidates (a new period's frames only),
         update every object's track and its class, and offer the tracker the confirmed
-        candidates whose track is not static (``control.choose``): a lock on a static
-        track is given up; while the tracker is not locked it gets the offered ones
-        within reach of the last fix; while it is locked on what never hovered, it is
-        restarted on an offered candidate that did (``detect.lock``), and while it is
-        locked on what no drone-class track follows, on a more threatening candidate
-        whose track is classed drone (``control.choose.drone_instead``).  Returns the
-        clusters, the confirmed candidates, those offered and the tracks."""
+        candidates whose track is not static (``control.choose``), which the target
+        selection starts and restarts the tracker on (``pipeline.selection``).  Returns
+        the clusters, the confirmed candidates, those offered and the tracks."""
         if self.acquisition is None or steps == 0:
             return None, None, None, None
         t = frame.end
@@ -260,108 +242,8 @@ class Pipeline:
         if not isinstance(self.tracker, CandidateStart):
             return found, confirmed, offered, tracks
         lock = self.acquisition.lock
-        if self._held_static(t, tracks):
-            log.info("frame ending %.3f s: the locked target is no drone's; lock given up", t)
-            self.tracker.reset()
-            lock.reset()
-        offered = self._serve(t, found, tracks, offered)
-        other = lock.switch(offered)
-        why = "a target that hovered"
-        if other is None and self._look is None:
-            other, why = self._drone_instead(found, tracks, offered), "a drone's track"
-        if other is not None:
-            log.info("frame ending %.3f s: lock moved to %s", t, why)
-            self.tracker.reset()
-            lock.reset()
-            self.tracker.acquire(other)
-        elif not lock.locked:
-            start = lock.reachable(t, offered, _rank(offered, found, tracks))
-            if start is not None and len(start) > 0:
-                self.tracker.acquire(start)
+        offered = self.selection.step(t, found, tracks, offered, lock, self.tracker)
         return found, confirmed, offered, tracks
-
-    def _serve(
-        self, t: float, found: Detections, tracks: Tracks | None, offered: Candidates
-    ) -> Candidates:
-        """The candidates the tracker may take after the chooser's turn
-        (``control.choose``): with two tracks or more worth the turret, the one to serve;
-        when it is not the one held, the tracker lets go, takes the served track's
-        candidate if it has one this frame, and the turret looks where the track is
-        predicted (``_look``) until it has."""
-        self._look = None
-        if self.chooser is None or tracks is None:
-            return offered
-        lock = self.acquisition.lock if self.acquisition is not None else None
-        assert lock is not None
-        apart = self.chooser.settings.apart_m
-        held = -1
-        if lock.locked and lock.estimate is not None:
-            held = held_track(tracks, lock.estimate.position, apart)
-        held_id = int(tracks.ids[held]) if held >= 0 else None
-        served = self.chooser.choose(t, tracks, held_id)
-        if served is None:
-            return offered
-        k = int(np.flatnonzero(tracks.ids == served)[0])
-        mine = offered.take(np.flatnonzero(candidate_tracks(offered, found, tracks) == k))
-        if served == held_id:
-            return mine  # no other (not one that hovered: ``detect.lock``) while it serves
-        if (
-            lock.locked
-            and lock.estimate is not None
-            and np.linalg.norm(tracks.positions[k] - lock.estimate.position) <= apart
-        ):
-            return mine  # the served track is where the tracker already is
-        if lock.locked:
-            log.info("frame ending %.3f s: the turret turns to track %d", t, served)
-            self.tracker.reset()
-            lock.reset()
-        if len(mine) == 0:
-            self._look = Candidates(
-                tracks.positions[k : k + 1],
-                tracks.velocities[k : k + 1],
-                np.ones(1, dtype=np.int64),
-                np.zeros(1),
-                tracks.ids[k : k + 1],
-            )
-        return mine
-
-    def _drone_instead(
-        self, found: Detections, tracks: Tracks | None, offered: Candidates
-    ) -> Candidates | None:
-        """While locked on what no drone-class track follows, an offered candidate whose
-        track is classed drone and more threatening (``control.choose.drone_instead``),
-        to restart the tracker on; else None."""
-        lock = self.acquisition.lock if self.acquisition is not None else None
-        if tracks is None or lock is None or not lock.locked or lock.estimate is None:
-            return None
-        drones = tracks.classes == DRONE
-        if not drones.any() or len(offered) == 0:
-            return None  # the common case, decided without the geometry below
-        settings = self.chooser.settings if self.chooser is not None else ChooseSettings()
-        # the filter's estimate lags a fast drone by metres: within apart_m is the same
-        held = held_track(tracks, lock.estimate.position, settings.apart_m)
-        if held >= 0 and drones[held]:
-            return None
-        owner = candidate_tracks(offered, found, tracks)
-        away = np.linalg.norm(offered.positions - lock.estimate.position, axis=1) > settings.apart_m
-        pick = drone_instead(np.where(away, owner, -1), tracks, held, settings)
-        return offered.take(np.array([pick])) if pick >= 0 else None
-
-    def _held_static(self, t: float, tracks: Tracks | None) -> bool:
-        """Whether the locked target's track has been classed static, or out of the open
-        air (``control.choose.servable``), for ``STATIC_HOLD_S``
-        (a track may be classed static for a frame or two as it lifts off or stops)."""
-        lock = self.acquisition.lock if self.acquisition is not None else None
-        held = -1
-        if tracks is not None and lock is not None and lock.locked and lock.estimate is not None:
-            held = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
-        if held < 0 or tracks is None or servable(tracks)[held]:
-            self._static_since = None
-            return False
-        ident = int(tracks.ids[held])
-        if self._static_since is None or self._static_since[0] != ident:
-            self._static_since = (ident, t)
-        return t - self._static_since[1] >= STATIC_HOLD_S - 1e-9
 
     def _tracks(
         self, frame: Frame, fg: Foreground, found: Detections, confirmed: Candidates
@@ -448,7 +330,7 @@ class Pipeline:
         drones first (``found`` and ``tracks``: the frame's clusters and tracks)."""
         if self.acquisition is None or candidates is None:
             return candidates
-        return self.acquisition.lock.reachable(t, candidates, _rank(candidates, found, tracks))
+        return self.acquisition.lock.reachable(t, candidates, rank(candidates, found, tracks))
 
     def _cues(self, t: float, found: Detections | None, tracks: Tracks | None) -> Candidates | None:
         """Tentative tracks worth a look while the tracker is not locked, within reach of
@@ -543,19 +425,6 @@ class Pipeline:
         )
 
 
-def _rank(
-    candidates: Candidates, found: Detections | None, tracks: Tracks | None
-) -> FloatArray | None:
-    """Each candidate's track's p_drone (0.5 without one): the turret starts on the
-    likeliest drone, not on whatever the clustering listed first (None: no tracks)."""
-    if found is None or tracks is None or len(candidates) == 0:
-        return None
-    owner = candidate_tracks(candidates, found, tracks)
-    rank = np.full(len(candidates), 0.5)
-    rank[owner >= 0] = tracks.p_drone[owner[owner >= 0]]
-    return rank
-
-
 def _keep(fg: Foreground, keep: NDArray[np.bool_]) -> Foreground:
     """The foreground's points where ``keep``; the others count as outside the crop."""
     return replace(
@@ -568,78 +437,3 @@ def _keep(fg: Foreground, keep: NDArray[np.bool_]) -> Foreground:
 
 def _no_foreground() -> Foreground:
     return Foreground(np.empty((0, 3)), np.empty(0, dtype=np.int64), 0, 0, 0)
-
-
-class Stage(Protocol):
-    """What ``run`` steps: a ``Pipeline``, or anything else that turns frames into results."""
-
-    def step(self, frame: Frame) -> StepResult: ...
-
-
-@dataclass(frozen=True, slots=True)
-class RunStats:
-    """How a run went: frames done, the source time they span, the wall time they took."""
-
-    frames: int
-    start: float  # the first frame's start [s] on the source's clock; NaN if none
-    end: float  # the last frame's end [s]; NaN if none
-    wall_s: float
-    interrupted: bool  # Ctrl-C ended the run before the source did
-
-    @property
-    def span_s(self) -> float:
-        """Source time covered, first frame's start to last frame's end [s]."""
-        return self.end - self.start if self.frames else 0.0
-
-
-def run(
-    source: Source,
-    pipeline: Stage,
-    actuator: Actuator | None = None,
-    sinks: Sequence[Sink] = (),
-    *,
-    followers: Sequence[tuple[Stage, Sequence[Sink]]] = (),
-    progress: Callable[[int, int], None] | None = None,
-    total: int | None = None,
-) -> RunStats:
-    """The loop every command runs: for each frame of ``source``, step ``pipeline``, send
-    its command to ``actuator``, then hand the frame and the result to each sink.
-
-    ``followers`` are more stages fed the same frames, each with its own sinks; their
-    commands go nowhere, so they see exactly the frames the leading pipeline's turret
-    produced (a lockstep comparison).  ``progress`` is told (frames done, ``total``)
-    after each frame.  A Ctrl-C handled by ``dronetrack.interrupt`` ends the loop after
-    the frame in hand, so no sink holds half a frame.
-    """
-    for sink in sinks:  # a sink that takes tasks (a C2 link) gets the pipeline's look_at
-        attach = getattr(sink, "attach", None)
-        if attach is not None:
-            attach(pipeline)
-    begin = time.perf_counter()
-    n = 0
-    start = end = float("nan")
-    with stoppable():
-        for sample in source:
-            frame = sample.frame
-            result = pipeline.step(frame)
-            if actuator is not None and result.command is not None:
-                actuator.command(result.command)
-            if sample.received is not None:
-                # latency: the frame's last point's arrival to its command being sent
-                latency = 1000.0 * (time.perf_counter() - sample.received)
-                result = replace(result, latency_ms=latency)
-            for sink in sinks:
-                sink.write(sample, result)
-            for stage, stage_sinks in followers:
-                other = stage.step(frame)
-                for sink in stage_sinks:
-                    sink.write(sample, other)
-            n += 1
-            start = frame.stamp if n == 1 else start
-            end = frame.end
-            if progress is not None:
-                progress(n, max(n, total or 0))
-            if stop_requested():
-                break
-        interrupted = stop_requested()
-    return RunStats(n, start, end, time.perf_counter() - begin, interrupted)
