@@ -1,0 +1,125 @@
+"""Which target the single-target tracker follows among the tracks
+(``pipeline.selection``): the rules' known answers on hand-built frames."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from numpy.typing import ArrayLike
+
+from dronetrack.detect.lock import LockBook
+from dronetrack.detect.tentative import ConfirmationSettings
+from dronetrack.pipeline.selection import STATIC_HOLD_S, TargetSelection, rank
+from dronetrack.types import TRACK_CLASSES, Candidates, Detections, TrackEstimate, Tracks
+
+DRONE, STATIC = TRACK_CLASSES.index("drone"), TRACK_CLASSES.index("static")
+UNKNOWN = TRACK_CLASSES.index("unknown")
+
+
+class _Tracker:
+    """Records what the selection asks of the tracker."""
+
+    def __init__(self) -> None:
+        self.resets = 0
+        self.starts: list[Candidates] = []
+
+    def reset(self) -> None:
+        self.resets += 1
+
+    def acquire(self, candidates: Candidates) -> None:
+        self.starts.append(candidates)
+
+
+def _frame(
+    positions: ArrayLike, classes: list[int], p: list[float]
+) -> tuple[Detections, Candidates, Tracks]:
+    """One cluster, one confirmed candidate and one track per position, in that order,
+    each track updated by its own cluster."""
+    c = np.array(positions, dtype=float)
+    k = len(c)
+    found = Detections(
+        c, np.full(k, 10), np.ones((k, 3)), np.tile(np.eye(3), (k, 1, 1)), np.zeros(k)
+    )
+    ids = np.arange(1, k + 1)
+    offered = Candidates(c, np.zeros((k, 3)), np.full(k, 3), np.ones(k), ids, clusters=ids - 1)
+    tracks = Tracks(
+        ids=ids,
+        positions=c,
+        velocities=np.zeros((k, 3)),
+        covariances=np.tile(np.eye(6), (k, 1, 1)),
+        born=np.zeros(k),
+        updated=np.ones(k, dtype=bool),
+        hovered=np.zeros(k, dtype=bool),
+        locked=np.zeros(k, dtype=bool),
+        classes=np.array(classes, dtype=np.int64),
+        p_drone=np.array(p, dtype=float),
+        clusters=ids - 1,
+    )
+    return found, offered, tracks
+
+
+def _locked_on(position: list[float], t: float, since: float = 0.0) -> LockBook:
+    """A lock book whose tracker has held ``position`` from ``since`` to ``t``."""
+    lock = LockBook(ConfirmationSettings())
+    for time in (since, t):
+        p = np.array(position, dtype=float)
+        lock.update(TrackEstimate(time, p, np.zeros(3), True, 0.3), None)
+    return lock
+
+
+def test_rank_is_each_candidates_track_p_drone_and_even_without_one() -> None:
+    found, offered, tracks = _frame([[50, 0, 10], [80, 5, 20]], [DRONE, UNKNOWN], [0.98, 0.3])
+    assert rank(offered, found, tracks) == pytest.approx([0.98, 0.3])
+    lone = replace(tracks, clusters=np.array([0, -1]))  # the second cluster has no track
+    assert rank(offered, found, lone) == pytest.approx([0.98, 0.5])
+    assert rank(offered, found, None) is None
+
+
+def test_a_lock_on_no_drone_restarts_on_the_drone_track() -> None:
+    found, offered, tracks = _frame([[50, 0, 10], [80, 40, 20]], [UNKNOWN, DRONE], [0.5, 0.98])
+    lock, tracker = _locked_on([50, 0, 10], t=3.0), _Tracker()
+    TargetSelection().step(3.0, found, tracks, offered, lock, tracker)
+    assert tracker.resets == 1
+    assert not lock.locked
+    assert len(tracker.starts) == 1
+    np.testing.assert_allclose(tracker.starts[0].positions, [[80, 40, 20]])
+
+
+def test_a_lock_on_a_drone_track_stays() -> None:
+    found, offered, tracks = _frame([[50, 0, 10], [80, 40, 20]], [DRONE, DRONE], [0.98, 0.98])
+    lock, tracker = _locked_on([50, 0, 10], t=3.0), _Tracker()
+    TargetSelection().step(3.0, found, tracks, offered, lock, tracker)
+    assert tracker.resets == 0
+    assert tracker.starts == []
+    assert lock.locked
+
+
+def test_a_lock_on_a_static_track_is_given_up_after_the_hold() -> None:
+    found, offered, tracks = _frame([[50, 0, 0.5]], [STATIC], [0.01])
+    selection, tracker = TargetSelection(), _Tracker()
+    lock = _locked_on([50, 0, 0.5], t=2.0)
+    selection.step(2.0, found, tracks, offered, lock, tracker)
+    assert tracker.resets == 0
+    assert lock.locked
+    lock.update(
+        TrackEstimate(2.0 + STATIC_HOLD_S, np.array([50, 0, 0.5]), np.zeros(3), True, 0.3), None
+    )
+    selection.step(2.0 + STATIC_HOLD_S, found, tracks, offered, lock, tracker)
+    assert tracker.resets == 1
+    assert not lock.locked
+
+
+def test_unlocked_it_starts_within_the_lost_targets_reach_the_likeliest_drone_first() -> None:
+    # the lock's fix at (50, 0, 10) at t = 2; lost; at t = 3 the reach is 15 + 1 m
+    lock = _locked_on([50, 0, 10], t=2.0)
+    lock.update(TrackEstimate(2.5, np.array([50.0, 0, 10]), np.zeros(3), False, 5.0), None)
+    positions = [[55, 0, 10], [58, 3, 10], [150, 60, 20]]
+    found, offered, tracks = _frame(positions, [UNKNOWN, UNKNOWN, DRONE], [0.3, 0.6, 0.98])
+    tracker = _Tracker()
+    TargetSelection().step(3.0, found, tracks, offered, lock, tracker)
+    assert tracker.resets == 0
+    assert len(tracker.starts) == 1
+    # the drone-class track 104 m away waits; of the two within reach, p_drone first
+    np.testing.assert_allclose(tracker.starts[0].positions, [[58, 3, 10], [55, 0, 10]])
