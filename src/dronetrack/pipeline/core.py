@@ -201,19 +201,13 @@ class Pipeline:
                     self.acquisition.objects.note_lock(tracks, estimate)
             if steps > 0:
                 self._learn(frame, fg.world, seen, found, tracks, estimate)
-            command = (
-                self.controller.tracking(
-                    t_cmd,
-                    estimate,
-                    points,
-                    self.selection.look
-                    if self.selection.look is not None
-                    else self._reachable(frame.end, offered, found, tracks),
-                    self._cues(frame.end, found, tracks),
-                )
-                if steps > 0
-                else None
-            )
+            command = None
+            if steps > 0:  # the candidates to aim at matter only while not locked
+                aims = self.selection.look
+                if aims is None and not estimate.tracked:
+                    aims = self._reachable(frame.end, offered, found, tracks)
+                cues = self._cues(frame.end, found, tracks)
+                command = self.controller.tracking(t_cmd, estimate, points, aims, cues)
             result = self._result(
                 frame, "track", estimate, fg, points, command, start, flags, steps
             )
