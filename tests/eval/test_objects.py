@@ -3,6 +3,8 @@ drone's own figures and motmetrics' multi-object figures."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -102,6 +104,24 @@ def test_a_track_out_of_view_is_no_hypothesis() -> None:
     assert mot["false_positives"] == 0
     assert mot["misses"] == 0
     assert mot["drones"][0]["own_track_pct"] == 100.0
+
+
+def test_a_track_with_evidence_against_a_drone_is_no_hypothesis() -> None:
+    """Beside the drone's track, two tracks of no class: one the classes cannot tell
+    (p_drone 0.5) is a false positive, one with evidence against a drone (0.1: on the
+    ground, part of a structure, beyond reach) is not; nor is a bird, whatever its p."""
+    objects, tracks = ObjectsLog(), TracksLog()
+    unknown = TRACK_CLASSES.index("unknown")
+    for f in range(5):
+        drone = np.array([[40.0, 0.0, 10.0]])
+        objects.append(T * (f + 1), _truth(drone, [3], ("drone",)), np.zeros(3))
+        where = [[40.0, 0.0, 10.0], [80.0, 30.0, 5.0], [90.0, -30.0, 2.0], [60.0, 5.0, 20.0]]
+        these = hand_tracks([1, 2, 3, 4], where, [DRONE, unknown, unknown, BIRD])
+        these = replace(these, p_drone=np.array([0.98, 0.5, 0.1, 0.5]))
+        tracks.append(T * (f + 1), these)
+    mot = mot_figures(objects, tracks, radius=4.0)
+    assert mot["matches"] == 5
+    assert mot["false_positives"] == 5  # track 2's, one a frame
 
 
 def test_each_drones_figures_score_the_turrets_estimate_against_it() -> None:

@@ -4,10 +4,14 @@ of ``motmetrics`` (MOTA, MOTP, IDF1, identity switches).
 
 Multi-object scoring (CLEAR MOT and the identity metrics, Bernardin & Stiefelhagen
 2008, Ristani et al. 2016) is ``motmetrics``'s: each frame, the drones that return
-points are the ground truth and the tracks in the sensor's view not classed static or
-bird are the hypotheses (a static or bird class is the tracker's claim that a track is
-no drone; a track out of view, one the turret turned away from, is the tracker's memory
-of an object no frame can confirm or deny, as a drone out of view is no truth);
+points are the ground truth and the tracks in the sensor's view that the tracker holds
+possible drones are the hypotheses: those classed drone, and those not classed static
+or bird whose p_drone is at least ``HYPOTHESIS_MIN_P``, the classes' own bound below
+which a track has evidence against it (``classify.rules.ClassRules.bird_p``: on the
+ground, part of a structure, beyond the drone's reach; a static or bird class is
+the same claim).  A track out of view, one the turret turned away from, is the
+tracker's memory of an object no frame can confirm or deny, as a drone out of view is
+no truth;
 a pair may match within the correct radius, on the 3-D Euclidean distance.  MOTP is
 the mean distance of the matched pairs [m].
 """
@@ -21,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dronetrack.classify.rules import ClassRules
 from dronetrack.errors import MissingExtraError
 from dronetrack.eval.metrics import acquisition_metrics, scored_tracking
 from dronetrack.eval.tracks import TracksLog
@@ -28,8 +33,10 @@ from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES, ObjectTruth
 
 __all__ = [
+    "HYPOTHESIS_MIN_P",
     "NOT_DRONE_CLASSES",
     "ObjectsLog",
+    "drone_claims",
     "drone_figures",
     "drone_summary",
     "mot_figures",
@@ -37,6 +44,9 @@ __all__ = [
 
 # The classes by which a track claims to be no drone: not hypotheses of a drone.
 NOT_DRONE_CLASSES = (TRACK_CLASSES.index("static"), TRACK_CLASSES.index("bird"))
+_DRONE = TRACK_CLASSES.index("drone")
+# Below this p_drone a track of no class has evidence against being a drone.
+HYPOTHESIS_MIN_P = ClassRules().bird_p
 
 
 class ObjectsLog:
@@ -144,6 +154,15 @@ def _mm() -> Any:
     return motmetrics
 
 
+def drone_claims(rows: NDArray[Any]) -> NDArray[np.bool_]:
+    """(M,) which ``TracksLog`` rows the tracker holds possible drones (see the module
+    docstring): classed drone, or of no class with p_drone ≥ ``HYPOTHESIS_MIN_P``."""
+    cls = rows["cls"]
+    maybe = ~np.isin(cls, NOT_DRONE_CLASSES) & (rows["p_drone"] >= HYPOTHESIS_MIN_P)
+    out: NDArray[np.bool_] = (cls == _DRONE) | maybe
+    return out
+
+
 def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[str, Any]:
     """The multi-object figures of the drones (see the module docstring): ``mota``,
     ``motp_m``, ``idf1``, ``id_switches``, ``false_positives``, ``misses``, ``matches``,
@@ -160,7 +179,7 @@ def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[s
     assert objects.ids is not None
     for f in range(len(objects)):
         seen = drones[returns[f, drones] > 0]
-        here = rows[(frame_of == f) & ~np.isin(rows["cls"], NOT_DRONE_CLASSES) & rows["in_view"]]
+        here = rows[(frame_of == f) & drone_claims(rows) & rows["in_view"]]
         gt = positions[f, seen]
         d = np.linalg.norm(gt[:, None, :] - here["position"][None, :, :], axis=2)
         acc.update(

@@ -388,9 +388,10 @@ _MULTI_GROUPS = (
     MetricGroup(
         "Multi-object figures (motmetrics, over the drones)",
         ("mota", "motp_m", "idf1", "id_switches"),
-        "Each frame the drones that return points are the truth and the tracks not "
-        "classed static or bird the hypotheses, matched within the 4 m correct radius "
-        "(metrics.json's mot).",
+        "Each frame the drones that return points are the truth and the tracks in view "
+        "that the tracker holds possible drones the hypotheses (classed drone, or not "
+        "classed static or bird with p_drone ≥ 0.2), matched within the 4 m correct "
+        "radius (metrics.json's mot).",
     ),
     MetricGroup(
         "Classes",
