@@ -11,8 +11,9 @@ Per frame:
    the foreground and keep the clusters as tentative tracks, confirmed when they
    persist (``detect.tentative``); follow and class every object (``track.multi``,
    ``classify``); choose the candidates the tracker starts or restarts on
-   (``pipeline.selection``: a drone's track first, else, after a loss, only those
-   the target could have reached since its last fix); then step the tracker:
+   (``pipeline.selection``: while locked on what no drone-class track follows, a
+   drone's track; while not locked, after a loss, only those the target could have
+   reached since its last fix, the likeliest drone first); then step the tracker:
    predict once per elapsed filter period (through gaps), update with the
    remaining points;
 5. command the turret: the estimate when locked, else a confirmed candidate, a

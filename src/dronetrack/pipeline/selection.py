@@ -13,15 +13,17 @@ The tracker follows one target; the track layer follows every object and classes
    (``LockBook.switch``);
 4. otherwise, while locked on what no drone-class track follows, it restarts on the
    most threatening candidate whose track is classed drone
-   (``control.choose.drone_instead``);
+   (``control.choose.drone_instead``), unless the chooser is turning the turret to a
+   track (``look``);
 5. otherwise, while not locked, it starts on the candidates within the lost target's
    reach, the likeliest drones first (``LockBook.reachable``).
 
-Rule 5 holds for a drone-class track too: taking one beyond the reach at once was
-measured on ``outdoor-unscanned`` (seeds 0-9), where fragments of unmapped structures
-are classed drone for seconds before they are classed static.  The turret went to them
-instead of the drone it had lost (seed 2: lock-on while visible 89.1 → 69.9 %) and
-gained 0.8 s on the one seed where it found the drone sooner.
+Rule 5 holds for a drone-class track too.  Rule 4 applied while not locked (a
+drone-class track taken at once, wherever it is) was measured on ``outdoor-unscanned``
+(seeds 0-9), where fragments of unmapped structures are classed drone for seconds
+before they are classed static: the turret went to them instead of the drone it had
+lost (seed 2: lock-on while visible 89.1 → 69.9 %), and gained 0.8 s on the one seed
+where it found the drone sooner.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ __all__ = ["TrackSettings"]
 
 @dataclass(frozen=True, slots=True)
 class TrackSettings:
-    """The track layer's parameters (SI units; see the module docstring).
+    """The track layer's parameters (SI units; see ``track.multi``'s docstring).
 
     sigma_acc: σ_a; sigma_meas: σ₀; gate_probability: the χ²₃ quantile of the
     Mahalanobis gate; v_max, gate_m: the speed gate (as the detect stage's);
