@@ -244,6 +244,18 @@ def test_a_still_object_beyond_the_drones_reach_is_static() -> None:
     assert classify(life)[0][0] == STATIC
 
 
+def test_what_holds_still_beyond_the_drones_reach_is_static_however_its_returns_wander() -> None:
+    # a far structure's few returns land anywhere on it: its track creeps at 1 m/s, 3 m
+    # in 3 s, more than the still bound (2.2 m at 220 m), but it hovered
+    creep = np.array([1.0, 0.0, 0.0])
+    far = _life(3.0, np.array([220.0, 0.0, 8.0]), creep, 0.3)
+    assert far.hovered[0]
+    assert far.moved[0] > 0.01 * 220.0
+    assert classify(far)[0][0] == STATIC
+    near = _life(3.0, np.array([40.0, 5.0, 20.0]), creep, 0.1)  # in reach: a drone
+    assert classify(near)[0][0] == DRONE
+
+
 def test_a_fast_flier_that_never_hovered_is_a_bird_after_two_seconds() -> None:
     v = np.array([9.0, 4.0, 0.5])
     young = _life(1.5, np.array([40.0, -20.0, 25.0]), v, 0.1)
