@@ -14,6 +14,7 @@ from dronetrack.detect.lock import LockBook
 from dronetrack.detect.tentative import ConfirmationSettings
 from dronetrack.pipeline.selection import STATIC_HOLD_S, TargetSelection, rank
 from dronetrack.types import TRACK_CLASSES, Candidates, Detections, TrackEstimate, Tracks
+from track_helpers import hand_tracks
 
 DRONE, STATIC = TRACK_CLASSES.index("drone"), TRACK_CLASSES.index("static")
 UNKNOWN = TRACK_CLASSES.index("unknown")
@@ -48,18 +49,8 @@ def _frame(
     offered = Candidates(
         c, np.zeros((k, 3)), np.full(k, 3), np.ones(k), ids, hovered=flags, clusters=ids - 1
     )
-    tracks = Tracks(
-        ids=ids,
-        positions=c,
-        velocities=np.zeros((k, 3)),
-        covariances=np.tile(np.eye(6), (k, 1, 1)),
-        born=np.zeros(k),
-        updated=np.ones(k, dtype=bool),
-        hovered=np.zeros(k, dtype=bool),
-        locked=np.zeros(k, dtype=bool),
-        classes=np.array(classes, dtype=np.int64),
-        p_drone=np.array(p, dtype=float),
-        clusters=ids - 1,
+    tracks = replace(
+        hand_tracks(ids.tolist(), c, classes), p_drone=np.array(p, dtype=float), clusters=ids - 1
     )
     return found, offered, tracks
 
