@@ -29,7 +29,7 @@ Classes, in this order:
   is a hovering drone, not a static one.  Beyond reach, a track that hovered is static
   however far its clusters wander: the drone returns nothing there, no bird hovers,
   and a far structure's few returns land anywhere on it (on ``site-busy``, seeds 0-9,
-  this took the static tracks not classed within 3 s from 13.9 to 9.2 a run).
+  this took the static tracks not classed within 3 s from 13.8 to 9.5 a run).
 - **drone**: p_drone ≥ ``drone_p``;
 - **bird**: p_drone ≤ ``bird_p``, in the air, never slower than ``v_stall``, over
   ``min_observed`` clusters;
