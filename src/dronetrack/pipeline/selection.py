@@ -46,7 +46,7 @@ from dronetrack.detect.lock import SAME_TARGET_M, LockBook
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Candidates, Detections, Tracks
 
-__all__ = ["STATIC_HOLD_S", "Restartable", "TargetSelection", "rank"]
+__all__ = ["STATIC_HOLD_S", "Restartable", "TargetSelection", "held", "rank"]
 
 log = logging.getLogger(__name__)
 # A lock on a track classed static this long [s] is given up: the turret holds a static
@@ -59,6 +59,14 @@ class Restartable(Protocol):
 
     def reset(self) -> None: ...
     def acquire(self, candidates: Candidates) -> None: ...
+
+
+def held(tracks: Tracks, lock: LockBook, within: float) -> int:
+    """The index of the track the lock holds, the nearest its estimate within ``within``
+    [m] (``control.choose.held_track``); −1 when nothing is locked or none is that near."""
+    if not lock.locked or lock.estimate is None:
+        return -1
+    return held_track(tracks, lock.estimate.position, within)
 
 
 def rank(
@@ -135,12 +143,12 @@ class TargetSelection:
             return None  # the common case, decided without the geometry below
         settings = self.settings
         # the filter's estimate lags a fast drone by metres: within apart_m is the same
-        held = held_track(tracks, lock.estimate.position, settings.apart_m)
-        if held >= 0 and drones[held]:
+        k = held(tracks, lock, settings.apart_m)
+        if k >= 0 and drones[k]:
             return None
         away = np.linalg.norm(offered.positions - lock.estimate.position, axis=1) > settings.apart_m
         owner = candidate_tracks(offered, found, tracks)
-        pick = drone_instead(np.where(away, owner, -1), tracks, held, settings)
+        pick = drone_instead(np.where(away, owner, -1), tracks, k, settings)
         return offered.take(np.array([pick])) if pick >= 0 else None
 
     def _serve(
@@ -160,10 +168,8 @@ class TargetSelection:
         if self.chooser is None or tracks is None:
             return offered
         apart = self.chooser.settings.apart_m
-        held = -1
-        if lock.locked and lock.estimate is not None:
-            held = held_track(tracks, lock.estimate.position, apart)
-        held_id = int(tracks.ids[held]) if held >= 0 else None
+        h = held(tracks, lock, apart)
+        held_id = int(tracks.ids[h]) if h >= 0 else None
         served = self.chooser.choose(t, tracks, held_id)
         if served is None:
             return offered
@@ -195,13 +201,11 @@ class TargetSelection:
         """Whether the locked target's track has been classed static, or out of the open
         air (``control.choose.servable``), for ``STATIC_HOLD_S`` (a track may be classed
         static for a frame or two as it lifts off or stops)."""
-        held = -1
-        if tracks is not None and lock.locked and lock.estimate is not None:
-            held = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
-        if held < 0 or tracks is None or servable(tracks)[held]:
+        k = -1 if tracks is None else held(tracks, lock, SAME_TARGET_M)
+        if k < 0 or tracks is None or servable(tracks)[k]:
             self._static_since = None
             return False
-        ident = int(tracks.ids[held])
+        ident = int(tracks.ids[k])
         if self._static_since is None or self._static_since[0] != ident:
             self._static_since = (ident, t)
         return t - self._static_since[1] >= STATIC_HOLD_S - 1e-9
