@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dronetrack.classify.features import (
+    SEEN_GAP_S,
     LifeFeatures,
     TrackLives,
     nearest_gap,
@@ -256,14 +257,35 @@ def test_what_holds_still_beyond_the_drones_reach_is_static_however_its_returns_
     assert classify(near)[0][0] == DRONE
 
 
-def test_a_fast_flier_that_never_hovered_is_a_bird_after_two_seconds() -> None:
+def test_a_fast_flier_that_never_hovered_grows_bird_like_with_the_time_watched() -> None:
     v = np.array([9.0, 4.0, 0.5])
-    young = _life(1.5, np.array([40.0, -20.0, 25.0]), v, 0.1)
-    assert classify(young)[0][0] == UNKNOWN
-    life = _life(2.5, np.array([40.0, -20.0, 25.0]), v, 0.1)
-    classes, p = classify(life)
+    rules = ClassRules()
+    at = np.array([40.0, -20.0, 25.0])
+    # 2 s of steady flight is what a drone in flight does often: unknown, worth a look
+    young = _life(2.0, at, v, 0.1)
+    classes, p = classify(young, rules)
+    assert classes[0] == UNKNOWN
+    assert p[0] > rules.bird_p
+    # the odds fall by exp(−T/μ): p = 1 / (1 + exp(T/μ)), a bird once T > μ ln 4
+    life = _life(7.0, at, v, 0.1)
+    classes, p = classify(life, rules)
+    assert life.seen_s[0] == pytest.approx(7.0)
+    assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(7.0 / rules.steady_flight_s)))
     assert classes[0] == BIRD
-    assert p[0] < 0.2
+
+
+def test_the_time_watched_leaves_out_the_time_a_track_was_out_of_view() -> None:
+    lives = TrackLives()
+    v = np.array([9.0, 0.0, 0.0])
+    stamps = [0.1 * k for k in range(11)] + [5.0 + 0.1 * k for k in range(6)]
+    for t in stamps:  # watched 1 s, out of view 4 s, watched 0.5 s
+        p = np.array([40.0, 0.0, 25.0]) + v * t
+        tracks = _tracks([list(p)], [list(v)], [3])
+        obs = observe(tracks, _found([list(p)], [p[2] - 0.1]), np.zeros(3), np.zeros(1))
+        life = lives.update(t, tracks, obs)
+    assert life.age[0] == pytest.approx(5.5)
+    # Σ min(Δt, SEEN_GAP_S): the 4 s gap counts SEEN_GAP_S only
+    assert life.seen_s[0] == pytest.approx(1.5 + SEEN_GAP_S)
 
 
 def test_a_slow_walker_on_the_ground_is_neither_drone_nor_bird() -> None:

@@ -157,7 +157,7 @@ def test_a_drone_out_of_view_stays_a_candidate_and_is_looked_at_again() -> None:
 
 def test_a_new_track_worth_a_look_is_served_after_the_hold() -> None:
     """A track the classes cannot tell yet (unknown, p 0.5) appears while a drone is
-    held: it is looked at once the hold is over, not after revisit_s; a bird's flight
+    held: it is looked at once the hold is over, not after revisit_s; a track classed bird
     (p 0.12) is not."""
     chooser = TargetChooser(ChooseSettings(revisit_s=100.0, hold_s=1.0, hysteresis=1.5))
     pos = [[60, -40, 20], [60, 40, 20]]

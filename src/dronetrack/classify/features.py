@@ -67,7 +67,7 @@ from numpy.typing import NDArray
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Detections, Tracks
 
-__all__ = ["LifeFeatures", "Observations", "TrackLives", "observe", "view_floor"]
+__all__ = ["SEEN_GAP_S", "LifeFeatures", "Observations", "TrackLives", "observe", "view_floor"]
 
 BackgroundTest = Callable[[FloatArray], NDArray[np.bool_]]
 ALOFT_ALPHA = 0.3
@@ -76,6 +76,7 @@ CUT_MARGIN_RAD = math.radians(1.0)  # δ of the cut test
 PROP_DEPTH_M = 1.5  # d_p of the propped test
 PROP_RADIUS_M = 0.5  # r_min
 PROP_BEAM_RAD = 0.005  # θ_b
+SEEN_GAP_S = 0.3  # the longest gap between two updates that counts as watched (``seen_s``)
 
 
 @dataclass(frozen=True, slots=True)
@@ -258,6 +259,7 @@ class LifeFeatures:
     """Each track's life so far (K,), in the order of the ``Tracks`` they were asked for."""
 
     age: FloatArray  # since its first observation [s]
+    seen_s: FloatArray  # how long it was watched: its updates' spacing, each ≤ SEEN_GAP_S [s]
     observed: NDArray[np.int64]  # frames a cluster updated it
     moved: FloatArray  # d_max: the farthest it has been from its first position [m]
     range_m: FloatArray  # the farthest it was seen from the sensor [m]
@@ -287,6 +289,7 @@ class TrackLives:
         n = 0
         self.first_t = np.empty(n)
         self.last_t = np.empty(n)
+        self.seen_s = np.empty(n)
         self.first_p = np.empty((n, 3))
         self.moved = np.empty(n)
         self.observed = np.empty(n, dtype=np.int64)
@@ -315,6 +318,9 @@ class TrackLives:
         r = rows[u]
         first = self.observed[r] == 0
         self.first_p[r[first]] = obs.centroid[u][first]
+        # watched: Σ min(t_k − t_{k−1}, SEEN_GAP_S) over its updates (not the time it was
+        # out of view or missed)
+        self.seen_s[r] += np.where(first, 0.0, np.minimum(t - self.last_t[r], SEEN_GAP_S))
         self.last_t[r] = t
         self.observed[r] += 1
         self.moved[r] = np.maximum(
@@ -341,6 +347,7 @@ class TrackLives:
         n = np.maximum(self.observed[rows], 1)
         return LifeFeatures(
             age=t - self.first_t[rows],
+            seen_s=self.seen_s[rows].copy(),
             observed=self.observed[rows].copy(),
             moved=self.moved[rows].copy(),
             range_m=self.range_m[rows].copy(),
@@ -364,6 +371,7 @@ class TrackLives:
         self._row[ident] = row
         self.first_t = np.append(self.first_t, t)
         self.last_t = np.append(self.last_t, t)
+        self.seen_s = np.append(self.seen_s, 0.0)
         self.first_p = np.concatenate([self.first_p, np.full((1, 3), np.nan)])
         self.moved = np.append(self.moved, 0.0)
         for name in _COUNTS:
@@ -382,7 +390,7 @@ class TrackLives:
             return
         keep_ids = [i for i in self._row if i in alive]
         keep = np.array([self._row[i] for i in keep_ids], dtype=np.intp)
-        rest = ("first_t", "last_t", "first_p", "moved", "extent", "range_m", "hovered")
+        rest = ("first_t", "last_t", "seen_s", "first_p", "moved", "extent", "range_m", "hovered")
         for name in (*rest, "min_speed", "aloft", *_COUNTS):
             setattr(self, name, getattr(self, name)[keep])
         self._row = {i: n for n, i in enumerate(keep_ids)}

@@ -17,8 +17,15 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
                                         never makes a track static)
     beyond reach (≥ half)         −6    a drone returns nothing there
     larger than a drone           −4    extent > ``max_extent_m``
-    moving, never hovered, ≥ 2 s  −2    a bird's flight (a drone that flew fast all along
-                                        stays possible)
+    moving, never hovered      −T / μ   a bird's flight: watched T seconds (``seen_s``)
+                                        and never slower than a bird's stall speed, which
+                                        a drone in flight does now and then.  Its fast
+                                        stretches last T or more in a share exp(−T / μ)
+                                        of its flight, μ = ``steady_flight_s`` (4.3 s:
+                                        the simulator's drone flights,
+                                        ``experiments.calibrate``), so the odds of a
+                                        drone fall by that share: a steady flier reaches
+                                        ``bird_p`` (0.2) after μ ln 4 = 6 s
 
 Classes, in this order:
 
@@ -62,7 +69,6 @@ W_PROPPED = -3.0
 W_CROWDED = -3.0
 W_BEYOND_REACH = -6.0
 W_TOO_LARGE = -4.0
-W_BIRD_FLIGHT = -2.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,8 +80,9 @@ class ClassRules:
     far a static object's clusters wander (the pattern samples it in other places),
     at least still_m and still_rad × its range (0.01 rad: twice the Avia's 0.28°
     beam; 2 m at 200 m);
-    static_after_s: how long it must hold still; bird_after_s: how long a moving track
-    that never hovered is watched before it counts as a bird's flight; min_observed:
+    static_after_s: how long it must hold still; steady_flight_s: μ, how long a drone
+    in flight flies without slowing below a bird's stall speed (``experiments.calibrate``;
+    the bird-flight evidence is −T/μ after T seconds watched); min_observed:
     the clusters a track needs before it is called static or a bird; v_stall: the
     slowest a bird flies [m/s]; drone_p, bird_p: the classes' thresholds on p_drone.
     """
@@ -84,19 +91,18 @@ class ClassRules:
     still_m: float = 1.0
     still_rad: float = 0.01
     static_after_s: float = 1.0
-    bird_after_s: float = 2.0
+    steady_flight_s: float = 4.3
     min_observed: int = 5
     v_stall: float = 4.0
     drone_p: float = 0.8
     bird_p: float = 0.2
 
     def __post_init__(self) -> None:
-        for name in ("max_extent_m", "still_m", "v_stall"):
+        for name in ("max_extent_m", "still_m", "v_stall", "steady_flight_s"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"classify: {name} must be positive, got {getattr(self, name)}")
-        for name in ("static_after_s", "bird_after_s"):
-            if not getattr(self, name) >= 0:
-                raise ConfigError(f"classify: {name} must be ≥ 0, got {getattr(self, name)}")
+        if not self.static_after_s >= 0:
+            raise ConfigError(f"classify: static_after_s must be ≥ 0, got {self.static_after_s}")
         if not 0.0 <= self.bird_p < self.drone_p <= 1.0:
             raise ConfigError(
                 f"classify: need 0 ≤ bird_p < drone_p ≤ 1, got {self.bird_p}, {self.drone_p}"
@@ -129,7 +135,7 @@ def classify(
     wander = np.maximum(extent, rules.still_rad * np.nan_to_num(life.range_m, nan=0.0))
     still = life.moved <= np.maximum(rules.still_m, wander)
     seen = life.observed >= rules.min_observed
-    flying = ~still & ~life.hovered & (life.age >= rules.bird_after_s) & seen
+    flying = ~still & ~life.hovered & seen
     logit = (
         W_HOVERED * (life.hovered & ~grounded & ~cut)
         + W_GROUNDED * grounded
@@ -138,7 +144,7 @@ def classify(
         + W_CROWDED * crowded
         + W_BEYOND_REACH * beyond
         + W_TOO_LARGE * large
-        + W_BIRD_FLIGHT * flying
+        - np.where(flying, life.seen_s / rules.steady_flight_s, 0.0)  # −T/μ
     )
     p = 1.0 / (1.0 + np.exp(-logit))
     classes = np.full(len(p), UNKNOWN, dtype=np.int64)

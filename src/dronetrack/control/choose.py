@@ -95,7 +95,7 @@ def worth_a_look(tracks: Tracks, min_p: float) -> NDArray[np.bool_]:
     """(K,) the tracks the turret shares itself among: those classed drone, and those
     it may serve (``servable``) with p_drone ≥ ``min_p``: with the default 0.2 a track
     the classes cannot tell yet (unknown, 0.5), not one with evidence against it (a
-    bird's flight, 0.12; grounded, joined or propped, ≤ 0.05)."""
+    steady flight watched for over 6 s, < 0.2; grounded, joined or propped, ≤ 0.05)."""
     maybe = servable(tracks) & (tracks.p_drone >= min_p)
     out: NDArray[np.bool_] = (tracks.classes == DRONE) | maybe
     return out
