@@ -41,9 +41,11 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
   from the first one (the measurements, not the filter's state: a filter that follows
   a far object's jittering centroid gains a velocity and carries the state away).
 
-Over a track's life these give its age, how far it ever moved from its first
-position (d_max), the shares of its observations grounded, joined, crowded, cut,
-propped or beyond reach, its largest extent, *aloft*: the share of its recent
+Over a track's life these give its age, how long it was watched (the spacing of its
+updates, each counted up to ``SEEN_GAP_S``, so not the time it was out of view or
+missed), how far it ever moved from its first position (d_max), the shares of its
+observations grounded, joined, crowded, cut, propped or beyond reach, its largest
+extent, *aloft*: the share of its recent
 observations not grounded (an exponential average over about the last three,
 a ← (1 − α) a + α [not grounded], α = ``ALOFT_ALPHA``, from a = 1: off the ground
 until seen on it), so a drone that lifted off is off the ground again within a few
