@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from dronetrack.classify.rules import ClassRules
+from dronetrack.errors import InputError
 from dronetrack.experiments.calibrate import (
     fast_stretches,
     flights_steady_flight_s,
@@ -32,7 +33,7 @@ def test_exponential_runs_give_back_their_mean() -> None:
 
 
 def test_no_fast_flight_is_refused() -> None:
-    with pytest.raises(ValueError, match="no fast flight"):
+    with pytest.raises(InputError, match="no fast flight"):
         steady_flight_scale([np.zeros(0)], horizon_s=5.0)
 
 

@@ -23,6 +23,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from dronetrack.classify.rules import ClassRules
+from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.sim.flights import FLIGHTS, make_flight
 
@@ -55,7 +57,7 @@ def steady_flight_scale(flights: list[FloatArray], horizon_s: float) -> float:
         if len(s):
             curves.append(1.0 - np.searchsorted(s, t, side="left") / len(s))  # P(stretch ≥ T)
     if not curves:
-        raise ValueError("no fast flight to measure")
+        raise InputError("no fast flight to measure the steady flight on")
     survival = np.mean(curves, axis=0)
     keep = survival > 0
     t, survival = t[keep], survival[keep]
@@ -64,7 +66,7 @@ def steady_flight_scale(flights: list[FloatArray], horizon_s: float) -> float:
 
 def flights_steady_flight_s(
     seeds: Iterable[int] = CALIBRATION_SEEDS,
-    v_stall: float = 4.0,
+    v_stall: float = ClassRules().v_stall,
     duration_s: float = 60.0,
     dt: float = 0.1,
 ) -> float:
