@@ -9,9 +9,9 @@ possible drones are the hypotheses: those classed drone, and those not classed s
 or bird whose p_drone is at least ``HYPOTHESIS_MIN_P``, the classes' own bound below
 which a track has evidence against it (``classify.rules.ClassRules.bird_p``: on the
 ground, part of a structure, beyond the drone's reach, a steady flight watched for
-over 6 s; a static or bird class is the same claim).  A track out of view, one the turret turned away from, is the
-tracker's memory of an object no frame can confirm or deny, as a drone out of view is
-no truth;
+over 6 s; a static or bird class is the same claim).  A track out of view, one the
+turret turned away from, is the tracker's memory of an object no frame can confirm or
+deny, as a drone out of view is no truth;
 a pair may match within the correct radius, on the 3-D Euclidean distance.  MOTP is
 the mean distance of the matched pairs [m].
 """
