@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dronetrack.classify.features import (
+    CROWD_RAD,
     SEEN_GAP_S,
     LifeFeatures,
     TrackLives,
@@ -104,6 +105,19 @@ def test_a_cluster_with_a_neighbour_within_the_gap_is_crowded() -> None:
     assert obs.crowded.tolist() == [True, True, False]
 
 
+def test_near_the_sensor_a_cluster_a_metre_away_is_another_object_not_a_fragment() -> None:
+    # gap ≤ min(g_c, θ_c r): a drone 2.4 m out with a person 1 m beside it; the same
+    # pair 150 m out, where the sampling leaves gaps that wide in one object
+    near = [[2.4, 0, 1.5], [2.4, 1.4, 1.0]]
+    far = [[150.0, 0, 12], [150.0, 1.4, 12]]
+    for pos, crowded in ((near, False), (far, True)):
+        tracks = _tracks(pos, [[0, 0, 0]] * 2, [1, 2])
+        found = _found(pos, [p[2] - 0.2 for p in pos])
+        obs = observe(tracks, found, np.zeros(3), np.zeros(3), crowd_gap_m=2.0)
+        assert obs.crowded.tolist() == [crowded, crowded]
+    assert CROWD_RAD * 2.4 < 1.0 < CROWD_RAD * 150.0
+
+
 def test_a_still_fragment_among_fragments_in_the_air_is_no_hovering_drone() -> None:
     lives = TrackLives(hover_speed=4.0, hover_frames=3)
     pos = [[150.0, 0, 12], [152.0, 0, 12], [60.0, 20, 15]]
@@ -115,10 +129,12 @@ def test_a_still_fragment_among_fragments_in_the_air_is_no_hovering_drone() -> N
         life = lives.update(k * T, tracks, obs)
     assert life is not None
     classes, p = classify(life)
-    # −3 against the hover's +4: unknown, not drone; nor static, which crowded alone
-    # never makes (two drones hovering close are crowded too)
+    # crowded: −3, and its hover tells it from a bird only, not from the world, which
+    # holds still too: unlikely (below a look's 0.2), not drone; nor static, which
+    # crowded alone never makes (two drones hovering close are crowded too)
     assert classes.tolist() == [UNKNOWN, UNKNOWN, DRONE]
-    assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(-1.0)))
+    assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(3.0)))
+    assert p[0] < 0.2
     assert p[2] > 0.95
 
 
@@ -153,7 +169,8 @@ def test_the_top_of_a_mast_stands_on_its_pole_and_a_drone_has_free_air_below() -
     assert life is not None
     classes, p = classify(life)
     assert classes.tolist() == [STATIC, DRONE]
-    assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(-1.0)))  # +4 hovered, −3 propped
+    # −3 propped; its hover says nothing of a structure, which holds still too
+    assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(3.0)))
 
 
 def test_the_view_floor_is_the_lowest_elevation_in_each_azimuth_sector() -> None:

@@ -5,9 +5,18 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
 
     ln(p / (1 − p)) = Σ_i w_i · [feature i holds]
 
-    hovered in the air            +4    no bird can fly below its stall speed (not when
-                                        the view's floor cuts it in half its frames:
-                                        what is below it is not seen)
+    hovered in free space         +4    no bird can fly below its stall speed.  The
+                                        world holds still too, so it counts only where
+                                        nothing says the track is part of the world
+                                        (grounded, joined, propped, crowded, or cut by
+                                        the view's floor, in half its frames: what is
+                                        below it is not seen).  On ``outdoor-unscanned``
+                                        (seeds 0-9) the fragments of an unmapped tree
+                                        line 125-190 m out hovered and were crowded:
+                                        p 0.73 outranked the unknown drone (0.5), the
+                                        turret started on them, and the learning map
+                                        never took them in (a possible drone's returns
+                                        are not learnt)
     grounded (≥ half its frames)  −4    its bottom is the ground or the crop floor
     joined (≥ half its frames)    −3    a map cell beside or below it: part of a structure
     propped (≥ half its frames)   −3    returns just below it: a mast's or a tree's top
@@ -137,7 +146,7 @@ def classify(
     seen = life.observed >= rules.min_observed
     flying = ~still & ~life.hovered & seen
     logit = (
-        W_HOVERED * (life.hovered & ~grounded & ~cut)
+        W_HOVERED * (life.hovered & ~(grounded | cut | joined | propped | crowded))
         + W_GROUNDED * grounded
         + W_JOINED * joined
         + W_PROPPED * propped

@@ -304,11 +304,19 @@ class Pipeline:
         tracks: Tracks | None,
         estimate: TrackEstimate,
     ) -> None:
-        """Show the learning map the frame, with what it must not learn: every track not
-        classed static, and the turret's target unless its track is."""
+        """Show the learning map the frame, with what it must not learn: every track that
+        may be a drone (``preprocess.learning.protected_balls``, with the chooser's least
+        p_drone of a track worth a look), and the turret's target unless its track is
+        classed static."""
         if self.learning is None or tracks is None or found is None:
             return
-        centres, radii = protected_balls(tracks, found, estimate, self.learning.settings.resolution)
+        centres, radii = protected_balls(
+            tracks,
+            found,
+            estimate,
+            self.learning.settings.resolution,
+            self.selection.settings.min_p,
+        )
         if self.learning.observe(
             frame.end, world, frame.points, frame.poses[-1], seen, centres, radii
         ):
