@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -18,7 +20,8 @@ from dronetrack.preprocess.learning import (
     protected_balls,
     window_update,
 )
-from dronetrack.types import TRACK_CLASSES, Detections, TrackEstimate, Tracks
+from dronetrack.types import TRACK_CLASSES, Detections, TrackEstimate
+from track_helpers import hand_tracks
 
 PERIOD = 0.1
 NO_BALLS = (np.empty((0, 3)), np.empty(0))
@@ -242,17 +245,9 @@ def test_only_what_may_be_a_drone_is_protected() -> None:
     drone, unknown, static = (TRACK_CLASSES.index(c) for c in ("drone", "unknown", "static"))
     k = 4
     positions = np.array([[50.0, 0, 10], [60.0, 5, 12], [80.0, -5, 3], [90.0, 10, 2]])
-    tracks = Tracks(
-        ids=np.arange(1, k + 1),
-        positions=positions,
-        velocities=np.zeros((k, 3)),
-        covariances=np.tile(np.eye(6), (k, 1, 1)),
-        born=np.zeros(k),
-        updated=np.ones(k, dtype=bool),
-        hovered=np.zeros(k, dtype=bool),
-        locked=np.zeros(k, dtype=bool),
+    tracks = replace(
+        hand_tracks(range(1, k + 1), positions, [drone, unknown, unknown, static]),
         clusters=np.arange(k),
-        classes=np.array([drone, unknown, unknown, static]),
         p_drone=np.array([0.98, 0.5, 0.05, 0.01]),
     )
     found = Detections(
