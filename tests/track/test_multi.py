@@ -292,6 +292,25 @@ def test_a_full_layer_keeps_its_established_tracks_over_a_frame_of_births() -> N
     assert len(layer.tracks) == 4  # the crowd's births fill the rest
 
 
+def test_at_the_cap_the_tracks_the_classes_hold_no_drone_die_first() -> None:
+    # A full layer of established tracks on fragments of a far structure, then a drone
+    # comes into view: without the classes' word the fragments, updated longer, outlive
+    # the drone's new track; once they are noted unlikely, the drone's track is kept.
+    fragments = np.array([[150.0, 10.0 * i, 5.0] for i in range(4)])
+    drone = np.array([[40.0, -20.0, 15.0]])
+    for unlikely, kept in ((False, False), (True, True)):
+        layer = _Layer(max_tracks=4)
+        for k in range(10):
+            layer.step(k * T, fragments)
+        if unlikely:
+            layer.tracks.note_unlikely(layer.tracks.ids.copy())
+        for k in range(10, 14):
+            layer.step(k * T, np.concatenate([fragments, drone]))
+        near = np.linalg.norm(layer.tracks.snapshot().positions - drone, axis=1) < 1.0
+        assert bool(near.any()) is kept
+        assert len(layer.tracks) == 4
+
+
 def test_the_locked_track_is_the_one_at_a_locked_estimate() -> None:
     layer = _Layer()
     for k in range(3):

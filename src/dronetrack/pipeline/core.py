@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.classify.classifier import TrackClassifier
-from dronetrack.control.choose import TargetChooser, not_static
+from dronetrack.control.choose import TargetChooser, not_static, worth_a_look
 from dronetrack.control.controller import Controller
 from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.detect.lock import SAME_TARGET_M, LockBook
@@ -200,6 +200,8 @@ class Pipeline:
                 tracks = tracks.with_locked(estimate, SAME_TARGET_M)
                 if self.acquisition is not None and self.acquisition.objects is not None:
                     self.acquisition.objects.note_lock(tracks, estimate)
+                    unlikely = ~worth_a_look(tracks, self.selection.settings.min_p)
+                    self.acquisition.objects.note_unlikely(tracks.ids[unlikely])
             if steps > 0:
                 self._learn(frame, fg.world, seen, found, tracks, estimate)
             command = None

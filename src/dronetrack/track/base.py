@@ -89,6 +89,10 @@ class ObjectTracker(Protocol):
         and its estimate."""
         ...
 
+    def note_unlikely(self, ids: NDArray[np.int64]) -> None:
+        """The tracks the classes hold no drone after a frame: at the cap they die first."""
+        ...
+
     def reset(self) -> None:
         """Forget every track."""
         ...

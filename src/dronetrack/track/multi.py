@@ -115,6 +115,7 @@ class MultiTargetTracker:
         self._together: dict[tuple[int, int], float] = {}  # (id, id) → close since [s]
         self._sharing: dict[tuple[int, int], float] = {}  # (id, id) → one cluster since [s]
         self._lock: LockNote | None = None
+        self._unlikely: NDArray[np.int64] = np.empty(0, dtype=np.int64)
         self.reset()
 
     def reset(self) -> None:
@@ -222,6 +223,11 @@ class MultiTargetTracker:
         elif last is not None and np.any(self.ids == last[0]):
             # still locked, the track it held left behind: the lock keeps its identity
             self._lock = (last[0], p, v, float(estimate.t))
+
+    def note_unlikely(self, ids: NDArray[np.int64]) -> None:
+        """The tracks the classes hold no drone after a frame (classed static, or with
+        evidence against a drone): at the cap they die first."""
+        self._unlikely = np.asarray(ids, dtype=np.int64).copy()
 
     def _hand_over(
         self, t: float, c: Candidates, clusters: NDArray[np.intp], R: FloatArray
@@ -352,9 +358,11 @@ class MultiTargetTracker:
         self.away = np.concatenate([self.away, np.zeros(k)])
         self.looked = np.concatenate([self.looked, np.ones(k, dtype=bool)])
         excess = len(self) - s.max_tracks
-        if excess > 0:  # the longest unseen die first; of equals, the least updated, then
-            # the younger: an established track outlives the births of a cluttered frame
-            order = np.lexsort((self.ids, -self.updates, -self.t_update))
+        if excess > 0:  # those the classes hold no drone die first (``note_unlikely``);
+            # then the longest unseen; of equals, the least updated, then the younger: an
+            # established track outlives the births of a cluttered frame
+            unlikely = np.isin(self.ids, self._unlikely)
+            order = np.lexsort((self.ids, -self.updates, -self.t_update, unlikely))
             keep = np.zeros(len(self), dtype=bool)
             keep[order[: s.max_tracks]] = True
             self._drop(keep)

@@ -22,10 +22,10 @@ class TrackSettings:
     unseen_s: the longest it lives without an update, in view or not (None: coast_s);
     stale_s: after this long
     without one, only a confirmed candidate's cluster updates it; birth_sigma_v: the
-    velocity's σ at birth; max_tracks: the most tracks kept (the longest unseen die
-    first; of equals, the least updated); merge_m, merge_s: two tracks this close for
-    this long follow one object; share_m: so do two this close for merge_s that take
-    one cluster in turn.
+    velocity's σ at birth; max_tracks: the most tracks kept (those the classes hold no
+    drone die first, then the longest unseen; of equals, the least updated); merge_m,
+    merge_s: two tracks this close for this long follow one object; share_m: so do two
+    this close for merge_s that take one cluster in turn.
     """
 
     sigma_acc: float = 5.0
