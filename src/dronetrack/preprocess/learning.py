@@ -33,12 +33,13 @@ the map (the static world's surface, sparse) and what the last T seconds hit.
 What a drone's track holds must never become background: the caller names *protected*
 balls (every track that may be a drone: classed drone, or neither static nor with
 p_drone below the least a track worth a look has; and the turret's target), and the
-returns in them are no hits.  A track the classes hold unlikely (grounded, joined,
-propped, crowded: part of the world) is learnt like the rest of the world: on
-``outdoor-unscanned`` (seeds 0-9), where every track not classed static was protected,
-the fragments of an unmapped tree line were never learnt and kept 3,200 false tracks a
-run (170 with this rule).  Their voxels are still looked at, so a drone's voxels cannot enter
-and fade if they had.  Lookups are at voxel resolution, dilated by ``inflate`` voxels
+returns in them are no hits.  Their voxels are still looked at, so a drone's voxels
+cannot enter and fade if they had.  A track the classes hold unlikely (grounded,
+joined, propped, crowded: part of the world) is learnt like the rest of the world:
+on ``outdoor-unscanned`` (seeds 0-9), where every track not classed static was
+protected, the fragments of an unmapped tree line were never learnt, and the tracks
+on them gave 3,200 false positives a run (motmetrics' count of frames; 170 with this
+rule).  Lookups are at voxel resolution, dilated by ``inflate`` voxels
 over the 26-neighbourhood (no coarser cells: what is learnt was seen many times).
 """
 
