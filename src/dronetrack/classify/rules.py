@@ -22,8 +22,11 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
     propped (≥ half its frames)   −3    returns just below it: a mast's or a tree's top
     crowded (≥ half its frames)   −3    another cluster just beside it: a fragment of a
                                         structure the map lacks, not a drone in free space
-                                        (two drones hovering close stay possible: it
-                                        never makes a track static)
+                                        (it never makes a track static, as two drones
+                                        hovering close are crowded too; but it takes
+                                        their hover's evidence away: drones hovering
+                                        within min(2ε, 1° × range) of each other are
+                                        held unlikely)
     beyond reach (≥ half)         −6    a drone returns nothing there
     larger than a drone           −4    extent > ``max_extent_m``
     moving, never hovered      −T / μ   a bird's flight: watched T seconds (``seen_s``)
