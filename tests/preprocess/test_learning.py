@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -17,11 +15,8 @@ from dronetrack.preprocess.learning import (
     learnt_now,
     look_cells,
     looked_at,
-    protected_balls,
     window_update,
 )
-from dronetrack.types import TRACK_CLASSES, Detections, TrackEstimate
-from track_helpers import hand_tracks
 
 PERIOD = 0.1
 NO_BALLS = (np.empty((0, 3)), np.empty(0))
@@ -236,28 +231,3 @@ def test_what_is_learnt_is_kept_while_out_of_view() -> None:
     for i in range(300):  # 30 s, three memories
         model.observe(6.0 + i * PERIOD, world, ahead, pose, world[:0], *NO_BALLS)
     assert model.is_background(np.array([[10.2, 0.1, 0.1]]))[0]
-
-
-def test_only_what_may_be_a_drone_is_protected() -> None:
-    """A drone-class track, an unknown one, one the classes hold unlikely (part of the
-    world, p_drone below a look's 0.2), a static one, and the turret's target locked on
-    nothing the tracks hold: protected are the first two and the target."""
-    drone, unknown, static = (TRACK_CLASSES.index(c) for c in ("drone", "unknown", "static"))
-    k = 4
-    positions = np.array([[50.0, 0, 10], [60.0, 5, 12], [80.0, -5, 3], [90.0, 10, 2]])
-    tracks = replace(
-        hand_tracks(range(1, k + 1), positions, [drone, unknown, unknown, static]),
-        clusters=np.arange(k),
-        p_drone=np.array([0.98, 0.5, 0.05, 0.01]),
-    )
-    found = Detections(
-        positions, np.full(k, 5), np.tile([0.4, 0.2, 0.1], (k, 1)), np.zeros((k, 3, 3)), np.zeros(k)
-    )
-    target = np.array([30.0, 0.0, 8.0])
-    estimate = TrackEstimate(1.0, target, np.zeros(3), True, 0.1)
-    centres, radii = protected_balls(tracks, found, estimate, 0.5, min_p=0.2)
-    np.testing.assert_allclose(centres, np.vstack([positions[:2], target]))
-    np.testing.assert_allclose(radii[:2], 0.2 + 0.5)
-    # at min_p 0 every track not static is protected, as a look would take any
-    centres, _ = protected_balls(tracks, found, estimate, 0.5, min_p=0.0)
-    np.testing.assert_allclose(centres, np.vstack([positions[:3], target]))

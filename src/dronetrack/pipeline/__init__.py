@@ -2,6 +2,7 @@
 
 - ``core``: ``Pipeline.step``, one frame through every stage;
 - ``selection``: which target the single-target tracker follows among the tracks;
+- ``protect``: what the learning map must not learn (the tracks that may be a drone);
 - ``loop``: ``run``, the one loop every job shares;
 - ``factory``: the pipeline's components built from a validated configuration;
 - ``kernels``: the numba kernels compiled (or loaded from numba's cache) before a

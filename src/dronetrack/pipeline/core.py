@@ -43,11 +43,12 @@ from dronetrack.detect.tentative import TentativeTracks, reach
 from dronetrack.errors import InputError
 from dronetrack.geometry.field import FieldOfRegard, in_field_of_view
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.pipeline.protect import protected_balls
 from dronetrack.pipeline.selection import TargetSelection, rank
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop, ball_mask, box_mask
 from dronetrack.preprocess.foreground import Foreground, extract_foreground
-from dronetrack.preprocess.learning import LearningBackground, protected_balls
+from dronetrack.preprocess.learning import LearningBackground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.preprocess.range_image import RangeImage
 from dronetrack.track.base import CandidateStart, ObjectTracker, Tracker
@@ -307,7 +308,7 @@ class Pipeline:
         estimate: TrackEstimate,
     ) -> None:
         """Show the learning map the frame, with what it must not learn: every track that
-        may be a drone (``preprocess.learning.protected_balls``, with the chooser's least
+        may be a drone (``pipeline.protect.protected_balls``, with the chooser's least
         p_drone of a track worth a look), and the turret's target unless its track is
         classed static."""
         if self.learning is None or tracks is None or found is None:

@@ -31,9 +31,9 @@ voxel not in the map that nothing has hit for T seconds is forgotten: the memory
 the map (the static world's surface, sparse) and what the last T seconds hit.
 
 What a drone's track holds must never become background: the caller names *protected*
-balls (every track that may be a drone: classed drone, or neither static nor with
-p_drone below the least a track worth a look has; and the turret's target), and the
-returns in them are no hits.  Their voxels are still looked at, so a drone's voxels
+balls (``pipeline.protect``: every track that may be a drone, classed drone or neither
+static nor with p_drone below the least a track worth a look has, and the turret's
+target), and the returns in them are no hits.  Their voxels are still looked at, so a drone's voxels
 cannot enter and fade if they had.  A track the classes hold unlikely (grounded,
 joined, propped, crowded: part of the world) is learnt like the rest of the world:
 on ``outdoor-unscanned`` (seeds 0-9), where every track not classed static was
@@ -61,14 +61,12 @@ from dronetrack.preprocess.voxel import (
     unique_keys,
     voxel_keys,
 )
-from dronetrack.types import TRACK_CLASSES, Detections, TrackEstimate, Tracks
 
 __all__ = [
     "LearningBackground",
     "LearningSettings",
     "look_cells",
     "looked_at",
-    "protected_balls",
     "window_update",
 ]
 
@@ -434,38 +432,3 @@ class LearningBackground:
     def _rebuild(self) -> None:
         self._cells = KeySet.of(dilate_keys(self.learnt_keys(), self.settings.inflate))
         self.rebuilds += 1
-
-
-# A track without a cluster this frame is protected this far around its position [m],
-# on top of the margin: the largest drone the models fly is under 1 m across.
-COASTING_EXTENT_M = 1.0
-
-
-def protected_balls(
-    tracks: Tracks,
-    found: Detections,
-    estimate: TrackEstimate,
-    margin: float,
-    min_p: float = 0.2,
-) -> tuple[FloatArray, FloatArray]:
-    """Centres (B, 3) and radii (B,) of what the learning map must not learn: each track
-    classed drone, or not classed static with p_drone ≥ ``min_p`` (the least of a track
-    worth a look, ``control.choose.worth_a_look``), around its cluster (radius
-    e/2 + margin, e its largest extent) or, coasting, its position
-    (COASTING_EXTENT_M / 2 + margin); and the turret's target when locked and not on a
-    static track."""
-    static = tracks.classes == TRACK_CLASSES.index("static")
-    keep = (tracks.classes == TRACK_CLASSES.index("drone")) | (~static & (tracks.p_drone >= min_p))
-    j = tracks.clusters
-    has = keep & (j >= 0)
-    centres = np.array(tracks.positions, dtype=np.float64)
-    extent = np.full(len(tracks), COASTING_EXTENT_M)
-    centres[has] = found.centroids[j[has]]
-    extent[has] = found.extents[j[has], 0]
-    radii = 0.5 * extent + margin
-    centres, radii = centres[keep], radii[keep]
-    static_lock = bool(np.any(tracks.locked & static))
-    if estimate.tracked and not static_lock and np.all(np.isfinite(estimate.position)):
-        centres = np.vstack([centres, estimate.position[None, :]])
-        radii = np.r_[radii, 0.5 * COASTING_EXTENT_M + margin]
-    return centres, radii
