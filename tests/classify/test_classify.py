@@ -138,6 +138,33 @@ def test_a_still_fragment_among_fragments_in_the_air_is_no_hovering_drone() -> N
     assert p[2] > 0.95
 
 
+def test_a_hover_among_fragments_is_no_hover_in_free_space_where_the_track_goes_next() -> None:
+    # a track holds still 1 s beside another cluster (crowded), then follows a flier in
+    # free space (a track whose gate grew while it went unseen can take one far away)
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    life = None
+    for k in range(11):
+        pos = [[150.0, 0, 12], [151.5, 0, 12]]
+        tracks = _tracks(pos, [[0, 0, 0]] * 2, [1, 2])
+        found = _found(pos, [11.8, 11.8])
+        obs = observe(tracks, found, np.zeros(3), np.zeros(2), limit_m=195.0, crowd_gap_m=2.0)
+        life = lives.update(k * T, tracks, obs)
+    assert life is not None
+    assert life.crowded[0] == 1.0
+    assert life.hovered[0]
+    assert not life.hovered_free[0]
+    for k in range(11, 40):  # 2.9 s at 10 m/s, alone in the air
+        pos = [[100.0 + (k - 11), 30, 20]]
+        tracks = _tracks(pos, [[10.0, 0, 0]], [1])
+        obs = observe(tracks, _found(pos, [19.8]), np.zeros(3), np.zeros(1), limit_m=195.0)
+        life = lives.update(k * T, tracks, obs)
+    assert life.crowded[0] < 0.5  # the world's evidence is gone from its life
+    assert life.hovered[0]
+    assert not life.hovered_free[0]
+    classes, _ = classify(life)
+    assert classes[0] != DRONE  # with the hover among fragments counted: p 0.98, a drone
+
+
 def test_the_top_of_a_mast_stands_on_its_pole_and_a_drone_has_free_air_below() -> None:
     """A mast's top 125 m out and 12 m up holds still in the open air as a hovering drone
     does; the returns of its pole just below it say it is propped: static, not a drone.

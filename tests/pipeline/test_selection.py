@@ -7,12 +7,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from numpy.typing import ArrayLike
 
 from dronetrack.control.choose import ChooseSettings, TargetChooser, not_static
 from dronetrack.detect.lock import LockBook
 from dronetrack.detect.tentative import ConfirmationSettings
-from dronetrack.pipeline.selection import STATIC_HOLD_S, TargetSelection, rank
+from dronetrack.pipeline.selection import STATIC_HOLD_S, TargetSelection, barred_time, rank
 from dronetrack.types import TRACK_CLASSES, Candidates, Detections, TrackEstimate, Tracks
 from track_helpers import hand_tracks
 
@@ -165,3 +167,119 @@ def test_unlocked_it_starts_within_the_lost_targets_reach_the_likeliest_drone_fi
     assert len(tracker.starts) == 1
     # the drone-class track 117 m away waits; of the two within reach, p_drone first
     np.testing.assert_allclose(tracker.starts[0].positions, [[58, 3, 10], [55, 0, 10]])
+
+
+def _unlocked_step(
+    selection: TargetSelection, t: float, positions: ArrayLike, p: list[float], tracker: _Tracker
+) -> None:
+    """A frame at ``t`` with no lock ever: one unknown track per position."""
+    found, offered, tracks = _frame(positions, [UNKNOWN] * len(p), p)
+    selection.step(t, found, tracks, offered, LockBook(ConfirmationSettings()), tracker)
+
+
+def test_a_trial_holds_one_track_while_the_ranking_flips() -> None:
+    a, b = [100.0, 0.0, 10.0], [120.0, 30.0, 10.0]
+    selection, tracker = TargetSelection(), _Tracker()
+    _unlocked_step(selection, 1.0, [a, b], [0.5, 0.45], tracker)
+    _unlocked_step(selection, 1.1, [a, b], [0.45, 0.5], tracker)  # b now ranks first
+    assert [s.positions[0].tolist() for s in tracker.starts] == [a, a]
+    assert tracker.resets == 0  # the first trial keeps the cloud
+    assert selection.aim is not None
+    assert selection.aim.positions[0].tolist() == a
+
+
+def test_a_trial_without_a_lock_gives_way_after_look_s_and_is_not_tried_again_soon() -> None:
+    a, b = [100.0, 0.0, 10.0], [120.0, 30.0, 10.0]
+    settings = ChooseSettings()
+    selection, tracker = TargetSelection(), _Tracker()
+    times = np.arange(0.0, settings.look_s + 1.05, 0.1)
+    for t in times:
+        _unlocked_step(selection, float(t), [a, b], [0.5, 0.45], tracker)
+    firsts = [s.positions[0].tolist() for s in tracker.starts]
+    moved = int(np.argmax(times >= settings.look_s - 1e-9))
+    assert firsts[:moved] == [a] * moved
+    assert firsts[moved:] == [b] * (len(times) - moved)  # a outranks b, but was tried
+    assert tracker.resets == 1  # the failed trial's share of the cloud is dropped
+
+
+def _trying(
+    a: list[float], b: list[float]
+) -> tuple[TargetSelection, _Tracker, LockBook, Candidates, Tracks]:
+    """A first unlocked frame at t = 1 s, two unknown tracks at ``a`` and ``b``, ``a``'s
+    ranked first (so tried); the selection, the tracker, the lock, the frame's offered
+    candidates and tracks."""
+    selection, tracker = TargetSelection(), _Tracker()
+    lock = LockBook(ConfirmationSettings())
+    found, offered, tracks = _frame([a, b], [UNKNOWN, UNKNOWN], [0.5, 0.45])
+    selection.step(1.0, found, tracks, offered, lock, tracker)
+    return selection, tracker, lock, offered, tracks
+
+
+def test_a_trial_gives_way_at_once_to_a_drone_class_track() -> None:
+    a, b = [100.0, 0.0, 10.0], [120.0, 30.0, 10.0]
+    selection, tracker, lock, _, _ = _trying(a, b)
+    found, offered, tracks = _frame([a, b], [UNKNOWN, DRONE], [0.5, 0.98])
+    selection.step(1.1, found, tracks, offered, lock, tracker)
+    assert [s.positions[0].tolist() for s in tracker.starts] == [a, b]
+    assert tracker.resets == 1
+
+
+def test_while_the_tried_track_has_no_candidate_nothing_starts_and_the_turret_aims_at_it() -> None:
+    a, b = [100.0, 0.0, 10.0], [120.0, 30.0, 10.0]
+    selection, tracker, lock, offered, tracks = _trying(a, b)
+    # next frame a's cluster is missed: its track coasts, b alone is offered
+    moved = replace(tracks, positions=tracks.positions + np.array([1.0, 0.0, 0.0]))
+    moved = replace(moved, clusters=np.array([-1, 0]), updated=np.array([False, True]))
+    found_b = Detections(
+        np.array([b]), np.full(1, 10), np.ones((1, 3)), np.eye(3)[None], np.zeros(1)
+    )
+    offered_b = offered.take(np.array([1]))
+    offered_b = replace(offered_b, clusters=np.array([0]))
+    selection.step(1.1, found_b, moved, offered_b, lock, tracker)
+    assert len(tracker.starts) == 1  # the first frame's only
+    assert selection.aim is not None
+    np.testing.assert_allclose(selection.aim.positions, [[101.0, 0.0, 10.0]])
+
+
+def _held_with_classes(classes: list[int], period: float = 0.1) -> int:
+    """Frames, one per class in ``classes``, of a lock on one track whose class is as
+    given (static or drone); the frame at which the lock is given up, −1 if never."""
+    selection, tracker = TargetSelection(), _Tracker()
+    for n, c in enumerate(classes):
+        t = 2.0 + n * period
+        found, offered, tracks = _frame([[50, 0, 10]], [c], [0.01 if c == STATIC else 0.98])
+        offered = not_static(offered, found, tracks)
+        lock = _locked_on([50, 0, 10], t=t)
+        selection.step(t, found, tracks, offered, lock, tracker)
+        if tracker.resets:
+            return n
+    return -1
+
+
+def test_a_lock_on_a_track_whose_class_flips_mostly_to_static_is_given_up() -> None:
+    # static two frames in three: the net time static grows by 0.1 s every three frames
+    flips = [STATIC, STATIC, DRONE] * 10
+    n = _held_with_classes(flips)
+    assert n >= 0
+    # net 0.5 s: 0.1 s a cycle of three frames, so in the fifth cycle's static frames
+    assert 12 <= n <= 15
+
+
+def test_a_drone_classed_static_one_frame_in_three_is_kept() -> None:
+    assert _held_with_classes([DRONE, DRONE, STATIC] * 20) == -1
+
+
+@given(
+    st.lists(st.booleans(), min_size=1, max_size=60),
+    st.floats(min_value=0.01, max_value=0.5),
+)
+def test_the_net_time_barred_is_never_negative_nor_more_than_the_time_barred(
+    states: list[bool], dt: float
+) -> None:
+    net = 0.0
+    for was in states:
+        net = barred_time(net, was, dt)
+        assert net >= 0.0
+    assert net <= dt * sum(states) + 1e-9
+    if all(states):
+        assert net == pytest.approx(dt * len(states))

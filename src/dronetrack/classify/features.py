@@ -59,7 +59,8 @@ frames while a person stays on it, and whether it *hovered*: |v| < v_hover for
 ``hover_frames`` updates in a row while in the air (neither grounded nor cut), which
 no bird can (stall speed ≈ 5 m/s for the smallest), or its candidate hovered
 (``detect.tentative``) and a cluster of it that is neither grounded nor cut updated
-it.
+it; and whether it *hovered in free space*: the same in observations that are
+neither joined, propped nor crowded either (the world holds still too).
 """
 
 from __future__ import annotations
@@ -290,12 +291,25 @@ class LifeFeatures:
     propped: FloatArray
     extent: FloatArray  # the largest extent seen [m]
     hovered: NDArray[np.bool_]
+    # hovered in free space: in observations neither grounded, cut, joined, propped nor
+    # crowded (the world holds still too)
+    hovered_free: NDArray[np.bool_]
     min_speed: FloatArray  # its lowest speed over its observed frames after the first [m/s]
     aloft: FloatArray  # its recent observations' share in the open air
 
 
 # the per-track counters of ``TrackLives``, each an int64 array from 0
-_COUNTS = ("observed", "grounded", "joined", "beyond", "crowded", "cut", "propped", "slow_run")
+_COUNTS = (
+    "observed",
+    "grounded",
+    "joined",
+    "beyond",
+    "crowded",
+    "cut",
+    "propped",
+    "slow_run",
+    "free_run",
+)
 
 
 class TrackLives:
@@ -321,7 +335,9 @@ class TrackLives:
         self.extent = np.empty(n)
         self.range_m = np.empty(n)
         self.slow_run = np.empty(n, dtype=np.int64)
+        self.free_run = np.empty(n, dtype=np.int64)
         self.hovered = np.empty(n, dtype=bool)
+        self.hovered_free = np.empty(n, dtype=bool)
         self.min_speed = np.empty(n)
         self.aloft = np.empty(n)
 
@@ -363,6 +379,12 @@ class TrackLives:
         self.slow_run[r] = np.where(slow, self.slow_run[r] + 1, 0)
         self.hovered[r] |= self.slow_run[r] >= self.hover_frames
         self.hovered[rows] |= tracks.hovered & seen_free
+        # and in free space: the same, in observations nothing says are of the world
+        free = seen_free & ~obs.joined & ~obs.propped & ~obs.crowded
+        slow_free = slow & free[u]
+        self.free_run[r] = np.where(slow_free, self.free_run[r] + 1, 0)
+        self.hovered_free[r] |= self.free_run[r] >= self.hover_frames
+        self.hovered_free[rows] |= tracks.hovered & free
         n = np.maximum(self.observed[rows], 1)
         return LifeFeatures(
             age=t - self.first_t[rows],
@@ -378,6 +400,7 @@ class TrackLives:
             propped=self.propped[rows] / n,
             extent=self.extent[rows].copy(),
             hovered=self.hovered[rows].copy(),
+            hovered_free=self.hovered_free[rows].copy(),
             min_speed=self.min_speed[rows].copy(),
             aloft=self.aloft[rows].copy(),
         )
@@ -398,6 +421,7 @@ class TrackLives:
         self.extent = np.append(self.extent, np.nan)
         self.range_m = np.append(self.range_m, np.nan)
         self.hovered = np.append(self.hovered, False)
+        self.hovered_free = np.append(self.hovered_free, False)
         self.min_speed = np.append(self.min_speed, np.inf)
         self.aloft = np.append(self.aloft, 1.0)
         return row
@@ -409,7 +433,7 @@ class TrackLives:
             return
         keep_ids = [i for i in self._row if i in alive]
         keep = np.array([self._row[i] for i in keep_ids], dtype=np.intp)
-        rest = ("first_t", "last_t", "seen_s", "first_p", "moved", "extent", "range_m", "hovered")
-        for name in (*rest, "min_speed", "aloft", *_COUNTS):
+        rest = ("first_t", "last_t", "seen_s", "first_p", "moved", "extent", "range_m")
+        for name in (*rest, "hovered", "hovered_free", "min_speed", "aloft", *_COUNTS):
             setattr(self, name, getattr(self, name)[keep])
         self._row = {i: n for n, i in enumerate(keep_ids)}

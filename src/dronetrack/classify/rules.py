@@ -16,7 +16,14 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
                                         p 0.73 outranked the unknown drone (0.5), the
                                         turret started on them, and the learning map
                                         never took them in (a possible drone's returns
-                                        are not learnt)
+                                        are not learnt).  The hover itself must be seen
+                                        in free space too (``hovered_free``): a track
+                                        that held still 5 m from the sensor, the world
+                                        by its evidence (p 0.05), then took a bird's
+                                        cluster 32 m away (its gate grown while
+                                        unseen) and kept its hover: the bird was
+                                        classed drone in 29 % of its frames
+                                        (``outdoor-clutter`` seed 6)
     grounded (≥ half its frames)  −4    its bottom is the ground or the crop floor
     joined (≥ half its frames)    −3    a map cell beside or below it: part of a structure
     propped (≥ half its frames)   −3    returns just below it: a mast's or a tree's top
@@ -149,7 +156,7 @@ def classify(
     seen = life.observed >= rules.min_observed
     flying = ~still & ~life.hovered & seen
     logit = (
-        W_HOVERED * (life.hovered & ~(grounded | cut | joined | propped | crowded))
+        W_HOVERED * (life.hovered_free & ~(grounded | cut | joined | propped | crowded))
         + W_GROUNDED * grounded
         + W_JOINED * joined
         + W_PROPPED * propped

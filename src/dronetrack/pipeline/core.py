@@ -16,7 +16,8 @@ Per frame:
    reached since its last fix, the likeliest drone first); then step the tracker:
    predict once per elapsed filter period (through gaps), update with the
    remaining points;
-5. command the turret: the estimate when locked, else a confirmed candidate, a
+5. command the turret: the estimate when locked, else the candidate the tracker
+   starts on (or the track it tries, where predicted: ``pipeline.selection``), a
    look at a cue (a tentative track seen twice), or the search.
 
 Commands are stamped at the frame's end plus the modelled sensor and processing
@@ -208,6 +209,8 @@ class Pipeline:
             command = None
             if steps > 0:  # the candidates to aim at matter only while not locked
                 aims = self.selection.look
+                if aims is None and not estimate.tracked:
+                    aims = self.selection.aim
                 if aims is None and not estimate.tracked:
                     aims = self._reachable(frame.end, offered, found, tracks)
                 cues = self._cues(frame.end, found, tracks)
