@@ -283,3 +283,23 @@ def test_the_net_time_barred_is_never_negative_nor_more_than_the_time_barred(
     assert net <= dt * sum(states) + 1e-9
     if all(states):
         assert net == pytest.approx(dt * len(states))
+
+
+def test_a_trial_gives_way_once_its_track_is_missed_for_three_frames() -> None:
+    a, b = [100.0, 0.0, 10.0], [120.0, 30.0, 10.0]
+    selection, tracker, lock, offered, tracks = _trying(a, b)
+    found_b = Detections(
+        np.array([b]), np.full(1, 10), np.ones((1, 3)), np.eye(3)[None], np.zeros(1)
+    )
+    offered_b = replace(offered.take(np.array([1])), clusters=np.array([0]))
+    starts = []
+    for n in range(1, 6):  # a's cluster missed from t = 1.1 s on, in view
+        missed = np.array([0.1 * n, 0.0])
+        coasting = replace(
+            tracks, clusters=np.array([-1, 0]), updated=np.array([False, True]), missed_s=missed
+        )
+        selection.step(1.0 + 0.1 * n, found_b, coasting, offered_b, lock, tracker)
+        starts.append(len(tracker.starts) - 1)
+    # missed 0.1-0.3 s: the trial waits for a; past TRIAL_MISSED_S it moves on to b
+    assert starts == [0, 0, 0, 1, 2]
+    assert tracker.starts[-1].positions[0].tolist() == b

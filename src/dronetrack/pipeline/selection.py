@@ -61,6 +61,7 @@ from dronetrack.types import Candidates, Detections, Tracks
 
 __all__ = [
     "STATIC_HOLD_S",
+    "TRIAL_MISSED_S",
     "Restartable",
     "StartTrial",
     "TargetSelection",
@@ -70,6 +71,12 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+# A trial gives way once its track has been missed (in the sensor's view, no cluster)
+# this long [s]: three frames at 10 Hz, the detect stage's N − M + 1, after which its
+# candidate cannot be confirmed again.  A single false return's track otherwise held
+# the trial, and the turret's aim, for look_s while the drone's candidate came back
+# elsewhere (``outdoor-escape`` seed 1: re-acquired 1.5 s after its return).
+TRIAL_MISSED_S = 0.3
 # A lock on a track classed static this long [s] is given up: the turret holds a static
 # object at most this long after its class, within the second the issue allows.
 STATIC_HOLD_S = 0.5
@@ -298,8 +305,9 @@ class StartTrial:
     one track's candidates first for ``look_s`` (or until the tracker locks); a track
     whose trial ended without a lock is tried again only after ``revisit_s``, unless
     every candidate has been.  A trial ends at once when its track ends, when the
-    classes hold it no drone (``worth_a_look``), or when another candidate's track is
-    classed drone and its own is not.
+    classes hold it no drone (``worth_a_look``), when it has been missed for
+    ``TRIAL_MISSED_S``, or when another candidate's track is classed drone and its own
+    is not.
     """
 
     def __init__(self, settings: ChooseSettings) -> None:
@@ -350,7 +358,8 @@ class StartTrial:
         drone = tracks.classes == DRONE
         outranked = not drone[k] and bool(drone[others].any())
         unlikely = not worth_a_look(tracks, self.settings.min_p)[k]
-        if unlikely or outranked or t - self.since >= self.settings.look_s - 1e-9:
+        gone = tracks.missed_s[k] > TRIAL_MISSED_S + 1e-9
+        if unlikely or outranked or gone or t - self.since >= self.settings.look_s - 1e-9:
             self.end(t)
             return -1
         return k
