@@ -22,7 +22,7 @@ The tracker follows one target; the track layer follows every object and classes
    has no candidate.  Restarted each frame on whichever candidate ranked first, the
    tracker settled on none among the fragments of an unmapped tree line
    (``outdoor-unscanned``, seeds 0-9: the drone acquired 4.6 s after it came into
-   view, 3.0 s with the trials).  When a trial fails the tracker is reset, so the
+   view, 2.6 s with the trials).  When a trial fails the tracker is reset, so the
    next one's candidate takes the whole cloud (``birth_share`` keeps half of it where
    it was: on the failed trial's object, which goes on returning points); a first
    trial after a loss keeps the cloud, which may wait where the lost drone reappears
