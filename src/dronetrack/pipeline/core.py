@@ -210,9 +210,9 @@ class Pipeline:
             if steps > 0:  # the candidates to aim at matter only while not locked
                 aims = self.selection.look
                 if aims is None and not estimate.tracked:
-                    aims = self.selection.aim
-                if aims is None and not estimate.tracked:
-                    aims = self._reachable(frame.end, offered, found, tracks)
+                    aims = self.selection.aim  # what rule 5 started the tracker on
+                    if aims is None:  # it did not run: the reachable candidates
+                        aims = self._reachable(frame.end, offered, found, tracks)
                 cues = self._cues(frame.end, found, tracks)
                 command = self.controller.tracking(t_cmd, estimate, points, aims, cues)
             result = self._result(
