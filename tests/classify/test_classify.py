@@ -9,11 +9,9 @@ import numpy as np
 import pytest
 
 from dronetrack.classify.features import (
-    CROWD_RAD,
     SEEN_GAP_S,
     LifeFeatures,
     TrackLives,
-    nearest_gap,
     observe,
     view_floor,
 )
@@ -22,10 +20,12 @@ from dronetrack.classify.rules import (
     DRONE,
     STATIC,
     UNKNOWN,
+    WORLD_SHARE,
     ClassRules,
     classify,
     in_open_air,
 )
+from dronetrack.detect.crowding import CROWD_RAD, nearest_gap
 from dronetrack.errors import ConfigError
 from dronetrack.sim.world import FrameTruth
 from dronetrack.types import TRACK_CLASSES, Detections, Sample, StepResult, Tracks
@@ -198,6 +198,37 @@ def test_the_top_of_a_mast_stands_on_its_pole_and_a_drone_has_free_air_below() -
     assert classes.tolist() == [STATIC, DRONE]
     # −3 propped; its hover says nothing of a structure, which holds still too
     assert p[0] == pytest.approx(1.0 / (1.0 + np.exp(3.0)))
+
+
+def test_a_pole_seen_in_a_quarter_of_the_frames_props_its_top_and_chance_returns_do_not() -> None:
+    """Sparse evidence counts from a fifth of the observations (``WORLD_SHARE``): a thin
+    pole the pattern samples in one frame of four (s = 0.25) props its top, which is
+    then static; returns that happen to lie below a hovering drone in one frame of
+    twelve (s = 0.08, below s* for any ε under 0.04 with q = 0.29) leave it a drone."""
+    rng = np.random.default_rng(5)
+    top, drone = np.array([100.0, 0.0, 3.5]), np.array([60.0, 20.0, 15.0])
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    life = None
+    frames = 24
+    for k in range(frames):
+        below = [np.empty((0, 3))]
+        if k % 4 == 0:  # the pole, 0.5-2.5 m below the top
+            x = rng.normal(100.0, 0.05, 3)
+            below.append(np.column_stack([x, np.zeros(3), [2.5, 2.0, 1.5]]))
+        if k % 12 == 6:  # a return 1 m below the drone
+            below.append(np.array([[60.0, 20.0, 13.8]]))
+        tracks = _tracks([list(top), list(drone)], [[0, 0, 0]] * 2, [1, 2])
+        found = _found([list(top), list(drone)], [3.1, 14.8])
+        obs = observe(
+            tracks, found, np.zeros(3), np.zeros(2), limit_m=195.0, below=np.concatenate(below)
+        )
+        assert obs.propped.tolist() == [k % 4 == 0, k % 12 == 6]
+        life = lives.update(k * T, tracks, obs)
+    assert life is not None
+    np.testing.assert_allclose(life.propped, [6 / frames, 2 / frames])
+    assert life.propped[1] < WORLD_SHARE <= life.propped[0]
+    classes, _ = classify(life)
+    assert classes.tolist() == [STATIC, DRONE]
 
 
 def test_the_view_floor_is_the_lowest_elevation_in_each_azimuth_sector() -> None:

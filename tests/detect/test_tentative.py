@@ -11,6 +11,7 @@ from dronetrack.detect.tentative import (
     ConfirmationSettings,
     TentativeTracks,
     gated_assignment,
+    kept,
     within_reach,
 )
 from dronetrack.errors import ConfigError
@@ -186,6 +187,72 @@ def test_a_cue_drops_with_its_track() -> None:
         tracks.update(k * T, f)
     assert len(tracks) == 0
     assert len(tracks.cues(3 * T)) == 0
+
+
+def test_kept_spends_the_room_on_tracks_standing_alone_first() -> None:
+    detections = np.array([9, 8, 7, 1, 1, 5])
+    ids = np.arange(6)
+    crowd = np.array([True, True, True, False, False, False])
+    # room for 4, of it at most 2 crowded: the three alone, then the most detected crowded
+    assert kept(detections, ids, crowd, 4, 2).tolist() == [True, False, False, True, True, True]
+    # room for 3: the alone fill it, whatever the crowded were detected
+    assert kept(detections, ids, crowd, 3, 2).tolist() == [False] * 3 + [True] * 3
+    # of equals the older: ids 3 and 4 were both detected once
+    assert kept(detections, ids, crowd, 2, 2).tolist() == [False] * 3 + [True, False, True]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    detections=st.lists(st.integers(1, 30), min_size=0, max_size=40),
+    data=st.data(),
+    max_tracks=st.integers(1, 20),
+    share=st.floats(0.0, 1.0),
+)
+def test_kept_bounds_the_crowded_and_drops_none_alone_while_room_is_left(
+    detections: list[int], data: st.DataObject, max_tracks: int, share: float
+) -> None:
+    n = len(detections)
+    crowd = np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)), dtype=bool)
+    d, ids = np.array(detections, dtype=np.int64), np.arange(n, dtype=np.int64)
+    max_crowded = int(share * max_tracks)
+    keep = kept(d, ids, crowd, max_tracks, max_crowded)
+    assert keep.sum() <= max_tracks
+    assert (keep & crowd).sum() <= max_crowded
+    alone = ~crowd
+    if (alone & ~keep).any():  # a track alone was dropped: the room was full of them
+        assert (keep & alone).sum() == max_tracks
+        assert d[keep & alone].min() >= d[alone & ~keep].max()
+    if (crowd & ~keep).any() and (crowd & keep).any():
+        assert d[keep & crowd].min() >= d[crowd & ~keep].max()
+    assert keep.sum() == min(n, max_tracks, alone.sum() + max_crowded)
+
+
+def test_a_lone_cluster_among_a_flood_of_fragments_is_confirmed() -> None:
+    """A far structure the map lacks breaks into fragments 1.5 m apart, each detected
+    in every frame, more than the tentative room holds; a drone's lone cluster that
+    comes into view among them is confirmed on its second detection as if alone.
+    Kept first by their detections, the fragments would fill the room, and the
+    drone's new track would be dropped as soon as it was added, frame after frame."""
+    s = ConfirmationSettings(hits=2, frames=4, max_tracks=16, crowd_gap_m=2.0)
+    sensor = np.zeros(3)
+    # 40 fragments along a tree line 120 m out: gaps 1.0 m ≤ min(2 m, 1° × 120 m)
+    line = [(120.0, 1.5 * i, 8.0) for i in range(40)]
+    tracks = TentativeTracks(s)
+    for k in range(5):
+        tracks.update(k * T, _found(*line), sensor)
+    assert len(tracks) == s.max_crowded == 8  # half the room: the rest is kept free
+    drone = (70.0, -40.0, 20.0)
+    tracks.update(5 * T, _found(*line, drone), sensor)
+    out = tracks.update(6 * T, _found(*line, (70.2, -40.0, 20.0)), sensor)
+    assert len(tracks) <= s.max_tracks
+    assert any(np.linalg.norm(p - [70.2, -40.0, 20.0]) < 0.1 for p in out.positions)
+    # without the crowded test the fragments, detected more often, keep all the room
+    plain = TentativeTracks(ConfirmationSettings(hits=2, frames=4, max_tracks=16))
+    for k in range(5):
+        plain.update(k * T, _found(*line), sensor)
+    plain.update(5 * T, _found(*line, drone), sensor)
+    out = plain.update(6 * T, _found(*line, (70.2, -40.0, 20.0)), sensor)
+    assert not any(np.linalg.norm(p - [70.2, -40.0, 20.0]) < 0.1 for p in out.positions)
 
 
 def _cands(positions: np.ndarray) -> Candidates:

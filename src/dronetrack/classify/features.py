@@ -12,16 +12,12 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
   c ± (e/2 + m) along x and y): a tree's crown or a building's edge that the map lacks
   part of, rather than something in the open air;
 - *crowded*: another of the frame's clusters lies within a gap of it,
-  |c − c'| − (e + e')/2 ≤ min(g_c, θ_c r) (g_c twice the clustering's ε by default): a
-  drone flies in free space, while a far structure that the map lacks breaks into
-  fragments a little more than ε apart (on ``outdoor-unscanned`` the drone's cluster had
-  such a neighbour in 0.1 % of frames, the structures' fragments in 84 %).  Fragments
-  lie a few of the sensor's sample spacings apart in angle, so the gap shrinks with
-  range as θ_c r (θ_c = 1°, ``CROWD_RAD``: two of an Avia's mean spacings in a frame,
-  24,000 returns over 70° × 77°, one of a Mid-360's); ε bounds it beyond 2ε / θ_c
-  (115 m for ε = 1 m).  Near the sensor a cluster a metre away is another object: a
-  person standing beside a drone hovering 2 m from a Mid-360 made it crowded in 41 %
-  of its frames (``mid360-static`` seed 6) with the gap at 2ε;
+  |c − c'| − (e + e')/2 ≤ min(g_c, θ_c r) (``detect.crowding``): a drone flies in
+  free space, while a far structure that the map lacks breaks into fragments a little
+  more than ε apart (on ``outdoor-unscanned`` the drone's cluster had such a neighbour
+  in 0.1 % of frames, the structures' fragments in 84 %).  With the gap at 2ε, not
+  θ_c r, a person standing beside a drone hovering 2 m from a Mid-360 made it crowded
+  in 41 % of its frames (``mid360-static`` seed 6);
 - *cut*: its bottom lies at the floor of the sensor's view in its direction,
   ε(z_lo) ≤ ε_floor(α) + δ: the elevation from the sensor of its lowest point
   against the lowest elevation of the frame's other returns in its 5° azimuth sector
@@ -73,11 +69,11 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from dronetrack.detect.crowding import crowded as crowded_test
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Detections, Tracks
 
 __all__ = [
-    "CROWD_RAD",
     "SEEN_GAP_S",
     "LifeFeatures",
     "Observations",
@@ -93,7 +89,6 @@ CUT_MARGIN_RAD = math.radians(1.0)  # δ of the cut test
 PROP_DEPTH_M = 1.5  # d_p of the propped test
 PROP_RADIUS_M = 0.5  # r_min
 PROP_BEAM_RAD = 0.005  # θ_b
-CROWD_RAD = math.radians(1.0)  # θ_c of the crowded test
 SEEN_GAP_S = 0.3  # the longest gap between two updates that counts as watched (``seen_s``)
 
 
@@ -185,8 +180,7 @@ def observe(
     centroid[idx] = c
     crowded = np.zeros(k, dtype=bool)
     if crowd_gap_m is not None and len(idx):
-        # |c − c'| − (e + e')/2 ≤ min(g_c, θ_c r)
-        crowded[idx] = nearest_gap(found, j[idx]) <= np.minimum(crowd_gap_m, CROWD_RAD * rng[idx])
+        crowded[idx] = crowded_test(found, j[idx], crowd_gap_m, sensor)
     cut = np.zeros(k, dtype=bool)
     if floor is not None and len(idx):
         d = np.column_stack([c[:, :2], low]) - sensor  # the cluster's bottom
@@ -242,19 +236,6 @@ def _in_columns(
             if dx * dx + dy * dy <= r2[k]:
                 out[k] = True
                 break
-    return out
-
-
-def nearest_gap(found: Detections, which: NDArray[np.int64]) -> FloatArray:
-    """(K,) the gap from each cluster ``which`` to the nearest other cluster of the frame,
-    min over j' ≠ j of |c_j − c_j'| − (e_j + e_j')/2 (e the largest extent) [m]; +inf when
-    it is the only one."""
-    c, e = found.centroids, found.extents[:, 0]
-    gap = np.linalg.norm(c[which, None, :] - c[None, :, :], axis=2) - 0.5 * (
-        e[which, None] + e[None, :]
-    )
-    gap[np.arange(len(which)), which] = np.inf
-    out: FloatArray = gap.min(axis=1, initial=np.inf)
     return out
 
 

@@ -94,10 +94,13 @@ class Acquisition:
     def __post_init__(self) -> None:
         object.__setattr__(self, "lock", LockBook(self.tracks.settings))
 
-    def step(self, t: float, points: FloatArray) -> tuple[Detections, Candidates]:
-        """The clusters of the foreground ``points`` at ``t`` and the confirmed candidates."""
+    def step(
+        self, t: float, points: FloatArray, sensor: FloatArray | None = None
+    ) -> tuple[Detections, Candidates]:
+        """The clusters of the foreground ``points`` at ``t``, seen from ``sensor`` (3,),
+        and the confirmed candidates."""
         found = self.detector(points)
-        return found, self.tracks.update(t, found)
+        return found, self.tracks.update(t, found, sensor)
 
     def reset(self) -> None:
         self.tracks.reset()
@@ -237,7 +240,7 @@ class Pipeline:
         if self.acquisition is None or steps == 0:
             return None, None, None, None
         t = frame.end
-        found, confirmed = self.acquisition.step(t, points)
+        found, confirmed = self.acquisition.step(t, points, frame.poses[-1][:3, 3])
         tracks = self._tracks(frame, fg, found, confirmed)
         offered = confirmed if tracks is None else not_static(confirmed, found, tracks)
         if not isinstance(self.tracker, CandidateStart):

@@ -415,6 +415,7 @@ def build_acquisition(
         hover_speed=cfg.hover_speed_m_s,
         hover_frames=cfg.hover_frames,
         cue_points=cfg.cue_points,
+        crowd_gap_m=CROWD_PER_EPS * cfg.eps_m,
     )
     tracks = tracks if tracks is not None else TracksConfig()
     objects = TrackSettings(
