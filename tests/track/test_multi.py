@@ -311,6 +311,29 @@ def test_at_the_cap_the_tracks_the_classes_hold_no_drone_die_first() -> None:
         assert len(layer.tracks) == 4
 
 
+def test_at_the_cap_the_track_the_turret_holds_lives_though_held_no_drone() -> None:
+    # The turret locked on a fragment the classes then hold no drone: at the cap it
+    # must outlive the others, else the tracker stays locked on what no track follows
+    # and the lock on what the classes are about to call static is never given up.
+    fragments = np.array([[150.0, 10.0 * i, 5.0] for i in range(4)])
+    births = np.array([[60.0 + 5 * i, -20.0, 8.0] for i in range(4)])
+    for lock in (False, True):
+        layer = _Layer(max_tracks=4)
+        for k in range(10):
+            layer.step(k * T, fragments)
+        target = int(layer.tracks.ids[np.argmin(layer.tracks.x[:, 1])])  # at y = 0
+        layer.tracks.note_unlikely(layer.tracks.ids.copy())
+        if lock:
+            estimate = TrackEstimate(1.0, fragments[0], np.zeros(3), True, 0.2)
+            snap = layer.tracks.snapshot(estimate)
+            assert snap.ids[snap.locked].tolist() == [target]
+            layer.tracks.note_lock(snap, estimate)
+        for k in range(10, 14):
+            layer.step(k * T, births)  # the fragments missed, the births confirmed
+        assert len(layer.tracks) == 4
+        assert (target in layer.tracks.ids.tolist()) is lock
+
+
 def test_the_locked_track_is_the_one_at_a_locked_estimate() -> None:
     layer = _Layer()
     for k in range(3):
