@@ -231,6 +231,43 @@ def test_a_pole_seen_in_a_quarter_of_the_frames_props_its_top_and_chance_returns
     assert classes.tolist() == [STATIC, DRONE]
 
 
+def test_a_fragment_that_wanders_over_a_mapped_crown_is_static_and_a_person_is_not() -> None:
+    """Fragments of a tree's crown 150 m out, beside the map's cells in every frame,
+    land up to 3 m apart: more than the 1.5 m a still object may wander there, yet it
+    hovered in the air beside the mapped world, so static.  A drone that wanders as far
+    in free air (no cell beside it) is not; nor is a person beside a mapped wall
+    (grounded), who may stand and walk."""
+    rng = np.random.default_rng(11)
+    crown, drone, person = [150.0, 0.0, 8.0], [60.0, 20.0, 15.0], [30.0, -5.0, 0.9]
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    life = None
+
+    def mapped(points: np.ndarray) -> np.ndarray:  # the crown's cells, and a wall
+        near_crown = np.linalg.norm(points - crown, axis=1) < 4.0
+        return near_crown | (np.abs(points[:, 1] + 5.0) < 1.0) & (points[:, 0] < 40.0)
+
+    for k in range(20):
+        # each frame's cluster somewhere on its object: ±1.5 m along x and z
+        jitter = rng.uniform(-1.5, 1.5, (3, 2))
+        pos = np.array([crown, drone, person]) + np.column_stack(
+            [jitter[:, 0], np.zeros(3), jitter[:, 1] * [1.0, 1.0, 0.0]]
+        )
+        tracks = _tracks(pos.tolist(), [[0, 0, 0]] * 3, [1, 2, 3])
+        feet = 0.7 if k < 5 else 0.05  # the person's legs missed in the first frames
+        found = _found(pos.tolist(), [pos[0, 2] - 0.2, pos[1, 2] - 0.2, feet])
+        obs = observe(tracks, found, np.zeros(3), np.zeros(3), limit_m=195.0, is_background=mapped)
+        assert obs.joined.tolist() == [True, False, True]
+        assert obs.grounded.tolist() == [False, False, k >= 5]
+        life = lives.update(k * T, tracks, obs)
+    assert life is not None
+    assert np.all(life.moved > 0.01 * 150.0)  # none still by the wander bound
+    assert life.hovered.all()  # the person too, in the air in its first frames
+    classes, _ = classify(life)
+    assert classes[0] == STATIC
+    assert classes[1] != STATIC
+    assert classes[2] != STATIC
+
+
 def test_the_view_floor_is_the_lowest_elevation_in_each_azimuth_sector() -> None:
     sensor = np.array([0.0, 0.0, 1.0])
     # ground 9 m out at −7° (tan 7° × 8.14 = 1.0) ahead; a wall point behind, level
