@@ -233,18 +233,21 @@ def test_a_pole_seen_in_a_quarter_of_the_frames_props_its_top_and_chance_returns
 
 def test_a_fragment_that_wanders_over_a_mapped_crown_is_static_and_a_person_is_not() -> None:
     """Fragments of a tree's crown 150 m out, beside the map's cells in every frame,
-    land up to 3 m apart: more than the 1.5 m a still object may wander there, yet it
-    hovered in the air beside the mapped world, so static.  A drone that wanders as far
-    in free air (no cell beside it) is not; nor is a person beside a mapped wall
-    (grounded), who may stand and walk."""
+    land up to 3 m apart: more than the 1.5 m a still object may wander there, within
+    2 θ_c r (5.2 m), and it hovered in the air beside the mapped world, so static.  A
+    drone that wanders as far in free air (no cell beside it) is not; nor is a person
+    beside a mapped wall (grounded), who may stand and walk; nor a board carried at
+    1 m/s along another wall 12 m out, in the air (2 m in 2 s, beyond 2 θ_c r)."""
     rng = np.random.default_rng(11)
     crown, drone, person = [150.0, 0.0, 8.0], [60.0, 20.0, 15.0], [30.0, -5.0, 0.9]
+    board = np.array([12.0, 8.0, 1.5])
     lives = TrackLives(hover_speed=4.0, hover_frames=3)
     life = None
 
-    def mapped(points: np.ndarray) -> np.ndarray:  # the crown's cells, and a wall
+    def mapped(points: np.ndarray) -> np.ndarray:  # the crown's cells, and two walls
         near_crown = np.linalg.norm(points - crown, axis=1) < 4.0
-        return near_crown | (np.abs(points[:, 1] + 5.0) < 1.0) & (points[:, 0] < 40.0)
+        wall = (np.abs(points[:, 1] + 5.0) < 1.0) & (points[:, 0] < 40.0)
+        return near_crown | wall | (np.abs(points[:, 1] - 9.0) < 0.5) & (points[:, 0] < 20.0)
 
     for k in range(20):
         # each frame's cluster somewhere on its object: ±1.5 m along x and z
@@ -252,20 +255,22 @@ def test_a_fragment_that_wanders_over_a_mapped_crown_is_static_and_a_person_is_n
         pos = np.array([crown, drone, person]) + np.column_stack(
             [jitter[:, 0], np.zeros(3), jitter[:, 1] * [1.0, 1.0, 0.0]]
         )
-        tracks = _tracks(pos.tolist(), [[0, 0, 0]] * 3, [1, 2, 3])
+        pos = np.vstack([pos, board - [1.0 * k * T, 0.0, 0.0]])
+        velocities = [[0, 0, 0]] * 3 + [[-1.0, 0, 0]]
+        tracks = _tracks(pos.tolist(), velocities, [1, 2, 3, 4])
         feet = 0.7 if k < 5 else 0.05  # the person's legs missed in the first frames
-        found = _found(pos.tolist(), [pos[0, 2] - 0.2, pos[1, 2] - 0.2, feet])
-        obs = observe(tracks, found, np.zeros(3), np.zeros(3), limit_m=195.0, is_background=mapped)
-        assert obs.joined.tolist() == [True, False, True]
-        assert obs.grounded.tolist() == [False, False, k >= 5]
+        found = _found(pos.tolist(), [pos[0, 2] - 0.2, pos[1, 2] - 0.2, feet, 1.2])
+        obs = observe(tracks, found, np.zeros(3), np.zeros(4), limit_m=195.0, is_background=mapped)
+        assert obs.joined.tolist() == [True, False, True, True]
+        assert obs.grounded.tolist() == [False, False, k >= 5, False]
         life = lives.update(k * T, tracks, obs)
     assert life is not None
-    assert np.all(life.moved > 0.01 * 150.0)  # none still by the wander bound
+    assert np.all(life.moved[:3] > 0.01 * 150.0)  # none still by the wander bound
+    assert life.moved[3] > 2 * np.radians(1.0) * 12.0
     assert life.hovered.all()  # the person too, in the air in its first frames
     classes, _ = classify(life)
     assert classes[0] == STATIC
-    assert classes[1] != STATIC
-    assert classes[2] != STATIC
+    assert STATIC not in classes[1:].tolist()
 
 
 def test_the_view_floor_is_the_lowest_elevation_in_each_azimuth_sector() -> None:

@@ -78,14 +78,17 @@ Classes, in this order:
   and a far structure's few returns land anywhere on it (on ``site-busy``, seeds 0-9,
   this took the static tracks not classed within 3 s from 13.8 to 9.5 a run).  So is
   a track that hovered, joined in half its observations and in the air (neither
-  grounded nor cut in half of them): it keeps beside what the map holds, and the
-  fragments of a structure, a tree's crown or a pole, land anywhere on it, metres
-  apart.  On ``outdoor-unscanned`` (seeds 0-9) such fragments of trees 150-200 m out
-  wandered up to 4 m, more than the 1.5-2 m a still object may there; with this clause the
+  grounded nor cut in half of them), whose clusters stayed within 2 θ_c r of the
+  first (θ_c = 1°, the angular spacing of a far structure's fragments,
+  ``detect.crowding``): it keeps beside what the map holds, and the fragments of a
+  structure, a tree's crown or a pole, land anywhere on it, a few spacings apart.  On
+  ``outdoor-unscanned`` (seeds 0-9) such fragments of trees 150-200 m out wandered up
+  to 4 m (1.5° at 150 m), more than the 1.5-2 m a still object may there; with this clause the
   static tracks not classed within 3 s went from 11.1 to 4.2 a run, and on
   ``site-busy`` from 9.5 to 6.2.  A person stands on the ground and is left out:
   without that condition, the walkers' frames classed static on ``site-busy`` went
-  from 3 % to 97 %.
+  from 3 % to 97 %.  Without the bound on the wander, a board carried towards a
+  VLP-16 beside the map (``walk-line``) was classed static and its lock given up.
 - **drone**: p_drone ≥ ``drone_p``;
 - **bird**: p_drone ≤ ``bird_p``, in the air, never slower than ``v_stall``, over
   ``min_observed`` clusters;
@@ -100,6 +103,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.classify.features import LifeFeatures
+from dronetrack.detect.crowding import CROWD_RAD
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES
@@ -119,6 +123,7 @@ W_CROWDED = -3.0
 W_BEYOND_REACH = -6.0
 W_TOO_LARGE = -4.0
 WORLD_SHARE = 0.2  # s*: the share of observations joined or propped that counts
+BESIDE_SPACINGS = 2.0  # a fragment beside the map wanders over this many θ_c
 
 
 @dataclass(frozen=True, slots=True)
@@ -201,9 +206,16 @@ def classify(
     classes[p >= rules.drone_p] = DRONE
     bird = (p <= rules.bird_p) & ~grounded & (life.min_speed >= rules.v_stall) & ~still & seen
     classes[bird] = BIRD
-    # beyond the drone's reach, or beside what the map holds in the air, what holds
-    # still is the world, however far its few returns wander over it
-    beside = (life.joined >= 0.5) & ~grounded & ~cut
+    # beyond the drone's reach, what holds still is the world, however far its few
+    # returns wander over it; beside what the map holds, in the air, within a few of
+    # the fragments' angular spacings: d_max ≤ 2 θ_c r
+    range_m = np.nan_to_num(life.range_m, nan=0.0)
+    beside = (
+        (life.joined >= 0.5)
+        & ~grounded
+        & ~cut
+        & (life.moved <= BESIDE_SPACINGS * CROWD_RAD * range_m)
+    )
     parked = still | ((beyond | beside) & life.hovered)
     static = (
         parked
