@@ -184,10 +184,11 @@ def classify(
     cut = life.cut >= 0.5
     beyond = life.beyond_reach >= 0.5
     extent = np.nan_to_num(life.extent, nan=0.0)
+    range_m = np.nan_to_num(life.range_m, nan=0.0)
     large = extent > rules.max_extent_m
     # d_max ≤ max(still_m, extent, θ_still r): a far object's few returns land anywhere
     # on it and its beam footprint
-    wander = np.maximum(extent, rules.still_rad * np.nan_to_num(life.range_m, nan=0.0))
+    wander = np.maximum(extent, rules.still_rad * range_m)
     still = life.moved <= np.maximum(rules.still_m, wander)
     seen = life.observed >= rules.min_observed
     flying = ~still & ~life.hovered & seen
@@ -209,7 +210,6 @@ def classify(
     # beyond the drone's reach, what holds still is the world, however far its few
     # returns wander over it; beside what the map holds, in the air, within a few of
     # the fragments' angular spacings: d_max ≤ 2 θ_c r
-    range_m = np.nan_to_num(life.range_m, nan=0.0)
     beside = (
         (life.joined >= 0.5)
         & ~grounded
