@@ -250,9 +250,9 @@ class Tracks:
     clusters: (K,) the index of the frame's cluster (``Detections``) that updated it,
         −1 when none did; left out: none.
     last_seen: (K,) the time of its last update [s]; left out: its birth.
-    open_air: (K,) whether its life says it is in the open air, not standing on the
-        ground, part of a structure, beyond a drone's reach or larger than a drone
-        (``classify``); left out: True.
+    open_air: (K,) whether its life says it is in the open air, neither standing on
+        the ground nor part of a structure by its evidence (``classify.rules``'s
+        ``in_open_air``); left out: True.
     missed_s: (K,) how long it has been in the sensor's field of view without an
         update since its last one [s]: a track out of view is not missed; left out: 0.
     in_view: (K,) whether it was in the sensor's field of view this frame; left out:

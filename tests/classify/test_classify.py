@@ -4,6 +4,7 @@ rules, and the classes of a simulated run's tracks against the simulator's truth
 from __future__ import annotations
 
 import collections
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -500,3 +501,23 @@ def test_a_person_walking_leaves_the_open_air_and_a_drone_lifting_off_stays_in_i
     drone = _life(2.0, np.array([40.0, 5.0, 1.2]), np.array([0.0, 0.0, 2.0]), 0.15)
     assert in_open_air(drone)[0]
     assert drone.aloft[0] > 0.9
+
+
+def test_a_structures_evidence_takes_a_track_out_of_the_open_air_once_it_is_a_share() -> None:
+    """Joined or propped in a fifth of its observations (``WORLD_SHARE``), once it has
+    ``min_observed`` (5) of them, a track that stayed where it was first seen is part
+    of a structure, not in the open air; under a fifth, or with fewer observations,
+    the evidence is no share yet; and what flew in from afar is no structure (moved
+    beyond 2 θ_c r: 3.5 m at 100 m)."""
+    four = _life(0.3, np.array([100.0, 0.0, 3.5]), np.zeros(3), 0.1)
+    five = _life(0.4, np.array([100.0, 0.0, 3.5]), np.zeros(3), 0.1)
+    assert (int(four.observed[0]), int(five.observed[0])) == (4, 5)
+    share = np.array([WORLD_SHARE])
+    below = np.array([np.nextafter(WORLD_SHARE, 0.0)])
+    assert in_open_air(five)[0]
+    assert not in_open_air(replace(five, propped=share))[0]
+    assert not in_open_air(replace(five, joined=share))[0]
+    assert in_open_air(replace(five, propped=below, joined=below))[0]
+    assert in_open_air(replace(four, propped=np.ones(1), joined=np.ones(1)))[0]
+    assert not in_open_air(replace(five, joined=share, moved=np.array([3.4])))[0]
+    assert in_open_air(replace(five, joined=share, moved=np.array([3.6])))[0]

@@ -98,5 +98,5 @@ class TrackClassifier:
         )
         life = self.lives.update(t, tracks, obs)
         classes, p_drone = classify(life, self.rules)
-        air = in_open_air(life)
+        air = in_open_air(life, self.rules)
         return replace(tracks, classes=classes, p_drone=p_drone, open_air=air)

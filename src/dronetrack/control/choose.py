@@ -61,8 +61,8 @@ def candidate_tracks(candidates: Candidates, found: Detections, tracks: Tracks) 
 
 def not_static(candidates: Candidates, found: Detections, tracks: Tracks) -> Candidates:
     """The candidates whose track is not classed static and is in the open air (not on
-    the ground, part of a structure, beyond reach or too large: ``Tracks.open_air``),
-    in their order: a person walking or a car driving is no target for the turret."""
+    the ground nor part of a structure by its evidence: ``Tracks.open_air``), in their
+    order: a person walking or a car driving is no target for the turret."""
     owner = candidate_tracks(candidates, found, tracks)
     barred = np.zeros(len(candidates), dtype=bool)
     has = owner >= 0
