@@ -168,3 +168,37 @@ def test_a_drone_is_acquired_as_a_track_from_its_first_visible_frame_to_its_firs
     (drone,) = mot_figures(objects, tracks, radius=4.0)["drones"]
     assert drone["track_acquire_s"] == pytest.approx(0.3)
     assert mot_figures(objects, far, radius=4.0)["drones"][0]["track_acquire_s"] is None
+
+
+def test_a_drone_flying_in_from_beyond_reach_is_acquired_from_its_first_frame_within_it() -> None:
+    """A drone flying in at 10 m/s from 150 m at the sensor's height, visible all along
+    (a single return a frame out there), crosses the 130 m reach at frame 20 (t 2.1 s);
+    a track matches it from frame 23 and the turret locks on from frame 25: acquired
+    0.3 s and 0.5 s after it came within reach, 2.3 s and 2.5 s after it came into
+    view.  A track on it from frame 15, beyond reach, has it when it comes within
+    reach: 0 s, not −0.5 s.  Without the reach, the figures within it are left out."""
+    objects, tracks, early = ObjectsLog(), TracksLog(), TracksLog()
+    frames = 30
+    positions = np.array([[150.0 - 1.0 * f, 0.0, 0.0] for f in range(frames)])
+    for f in range(frames):
+        drone = positions[f : f + 1]
+        objects.append(T * (f + 1), _truth(drone, [1], ("drone",)), np.zeros(3))
+        off = 10.0 if f < 23 else 0.5
+        tracks.append(T * (f + 1), hand_tracks([1], drone + np.array([0.0, off, 0.0]), [DRONE]))
+        off = 10.0 if f < 15 else 0.5
+        early.append(T * (f + 1), hand_tracks([1], drone + np.array([0.0, off, 0.0]), [DRONE]))
+    t = T * np.arange(1, frames + 1)
+    tracked = np.arange(frames) >= 25
+    (own,) = drone_figures(objects, t, positions, tracked, radius=4.0, reach_m=130.0)
+    (scored,) = mot_figures(objects, tracks, radius=4.0, reach_m=130.0)["drones"]
+    assert own["acquire_s"] == pytest.approx(2.5)
+    assert own["acquire_in_reach_s"] == pytest.approx(0.5)
+    assert scored["track_acquire_s"] == pytest.approx(2.3)
+    assert scored["track_acquire_in_reach_s"] == pytest.approx(0.3)
+    (scored,) = mot_figures(objects, early, radius=4.0, reach_m=130.0)["drones"]
+    assert scored["track_acquire_s"] == pytest.approx(1.5)
+    assert scored["track_acquire_in_reach_s"] == 0.0
+    (own,) = drone_figures(objects, t, positions, tracked, radius=4.0)
+    (scored,) = mot_figures(objects, tracks, radius=4.0)["drones"]
+    assert "acquire_in_reach_s" not in own
+    assert "track_acquire_in_reach_s" not in scored

@@ -277,7 +277,8 @@ class EvaluationConfig(StrictModel):
     # coverage and 0 tracking distance (seed 000's Tables II and III use 5).
     min_consecutive: int = Field(0, ge=0)
     # The sensor's reach for the scenario's drone [m], from the sensor: given, metrics.json
-    # adds acquire_in_reach_s, acquire_s counted from the drone's first returns within it.
+    # adds acquire_in_reach_s, acquire_s counted from the drone's first returns within it,
+    # and per drone (drones) acquire_in_reach_s and track_acquire_in_reach_s.
     # A drone flying in from beyond reach draws single returns from a passing search out
     # there, which acquire_s counts from (docs/results.md, Acquisition).
     reach_m: float | None = Field(None, gt=0)

@@ -108,12 +108,14 @@ def drone_figures(
     tracked: NDArray[np.bool_],
     radius: float,
     in_field: list[NDArray[np.bool_] | None] | None = None,
+    reach_m: float | None = None,
 ) -> list[dict[str, Any]]:
     """Each drone's own figures, as ``TrackLog.summary`` scores drone 0 against the
     turret's estimate ``est`` (frames, 3) and its lock ``tracked``: ``coverage_pct``,
     ``max_tracking_distance_m``, ``acquire_s``, ``lock_on_visible_pct`` and the rest of
     ``acquisition_metrics``, and its ``visible_frames``.  ``in_field``: per drone, its
-    frames inside the detection area (None: all)."""
+    frames inside the detection area (None: all); ``reach_m``: the sensor's reach for
+    the drone [m], from which ``acquire_in_reach_s`` counts (None: left out)."""
     if len(objects) != len(t):
         raise ValueError(f"{len(objects)} object truths for {len(t)} frames")
     positions, returns, ranges = objects.positions, objects.returns, objects.ranges
@@ -129,7 +131,7 @@ def drone_figures(
         # returned points (the particle filter weighs every foreground point)
         measured = np.where(counts > 0, 0.0, np.nan)
         coverage, distance = scored_tracking(err, ranges[:, k], radius, measured)
-        figures = acquisition_metrics(t, err, tracked, counts, radius, field, ranges[:, k])
+        figures = acquisition_metrics(t, err, tracked, counts, radius, field, ranges[:, k], reach_m)
         visible = counts > 0 if field is None else (counts > 0) & field
         row: dict[str, Any] = {
             "id": int(objects.ids[k]),
@@ -137,7 +139,13 @@ def drone_figures(
             "max_tracking_distance_m": distance,
             "visible_frames": int(np.count_nonzero(visible)),
         }
-        for key in ("acquire_s", "lock_on_visible_pct", "reacquire_max_s", "losses"):
+        for key in (
+            "acquire_s",
+            "acquire_in_reach_s",
+            "lock_on_visible_pct",
+            "reacquire_max_s",
+            "losses",
+        ):
             if key in figures:
                 row[key] = figures[key]
         out.append(row)
@@ -163,13 +171,17 @@ def drone_claims(rows: NDArray[Any]) -> NDArray[np.bool_]:
     return out
 
 
-def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[str, Any]:
+def mot_figures(
+    objects: ObjectsLog, tracks: TracksLog, radius: float, reach_m: float | None = None
+) -> dict[str, Any]:
     """The multi-object figures of the drones (see the module docstring): ``mota``,
     ``motp_m``, ``idf1``, ``id_switches``, ``false_positives``, ``misses``, ``matches``,
     ``frames``, and per drone its identity switches, the share of its visible frames
     its track matched (``own_track_pct``) and the time from its first visible frame to
     the first one a track matched it (``track_acquire_s``: acquired as a track, whether
-    or not the turret serves it)."""
+    or not the turret serves it); given the sensor's reach ``reach_m`` [m], also from
+    its first visible frame within reach (``track_acquire_in_reach_s``: a drone flying
+    in from beyond reach draws single returns out there, which start no track)."""
     mm = _mm()
     acc = mm.MOTAccumulator(auto_id=True)
     rows = tracks.rows
@@ -210,17 +222,19 @@ def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[s
         seen_frames = int(np.count_nonzero(returns[:, k] > 0))
         matched = mine["Type"].isin(["MATCH", "SWITCH"])
         hit = int(matched.sum())
+        matched_frames = mine.index.get_level_values(0)[matched]
         per.append(
             {
                 "id": int(objects.ids[k]),
                 "id_switches": int((mine["Type"] == "SWITCH").sum()),
                 "own_track_pct": 100.0 * hit / seen_frames if seen_frames else None,
                 "track_ids": int(mine["HId"].dropna().nunique()),
-                "track_acquire_s": _first_match_s(
-                    objects.t, returns[:, k] > 0, mine.index.get_level_values(0)[matched]
-                ),
+                "track_acquire_s": _first_match_s(objects.t, returns[:, k] > 0, matched_frames),
             }
         )
+        if reach_m is not None:
+            near = (returns[:, k] > 0) & (objects.ranges[:, k] <= reach_m)
+            per[-1]["track_acquire_in_reach_s"] = _first_match_s(objects.t, near, matched_frames)
 
     def number(value: Any) -> float | None:
         v = float(value)
@@ -242,11 +256,15 @@ def mot_figures(objects: ObjectsLog, tracks: TracksLog, radius: float) -> dict[s
 
 
 def _first_match_s(t: FloatArray, visible: NDArray[np.bool_], matched_frames: Any) -> float | None:
-    """From a drone's first visible frame to the first frame a track matched it [s]
-    (motmetrics' frame ids are the frames' indices); None if it was never matched."""
-    if not visible.any() or len(matched_frames) == 0:
+    """From a drone's first ``visible`` frame to the first frame at or after it that a
+    track matched it [s] (motmetrics' frame ids are the frames' indices); None if none
+    did."""
+    if not visible.any():
         return None
-    return float(t[int(np.min(matched_frames))] - t[int(np.argmax(visible))])
+    first = int(np.argmax(visible))
+    later = np.asarray(matched_frames, dtype=np.int64)
+    later = later[later >= first]
+    return float(t[int(later.min())] - t[first]) if len(later) else None
 
 
 def _over(values: list[Any], worst: Callable[[list[float]], float]) -> tuple[float, float]:
@@ -262,7 +280,8 @@ def drone_summary(drones: list[dict[str, Any]]) -> dict[str, float]:
     ``mot_figures``' per-drone entries) over its drones: the mean and the worst drone's
     ``coverage_pct``, ``lock_on_visible_pct`` and ``own_track_pct`` (``*_mean_pct``,
     ``*_min_pct``), of ``acquire_s`` (``acquire_mean_s``, ``acquire_max_s``, over the
-    drones acquired) and of ``track_acquire_s`` (likewise), ``never_acquired`` (drones
+    drones acquired), of ``acquire_in_reach_s``, ``track_acquire_s`` and
+    ``track_acquire_in_reach_s`` (likewise), ``never_acquired`` (drones
     visible but never acquired) and ``id_switches_max``; NaN where no drone has the
     figure."""
     out: dict[str, float] = {}
@@ -270,8 +289,8 @@ def drone_summary(drones: list[dict[str, Any]]) -> dict[str, float]:
         mean, low = _over([d.get(f"{key}_pct") for d in drones], min)
         out[f"{key}_mean_pct"], out[f"{key}_min_pct"] = mean, low
     out["acquire_mean_s"], out["acquire_max_s"] = _over([d.get("acquire_s") for d in drones], max)
-    track_acquire = [d.get("track_acquire_s") for d in drones]
-    out["track_acquire_mean_s"], out["track_acquire_max_s"] = _over(track_acquire, max)
+    for key in ("acquire_in_reach", "track_acquire", "track_acquire_in_reach"):
+        out[f"{key}_mean_s"], out[f"{key}_max_s"] = _over([d.get(f"{key}_s") for d in drones], max)
     out["never_acquired"] = float(
         sum(d.get("acquire_s") is None and d.get("visible_frames", 0) > 0 for d in drones)
     )

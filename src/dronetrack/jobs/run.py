@@ -162,8 +162,9 @@ class RunResult:
         est = self.log.est
         positions = objects.positions
         fields = [detection_area(self.config, positions[:, k]) for k in objects.drones()]
-        drones = drone_figures(objects, self.log.t, est, self.log.tracked, radius, fields)
-        mot = mot_figures(objects, self.log.tracks, radius)
+        reach = self.config.pipeline.evaluation.reach_m
+        drones = drone_figures(objects, self.log.t, est, self.log.tracked, radius, fields, reach)
+        mot = mot_figures(objects, self.log.tracks, radius, reach)
         for own, scored in zip(drones, mot.pop("drones"), strict=True):
             own.update(scored)
         return {"drones": drones, "mot": mot, "classes": classes}

@@ -131,6 +131,23 @@ def _results(runs: int = 2) -> list[RunMetrics]:
     return out
 
 
+def test_the_figures_within_reach_are_over_the_drones_that_have_them() -> None:
+    """``acquire_in_reach_s`` and ``track_acquire_in_reach_s`` are summarised as
+    ``acquire_s`` is: the worst and the mean over the drones that have one; a run
+    without the sensor's reach has none (NaN)."""
+    near = [
+        {**TWO[0], "acquire_in_reach_s": 0.25, "track_acquire_in_reach_s": 0.0},
+        {**TWO[1], "acquire_in_reach_s": None, "track_acquire_in_reach_s": 0.5},
+        {**TWO[0], "acquire_in_reach_s": 0.75, "track_acquire_in_reach_s": 0.25},
+    ]
+    m = object_run_metrics(_objects(near, _confusion()))
+    assert (m["acquire_in_reach_max_s"], m["acquire_in_reach_mean_s"]) == (0.75, 0.5)
+    assert (m["track_acquire_in_reach_max_s"], m["track_acquire_in_reach_mean_s"]) == (0.5, 0.25)
+    m = object_run_metrics(_objects(TWO, _confusion()))
+    assert math.isnan(m["acquire_in_reach_max_s"])
+    assert math.isnan(m["track_acquire_in_reach_max_s"])
+
+
 def test_table_md_has_a_table_per_group_and_a_row_per_scenario() -> None:
     rows = aggregate(MULTI, _results())
     md = table_markdown(MULTI, rows, runs=2, duration=None, methods=MULTI.methods)
@@ -140,7 +157,8 @@ def test_table_md_has_a_table_per_group_and_a_row_per_scenario() -> None:
     table = md.split("## Every drone")[1].split("##")[0]
     lines = [line for line in table.splitlines() if line.startswith("| ")]
     assert [line.split(" | ")[0] for line in lines[1:]] == [f"| {c.label}" for c in MULTI.cases]
-    assert "| outdoor-swarm | 40 ± 0 | 60 ± 0 | 0.5 ± 0 | 0.5 ± 0 | 1 ± 0 |" in md
+    # no figure within reach in these runs: n/a
+    assert "| outdoor-swarm | 40 ± 0 | 60 ± 0 | 0.5 ± 0 | 0.5 ± 0 | n/a | 1 ± 0 |" in md
     assert "| default | 90 ± 0 | n/a | 0 ± 0 |" in md  # no bird frames: n/a
 
 
