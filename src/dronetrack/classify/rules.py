@@ -164,6 +164,14 @@ class ClassRules:
             )
 
 
+def _fragment_spread(life: LifeFeatures) -> FloatArray:
+    """(K,) how far a structure's fragments land from the first one at each track's
+    range: 2 θ_c r [m] (``BESIDE_SPACINGS`` of the fragments' angular spacing θ_c; 0
+    where the range is not known)."""
+    out: FloatArray = BESIDE_SPACINGS * CROWD_RAD * np.nan_to_num(life.range_m, nan=0.0)
+    return out
+
+
 def in_open_air(life: LifeFeatures, rules: ClassRules | None = None) -> NDArray[np.bool_]:
     """(K,) whether each track's life says it may be in the open air now.
 
@@ -185,9 +193,8 @@ def in_open_air(life: LifeFeatures, rules: ClassRules | None = None) -> NDArray[
     beside it before its hover was seen (``outdoor-incoming`` seed 4, tracked by
     ekf-dogru); without the bound its lock was given up and lost."""
     rules = rules if rules is not None else ClassRules()
-    range_m = np.nan_to_num(life.range_m, nan=0.0)
     # d_max ≤ max(still_m, 2 θ_c r): it stayed where a structure's fragments land
-    stayed = life.moved <= np.maximum(rules.still_m, BESIDE_SPACINGS * CROWD_RAD * range_m)
+    stayed = life.moved <= np.maximum(rules.still_m, _fragment_spread(life))
     evidence = (life.joined >= WORLD_SHARE) | (life.propped >= WORLD_SHARE)
     worldly = (life.observed >= rules.min_observed) & evidence & stayed
     out: NDArray[np.bool_] = (life.aloft >= ALOFT_MIN) & ~worldly
@@ -232,12 +239,7 @@ def classify(
     # beyond the drone's reach, what holds still is the world, however far its few
     # returns wander over it; beside what the map holds, in the air, within a few of
     # the fragments' angular spacings: d_max ≤ 2 θ_c r
-    beside = (
-        (life.joined >= 0.5)
-        & ~grounded
-        & ~cut
-        & (life.moved <= BESIDE_SPACINGS * CROWD_RAD * range_m)
-    )
+    beside = (life.joined >= 0.5) & ~grounded & ~cut & (life.moved <= _fragment_spread(life))
     parked = still | ((beyond | beside) & life.hovered)
     static = (
         parked
