@@ -79,6 +79,16 @@ def test_outputs_and_exact_reproduction(
     # at most one locked track a frame
     locked = [r["t"] for r in tracks if r["locked"] == "1"]
     assert len(locked) == len(set(locked))
+    # a track is born on a cluster it sees: its first row is updated and in view
+    first_rows: dict[str, dict[str, str]] = {}
+    for r in tracks:
+        assert r["updated"] in ("0", "1")
+        assert r["in_view"] in ("0", "1")
+        first_rows.setdefault(r["id"], r)
+    assert all(r["updated"] == r["in_view"] == "1" for r in first_rows.values())
+    # the hovering Crazyflie in front of the sensor is seen in most frames of its track
+    held = [r for r in tracks if r["locked"] == "1"]
+    assert sum(r["updated"] == "1" for r in held) > 0.8 * len(held)
     metrics = json.loads((first / "metrics.json").read_text())
     assert set(metrics) >= METRIC_KEYS
     assert metrics["frames"] == 40

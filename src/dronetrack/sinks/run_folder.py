@@ -21,6 +21,7 @@ from dronetrack.types import TRACK_CLASSES
 __all__ = [
     "FRAMES_CSV_COLUMNS",
     "GEO_COLUMNS",
+    "STATE_COLUMNS",
     "FramesCsvWriter",
     "TracksCsvWriter",
     "check_run_dir",
@@ -50,6 +51,9 @@ FRAMES_CSV_COLUMNS = (*FRAME_COLUMNS, "flags", *EXTRA_COLUMNS)
 # tracks.csv's columns after TRACK_COLUMNS: where each track is on the Earth (with a
 # [site]) and from the turret.
 GEO_COLUMNS = ("lat_deg", "lon_deg", "alt_m", "azimuth_deg", "elevation_deg", "range_m")
+# ... and then whether a cluster of the frame updated the track (0: it coasted on its
+# prediction) and whether it was in the sensor's field of view.
+STATE_COLUMNS = ("updated", "in_view")
 
 
 def frame_row(log: TrackLog, i: int) -> list[str]:
@@ -103,7 +107,8 @@ class FramesCsvWriter:
 
 class TracksCsvWriter:
     """tracks.csv written as the run goes (``TRACK_COLUMNS``: one row per track per
-    tracking frame, then ``GEO_COLUMNS``), flushed after each frame's rows.
+    tracking frame, then ``GEO_COLUMNS`` and ``STATE_COLUMNS``), flushed after each
+    frame's rows.
 
     ``site`` places the world frame on the Earth: each row then has the track's WGS-84
     latitude, longitude and altitude and its azimuth from true north; without it those
@@ -121,7 +126,7 @@ class TracksCsvWriter:
         self.base = site.base if site is not None else base
         self._fh = path.open("w", newline="")
         self._csv = csv.writer(self._fh)
-        self._csv.writerow((*TRACK_COLUMNS, *GEO_COLUMNS))
+        self._csv.writerow((*TRACK_COLUMNS, *GEO_COLUMNS, *STATE_COLUMNS))
         self._fh.flush()
         self.rows = 0
 
@@ -144,6 +149,8 @@ class TracksCsvWriter:
                     str(int(r["locked"])),
                     *(_degrees(float(a)) for a in g[:2]),
                     *(_number(float(a)) for a in g[2:]),
+                    str(int(r["updated"])),
+                    str(int(r["in_view"])),
                 ]
             )
         self.rows = len(tracks)
