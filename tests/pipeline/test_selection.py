@@ -202,6 +202,21 @@ def test_a_trial_without_a_lock_gives_way_after_look_s_and_is_not_tried_again_so
     assert tracker.resets == 1  # the failed trial's share of the cloud is dropped
 
 
+def test_a_trial_tried_again_on_the_same_track_starts_the_tracker_afresh() -> None:
+    # one drone-class track, never locked: its trial ends after look_s and it is tried
+    # again at once (a drone's track always is); the filter that drifted is reset then
+    a = [100.0, 0.0, 10.0]
+    settings = ChooseSettings()
+    selection, tracker = TargetSelection(), _Tracker()
+    lock = LockBook(ConfirmationSettings())
+    found, offered, tracks = _frame([a], [DRONE], [0.98])
+    times = np.arange(0.0, settings.look_s + 0.05, 0.1)
+    for t in times:
+        selection.step(float(t), found, tracks, offered, lock, tracker)
+    assert [s.positions[0].tolist() for s in tracker.starts] == [a] * len(times)
+    assert tracker.resets == 1
+
+
 def _trying(
     a: list[float], b: list[float]
 ) -> tuple[TargetSelection, _Tracker, LockBook, Candidates, Tracks]:

@@ -19,7 +19,14 @@ from dronetrack.track.cv_bank import (
     gate_costs,
 )
 from dronetrack.track.kalman import cv_transition, kf_predict, kf_update, position_selector
-from dronetrack.track.multi import InView, MultiTargetTracker, TrackSettings, close_pairs
+from dronetrack.track.multi import (
+    InView,
+    MultiTargetTracker,
+    TrackSettings,
+    close_pairs,
+    one_object,
+    within_smear,
+)
 from dronetrack.types import Candidates, Detections, TrackEstimate
 
 T = 0.1  # frame period [s]
@@ -415,6 +422,80 @@ def test_tracks_within_the_clustering_radius_for_a_second_are_one_object() -> No
     together = [ids for k, ids in zip(range(40, 80), ids_seen, strict=True) if k > closed_at]
     assert together[int(1.0 / T) - 2] == [1, 2]  # not yet a second together
     assert together[-1] == [1]  # then one object, the older identity
+
+
+def test_within_smear_is_the_capsule_around_the_path_over_the_period() -> None:
+    # p = 0, v = 10 m/s along x, ±0.1 s: the segment x ∈ [−1, 1] m, radius 0.5 m
+    x = np.array([0.0, 0, 0, 10.0, 0, 0])
+    points = np.array(
+        [
+            [1.4, 0, 0],  # 0.4 m past the segment's end: in
+            [-1.6, 0, 0],  # 0.6 m past the other end: out
+            [0.3, 0.5, 0],  # 0.5 m beside it: in (on the surface)
+            [0.3, 0, 0.6],  # 0.6 m beside it: out
+            [1.3, 0.4, 0],  # 0.5 m from the end (0.3² + 0.4²): in
+            [1.3, 0.41, 0],  # just beyond: out
+        ]
+    )
+    assert within_smear(points, x, 0.1, 0.5).tolist() == [True, False, True, False, True, False]
+    # at rest, or over no time, the ball of that radius
+    still = np.array([0.0, 0, 0, 0, 0, 0])
+    assert within_smear(points, still, 0.1, 0.5).tolist() == [False] * 6
+    assert within_smear(np.array([[0.3, 0.3, 0.3]]), still, 0.1, 0.6).tolist() == [True]
+    assert within_smear(points[:1], x, 0.0, 0.5).tolist() == [False]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-5, 5), min_size=3, max_size=3),
+    st.lists(st.floats(-20, 20), min_size=3, max_size=3),
+    st.floats(0.0, 0.2),
+    st.floats(0.1, 3.0),
+)
+def test_within_smear_agrees_with_the_distance_to_the_sampled_path(
+    c: list[float], v: list[float], period: float, radius: float
+) -> None:
+    x = np.concatenate([[1.0, -2.0, 3.0], v])
+    # the path p + v τ, τ ∈ [−T, T], sampled densely: the distance to it
+    tau = np.linspace(-period, period, 4001)
+    path = x[:3] + tau[:, None] * np.asarray(v)[None, :]
+    d = float(np.min(np.linalg.norm(path - np.asarray(c), axis=1)))
+    step = 2 * period * float(np.linalg.norm(v)) / 4000  # the samples' spacing [m]
+    if abs(d - radius) > step + 1e-9:
+        assert within_smear(np.array([c]), x, period, radius)[0] == (d <= radius)
+
+
+def test_one_object_needs_each_within_the_others_smear() -> None:
+    track = np.array([0.0, 0, 0, 20.0, 0, 0])  # ±0.1 s: along x ∈ [−2, 2] m
+    pieces = np.array(
+        [
+            [1.9, 0, 0, 20.0, 0, 0],  # along it, moving with it: one object
+            [1.9, 0, 0, 0.0, 0, 0],  # along it, but still: the track is 1.9 m off its ball
+            [0.0, 1.4, 0, 20.0, 0, 0],  # beside it: another object
+        ]
+    )
+    assert one_object(pieces, track, 0.1, 1.0).tolist() == [True, False, False]
+    assert one_object(np.empty((0, 6)), track, 0.1, 1.0).shape == (0,)
+
+
+def _split(offset: np.ndarray) -> list[int]:
+    """A drone at 12 m/s along x; from 1 s on, its returns of each frame fall in two
+    clusters ``offset`` apart (its smear over the 0.1 s frame cut in two); the
+    identities at the end."""
+    layer = _Layer()
+    v = np.array([12.0, 0.0, 0.0])
+    for k in range(40):
+        c = np.array([60.0, 0.0, 20.0]) + v * (k * T - 0.5 * T)
+        layer.step(k * T, c[None, :] if k < 10 else np.stack([c - offset / 2, c + offset / 2]))
+    return layer.tracks.ids.tolist()
+
+
+def test_a_fast_drone_split_along_its_motion_keeps_one_track_and_two_abreast_two() -> None:
+    """Pieces 1.9 m apart along a 12 m/s drone's motion lie within the 1.2 m each way it
+    sweeps in a frame (plus merge_m = 1 m): one object.  1.4 m apart across it they are
+    two objects, each with its track."""
+    assert _split(np.array([1.9, 0.0, 0.0])) == [1]
+    assert len(_split(np.array([0.0, 1.4, 0.0]))) == 2
 
 
 def _alternating(share_m: float, both_after: bool) -> list[list[int]]:
