@@ -20,10 +20,12 @@ from dronetrack.track.cv_bank import (
 )
 from dronetrack.track.kalman import cv_transition, kf_predict, kf_update, position_selector
 from dronetrack.track.multi import (
+    Floor,
     InView,
     MultiTargetTracker,
     TrackSettings,
     close_pairs,
+    on_or_above,
     one_object,
     within_smear,
 )
@@ -53,10 +55,16 @@ class _Layer:
         self.tentative = TentativeTracks(ConfirmationSettings(v_max=15.0, hits=2, frames=4))
         self.tracks = MultiTargetTracker(TrackSettings(**track_settings))  # type: ignore[arg-type]
 
-    def step(self, t: float, centroids: np.ndarray, in_view: InView | None = None) -> None:
+    def step(
+        self,
+        t: float,
+        centroids: np.ndarray,
+        in_view: InView | None = None,
+        floor: Floor | None = None,
+    ) -> None:
         found = _found(centroids)
         confirmed = self.tentative.update(t, found)
-        self.tracks.step(t, found, confirmed, t_meas=t - 0.5 * T, in_view=in_view)
+        self.tracks.step(t, found, confirmed, t_meas=t - 0.5 * T, in_view=in_view, floor=floor)
 
 
 def test_process_noise_is_the_white_acceleration_model() -> None:
@@ -496,6 +504,49 @@ def test_a_fast_drone_split_along_its_motion_keeps_one_track_and_two_abreast_two
     two objects, each with its track."""
     assert _split(np.array([1.9, 0.0, 0.0])) == [1]
     assert len(_split(np.array([0.0, 1.4, 0.0]))) == 2
+
+
+def test_on_or_above_projects_a_state_below_the_ground_onto_it() -> None:
+    x = np.array(
+        [
+            [10.0, 0, -3.0, 1.0, 0, -2.0],  # below, sinking: onto the ground, v_z 0
+            [10.0, 0, -3.0, 1.0, 0, 0.5],  # below, rising: onto it, v_z kept
+            [10.0, 0, 4.0, 1.0, 0, -2.0],  # above: as it was
+            [10.0, 0, -30.0, 1.0, 0, -2.0],  # ground unknown: as it was
+        ]
+    )
+    out = on_or_above(x, np.array([1.0, 1.0, 1.0, np.nan]))
+    expected = x.copy()
+    expected[0, [2, 5]] = [1.0, 0.0]
+    expected[1, 2] = 1.0
+    np.testing.assert_array_equal(out, expected)
+    assert x[0, 2] == -3.0  # the input is left alone
+
+
+def _sinking(floor: Floor | None) -> tuple[np.ndarray, float]:
+    """An object 40 m out sinking at 4 m/s from 3 m up, seen 1 s, then missed in view:
+    the heights of its track's state over 3 s of coasting, and its last fix's."""
+    layer = _Layer()
+    heights = []
+    for k in range(40):
+        c = np.array([40.0, 0.0, 3.0 - 4.0 * (k * T - 0.5 * T)])
+        layer.step(k * T, c[None, :] if k < 10 else np.empty((0, 3)), floor=floor)
+        if k >= 10:
+            assert len(layer.tracks) == 1
+            heights.append(layer.tracks.x[0, 2])
+    return np.array(heights), float(layer.tracks.p_update[0, 2])
+
+
+def test_a_track_coasting_down_stays_on_the_ground_and_is_not_lifted_above_its_fixes() -> None:
+    flat, _ = _sinking(lambda xy: np.full(len(xy), -5.0))
+    assert flat.min() == pytest.approx(-5.0)  # it reached the ground and stayed there
+    assert flat[-1] == pytest.approx(-5.0)
+    assert _sinking(None)[0].min() < -10.0  # unbound, it sinks on
+    # a ground learnt 10 m up there (a crown seen, not the ground): the track is not
+    # lifted above its last fix, and sinks no lower
+    wrong, last = _sinking(lambda xy: np.full(len(xy), 10.0))
+    assert last < 1.0
+    np.testing.assert_allclose(wrong, last)
 
 
 def _alternating(share_m: float, both_after: bool) -> list[list[int]]:

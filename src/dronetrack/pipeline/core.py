@@ -264,7 +264,9 @@ class Pipeline:
         fov, pose = self.field_of_view, frame.poses[-1]
         in_view = None if fov is None else partial(in_field_of_view, pose=pose, fov=fov)
         t_meas = t - 0.5 * frame.duration
-        tracks = objects.step(t, found, confirmed, t_meas=t_meas, in_view=in_view)
+        # the tracks keep on or above the ground the classes learn (none without them)
+        floor = None if self.classifier is None else self.classifier.ground.height
+        tracks = objects.step(t, found, confirmed, t_meas=t_meas, in_view=in_view, floor=floor)
         if self.classifier is None:
             return tracks
         sensor = pose[:3, 3]

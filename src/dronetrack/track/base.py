@@ -74,10 +74,13 @@ class ObjectTracker(Protocol):
         confirmed: Candidates,
         t_meas: float | None = None,
         in_view: Callable[[FloatArray], NDArray[np.bool_]] | None = None,
+        floor: Callable[[FloatArray], FloatArray] | None = None,
     ) -> Tracks:
         """Take the clusters ``found`` of the frame ending at ``t`` (describing the time
         ``t_meas``) and the detect stage's confirmed candidates; the tracks after it.
-        ``in_view`` tells which positions the sensor saw this frame (None: all)."""
+        ``in_view`` tells which positions the sensor saw this frame (None: all);
+        ``floor`` the ground's height under points (K, 2), which no track sinks below
+        (NaN: unknown; None: no bound)."""
         ...
 
     def snapshot(self, estimate: TrackEstimate | None = None) -> Tracks:

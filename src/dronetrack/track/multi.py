@@ -81,12 +81,15 @@ from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
 
 LockNote = tuple[int, FloatArray, FloatArray, float]  # held id, estimate p, v, its time
 InView = Callable[[FloatArray], NDArray[np.bool_]]  # positions (K, 3) → seen this frame
+Floor = Callable[[FloatArray], FloatArray]  # points (K, 2) → the ground's height (NaN: unknown)
 
 __all__ = [
+    "Floor",
     "InView",
     "MultiTargetTracker",
     "TrackSettings",
     "close_pairs",
+    "on_or_above",
     "one_object",
     "within_smear",
 ]
@@ -97,6 +100,25 @@ def close_pairs(p: FloatArray, radius: float) -> NDArray[np.intp]:
     d = np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)
     i, j = np.nonzero(np.triu(d <= radius, k=1))
     return np.column_stack([i, j]).astype(np.intp)
+
+
+def on_or_above(x: FloatArray, ground: FloatArray) -> FloatArray:
+    """The states ``x`` (K, 6) = [p, v] kept on or above the ``ground``'s height under
+    each (K,) [m; NaN: unknown, no bound]: a state below it is projected onto it,
+    z ← g, and no longer sinks there, v_z ← max(v_z, 0).
+
+    The ground returns the sensor's pulses, so nothing it tracks is below it; a track
+    coasting on a velocity that points down (a far fragment's centroid jitter gives
+    metres a second) would otherwise sink tens of metres below it within its coasting
+    time.  The estimate projection of a constrained Kalman filter onto the active
+    constraint, with the covariance kept.
+    """
+    out = np.array(x, dtype=np.float64, copy=True)
+    with np.errstate(invalid="ignore"):
+        below = out[:, 2] < ground  # NaN compares False
+    out[below, 2] = ground[below]
+    out[below, 5] = np.maximum(out[below, 5], 0.0)
+    return out
 
 
 def within_smear(
@@ -162,6 +184,7 @@ class MultiTargetTracker:
         self._together: dict[tuple[int, int], float] = {}  # (id, id) → close since [s]
         self._sharing: dict[tuple[int, int], float] = {}  # (id, id) → one cluster since [s]
         self._lock: LockNote | None = None
+        self._floor: Floor | None = None
         self._unlikely: NDArray[np.int64] = np.empty(0, dtype=np.int64)
         self.reset()
 
@@ -195,12 +218,15 @@ class MultiTargetTracker:
         confirmed: Candidates,
         t_meas: float | None = None,
         in_view: InView | None = None,
+        floor: Floor | None = None,
     ) -> Tracks:
         """Predict every track to the clusters' time ``t_meas`` (default ``t``), update it
         with the cluster assigned to it, start tracks on the confirmed candidates no track
         explains, end those missed for ``coast_s`` or unseen for ``unseen_s``, and predict
         them all to ``t``; the tracks after the step.  ``in_view`` tells which positions
-        (K, 3) the sensor saw this frame (None: all).
+        (K, 3) the sensor saw this frame (None: all); ``floor`` the ground's height under
+        points (K, 2), which every predicted state is kept on or above (``on_or_above``;
+        None: no bound).
 
         A LiDAR frame's returns span its integration period, so its clusters' centroids
         describe its middle (a rosette crosses its dense centre many times a frame), not
@@ -208,6 +234,7 @@ class MultiTargetTracker:
         """
         s = self.settings
         t_z = t if t_meas is None else min(t_meas, t)
+        self._floor = floor
         self._predict(t_z)
         R = measurement_noise(found, s.sigma_meas)
         reach = s.v_max * np.maximum(t_z - self.t_update, 0.0) + s.gate_m
@@ -344,10 +371,17 @@ class MultiTargetTracker:
         return out
 
     def _predict(self, t: float) -> None:
-        """Every track's state at ``t`` (none goes back in time)."""
+        """Every track's state at ``t`` (none goes back in time), on or above the floor
+        the step was given."""
         dt = np.maximum(t - self.t, 0.0)
         self.x, self.P = cv_predict(self.x, self.P, dt, self.settings.sigma_acc)
         self.t = np.maximum(self.t, t)
+        if self._floor is not None and len(self):
+            # the ground learnt may lie above a track where it missed the real one (only
+            # a crown or a wall top seen there): a track measured lower is not lifted,
+            # bound = min(g, z of its last update); NaN where the ground is unknown
+            ground = np.asarray(self._floor(self.x[:, :2]), dtype=np.float64)
+            self.x = on_or_above(self.x, np.minimum(ground, self.p_update[:, 2]))
 
     def _note_hover(self, confirmed: Candidates, of: NDArray[np.intp]) -> None:
         """A track whose cluster is a candidate that hovered has hovered (one-way);
