@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.stats import chi2
 
 from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
-from dronetrack.errors import ConfigError
+from dronetrack.errors import ConfigError, InputError
 from dronetrack.track.cv_bank import (
     associate,
     cv_predict,
@@ -439,10 +439,10 @@ def test_within_smear_is_the_capsule_around_the_path_over_the_period() -> None:
         [
             [1.4, 0, 0],  # 0.4 m past the segment's end: in
             [-1.6, 0, 0],  # 0.6 m past the other end: out
-            [0.3, 0.5, 0],  # 0.5 m beside it: in (on the surface)
-            [0.3, 0, 0.6],  # 0.6 m beside it: out
-            [1.3, 0.4, 0],  # 0.5 m from the end (0.3² + 0.4²): in
-            [1.3, 0.41, 0],  # just beyond: out
+            [0.3, 0.49, 0],  # 0.49 m beside it: in
+            [0.3, 0, 0.51],  # 0.51 m beside it: out
+            [1.3, 0.39, 0],  # 0.49 m from the end (√(0.3² + 0.39²)): in
+            [1.3, 0.41, 0],  # 0.51 m from it: out
         ]
     )
     assert within_smear(points, x, 0.1, 0.5).tolist() == [True, False, True, False, True, False]
@@ -484,6 +484,10 @@ def test_one_object_needs_each_within_the_others_smear() -> None:
     )
     assert one_object(pieces, track, 0.1, 1.0).tolist() == [True, False, False]
     assert one_object(np.empty((0, 6)), track, 0.1, 1.0).shape == (0,)
+    # (pieces, tracks) at once, as births test them: column k is track k's answer
+    still = np.array([0.0, 1.4, 0, 0, 0, 0])  # the third piece's ball holds it
+    both = one_object(pieces[:, None, :], np.stack([track, still])[None, :, :], 0.1, 1.0)
+    assert both.tolist() == [[True, False], [False, False], [False, True]]
 
 
 def _split(offset: np.ndarray) -> list[int]:
@@ -523,30 +527,43 @@ def test_on_or_above_projects_a_state_below_the_ground_onto_it() -> None:
     assert x[0, 2] == -3.0  # the input is left alone
 
 
-def _sinking(floor: Floor | None) -> tuple[np.ndarray, float]:
-    """An object 40 m out sinking at 4 m/s from 3 m up, seen 1 s, then missed in view:
-    the heights of its track's state over 3 s of coasting, and its last fix's."""
+def _sinking(floor: Floor | None, seen_s: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """An object 40 m out sinking at 4 m/s from 3 m up, seen for ``seen_s``, then missed
+    in view: each frame's height and vertical speed of its track over 4 s from birth."""
     layer = _Layer()
-    heights = []
+    states = []
     for k in range(40):
         c = np.array([40.0, 0.0, 3.0 - 4.0 * (k * T - 0.5 * T)])
-        layer.step(k * T, c[None, :] if k < 10 else np.empty((0, 3)), floor=floor)
-        if k >= 10:
+        layer.step(k * T, c[None, :] if k * T < seen_s else np.empty((0, 3)), floor=floor)
+        if k >= 2:  # born on the second frame
             assert len(layer.tracks) == 1
-            heights.append(layer.tracks.x[0, 2])
-    return np.array(heights), float(layer.tracks.p_update[0, 2])
+            states.append(layer.tracks.x[0, [2, 5]])
+    z, vz = np.array(states).T
+    return z, vz
 
 
-def test_a_track_coasting_down_stays_on_the_ground_and_is_not_lifted_above_its_fixes() -> None:
-    flat, _ = _sinking(lambda xy: np.full(len(xy), -5.0))
-    assert flat.min() == pytest.approx(-5.0)  # it reached the ground and stayed there
-    assert flat[-1] == pytest.approx(-5.0)
+def test_a_track_coasting_down_stays_on_the_ground() -> None:
+    z, vz = _sinking(lambda xy: np.full(len(xy), -5.0))
+    assert z.min() == pytest.approx(-5.0)  # it reached the ground and stayed there
+    assert z[-1] == pytest.approx(-5.0)
+    assert vz[-1] == 0.0
     assert _sinking(None)[0].min() < -10.0  # unbound, it sinks on
-    # a ground learnt 10 m up there (a crown seen, not the ground): the track is not
-    # lifted above its last fix, and sinks no lower
-    wrong, last = _sinking(lambda xy: np.full(len(xy), 10.0))
-    assert last < 1.0
-    np.testing.assert_allclose(wrong, last)
+
+
+def test_a_track_measured_below_the_ground_learnt_is_not_bound_by_it() -> None:
+    # a ground learnt 30 m up there (a crown or a wall top seen, not the ground): the
+    # track follows its fixes down, and coasts on as without a floor
+    def high(xy: np.ndarray) -> np.ndarray:
+        return np.full(len(xy), 30.0)
+
+    _, vz = _sinking(high, seen_s=4.0)
+    np.testing.assert_allclose(vz[5:], -4.0, atol=0.3)
+    np.testing.assert_allclose(_sinking(high)[0], _sinking(None)[0])
+
+
+def test_a_floor_giving_the_wrong_number_of_heights_is_refused() -> None:
+    with pytest.raises(InputError, match="floor"):
+        _sinking(lambda xy: np.zeros(len(xy) + 1))
 
 
 def _alternating(share_m: float, both_after: bool) -> list[list[int]]:

@@ -67,6 +67,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.detect.lock import SAME_TARGET_M
+from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.cv_bank import (
     INFEASIBLE,
@@ -110,8 +111,8 @@ def on_or_above(x: FloatArray, ground: FloatArray) -> FloatArray:
     The ground returns the sensor's pulses, so nothing it tracks is below it; a track
     coasting on a velocity that points down (a far fragment's centroid jitter gives
     metres a second) would otherwise sink tens of metres below it within its coasting
-    time.  The estimate projection of a constrained Kalman filter onto the active
-    constraint, with the covariance kept.
+    time.  The projection of the estimate onto z ≥ g with the identity weight (z alone
+    moves, not the states correlated with it), the covariance kept, and v_z clipped.
     """
     out = np.array(x, dtype=np.float64, copy=True)
     with np.errstate(invalid="ignore"):
@@ -124,41 +125,40 @@ def on_or_above(x: FloatArray, ground: FloatArray) -> FloatArray:
 def within_smear(
     points: FloatArray, x: FloatArray, period: float, radius: float
 ) -> NDArray[np.bool_]:
-    """(N,) which ``points`` (N, 3) lie within ``radius`` [m] of the path an object of
-    state ``x`` = [p, v] sweeps over ±``period`` [s]: the capsule around the segment
-    p ± v T, the ball of that radius at rest.
+    """Which ``points`` (..., 3) lie within ``radius`` [m] of the path an object of
+    state ``x`` (..., 6) = [p, v] sweeps over ±``period`` [s]: the capsule around the
+    segment p ± v T, the ball of that radius at rest.  The two broadcast together.
 
     a = clip((c − p)·v̂, −|v| T, |v| T) is how far along its motion the point c lies,
     and it is within when |(c − p) − a v̂| ≤ ρ.
     """
-    c = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    c = np.asarray(points, dtype=np.float64)
     x = np.asarray(x, dtype=np.float64)
-    d = c - x[:3]  # c − p
-    speed = float(np.linalg.norm(x[3:]))
-    if speed * period > 0.0:
-        u = x[3:] / speed  # v̂
-        a = np.clip(d @ u, -speed * period, speed * period)
-        d = d - a[:, None] * u[None, :]
-    return np.asarray(np.linalg.norm(d, axis=1) <= radius)
+    d = c - x[..., :3]  # c − p
+    speed = np.linalg.norm(x[..., 3:], axis=-1, keepdims=True)  # |v|
+    u = np.divide(x[..., 3:], speed, out=np.zeros_like(x[..., 3:]), where=speed > 0)  # v̂
+    reach = speed * period  # |v| T
+    a = np.clip(np.sum(d * u, axis=-1, keepdims=True), -reach, reach)
+    return np.asarray(np.linalg.norm(d - a * u, axis=-1) <= radius)
 
 
 def one_object(
     x_piece: FloatArray, x_track: FloatArray, period: float, radius: float
 ) -> NDArray[np.bool_]:
-    """(N,) which pieces of states ``x_piece`` (N, 6) are of the object of the track
-    ``x_track`` (6,): each within the other's smear over ±``period`` (``within_smear``).
+    """Which pieces of states ``x_piece`` (..., 6) are of the object of the tracks
+    ``x_track`` (..., 6), the two broadcast together: each within the other's smear
+    over ±``period`` (``within_smear``).
 
     A frame's returns of an object moving at v span its integration period T, and the
     clustering may part them along v: at 15 m/s the returns of a 0.1 s frame lie along
     1.5 m.  Both ways, so that a piece beside a fast track, or one moving across it, is
     another object.
     """
-    pieces = np.asarray(x_piece, dtype=np.float64).reshape(-1, 6)
-    track = np.asarray(x_track, dtype=np.float64)
-    near = within_smear(pieces[:, :3], track, period, radius)
-    for i in np.flatnonzero(near):
-        near[i] = bool(within_smear(track[None, :3], pieces[i], period, radius)[0])
-    return near
+    pieces = np.asarray(x_piece, dtype=np.float64)
+    tracks = np.asarray(x_track, dtype=np.float64)
+    return within_smear(pieces[..., :3], tracks, period, radius) & within_smear(
+        tracks[..., :3], pieces, period, radius
+    )
 
 
 def _cluster_of(candidates: Candidates, found: Detections) -> NDArray[np.intp]:
@@ -184,7 +184,6 @@ class MultiTargetTracker:
         self._together: dict[tuple[int, int], float] = {}  # (id, id) → close since [s]
         self._sharing: dict[tuple[int, int], float] = {}  # (id, id) → one cluster since [s]
         self._lock: LockNote | None = None
-        self._floor: Floor | None = None
         self._unlikely: NDArray[np.int64] = np.empty(0, dtype=np.int64)
         self.reset()
 
@@ -234,8 +233,7 @@ class MultiTargetTracker:
         """
         s = self.settings
         t_z = t if t_meas is None else min(t_meas, t)
-        self._floor = floor
-        self._predict(t_z)
+        self._predict(t_z, floor)
         R = measurement_noise(found, s.sigma_meas)
         reach = s.v_max * np.maximum(t_z - self.t_update, 0.0) + s.gate_m
         cost = gate_costs(self.x, self.P, self.p_update, reach, found.centroids, R, self._gate)
@@ -280,7 +278,7 @@ class MultiTargetTracker:
         taken[cols] = True
         # the frame spans T = 2 (t − t_z): its clusters describe its middle
         self._births(t_z, confirmed, found, of, taken, R, period=2.0 * (t - t_z))
-        self._predict(t)
+        self._predict(t, floor)
         return self.snapshot()
 
     def note_lock(self, tracks: Tracks, estimate: TrackEstimate) -> None:
@@ -370,18 +368,31 @@ class MultiTargetTracker:
             out[j if self.updates[i] >= self.updates[j] else i] = True
         return out
 
-    def _predict(self, t: float) -> None:
-        """Every track's state at ``t`` (none goes back in time), on or above the floor
-        the step was given."""
+    def _predict(self, t: float, floor: Floor | None = None) -> None:
+        """Every track's state at ``t`` (none goes back in time), on or above the
+        ``floor``'s ground (``on_or_above``; None: no bound)."""
         dt = np.maximum(t - self.t, 0.0)
         self.x, self.P = cv_predict(self.x, self.P, dt, self.settings.sigma_acc)
         self.t = np.maximum(self.t, t)
-        if self._floor is not None and len(self):
-            # the ground learnt may lie above a track where it missed the real one (only
-            # a crown or a wall top seen there): a track measured lower is not lifted,
-            # bound = min(g, z of its last update); NaN where the ground is unknown
-            ground = np.asarray(self._floor(self.x[:, :2]), dtype=np.float64)
-            self.x = on_or_above(self.x, np.minimum(ground, self.p_update[:, 2]))
+        if floor is not None and len(self):
+            self.x = on_or_above(self.x, self._ground_bound(floor))
+
+    def _ground_bound(self, floor: Floor) -> FloatArray:
+        """(K,) the height each track keeps on or above: the ground under it, g, where
+        its last fix z_u was on or above it; NaN (no bound) where the ground is not
+        known, where its position is not finite, and where it was measured lower
+        (z_u < g: the ground learnt there is a crown or a wall top that hid the real
+        one, and a measured track is neither lifted nor held at its fix)."""
+        xy = self.x[:, :2]
+        finite = np.isfinite(xy).all(axis=1)
+        ground = np.full(len(self), np.nan)
+        if finite.any():
+            g = np.asarray(floor(xy[finite]), dtype=np.float64).reshape(-1)
+            if len(g) != int(finite.sum()):
+                raise InputError(f"floor: {len(g)} heights for {int(finite.sum())} points")
+            ground[finite] = g
+        with np.errstate(invalid="ignore"):
+            return np.where(ground <= self.p_update[:, 2], ground, np.nan)
 
     def _note_hover(self, confirmed: Candidates, of: NDArray[np.intp]) -> None:
         """A track whose cluster is a candidate that hovered has hovered (one-way);
@@ -404,22 +415,21 @@ class MultiTargetTracker:
         period: float,
     ) -> None:
         """Start tracks on the confirmed candidates whose clusters (``of``) no track took
-        (``taken``) and that are no piece of a track's object: beyond ``merge_m`` of the
-        path each sweeps over the frame's ``period`` [s] (``one_object``); but the one
-        the lock's track takes (``_hand_over``).  ``R_all`` is every cluster's
-        measurement noise; a candidate with a non-finite state is never born."""
+        (``taken``) and that are no piece of a track's object (a piece lies within
+        ``merge_m`` of the path a track sweeps over the frame's ``period`` [s], and the
+        track within ``merge_m`` of the piece's: ``one_object``); but the one the lock's
+        track takes (``_hand_over``).  ``R_all`` is every cluster's measurement noise; a
+        candidate with a non-finite state is never born."""
         s = self.settings
         new = np.flatnonzero((of >= 0) & ~taken[np.maximum(of, 0)])
-        finite = np.isfinite(confirmed.positions[new]).all(axis=1) & np.isfinite(
-            confirmed.velocities[new]
-        ).all(axis=1)
-        new = new[finite]
+        # each one's cluster's centroid and velocity, as the piece test takes them
+        pieces = np.concatenate([found.centroids[of[new]], confirmed.velocities[new]], axis=1)
+        finite = np.isfinite(pieces).all(axis=1) & np.isfinite(confirmed.positions[new]).all(axis=1)
+        new, pieces = new[finite], pieces[finite]
         if len(new) and len(self):
-            pieces = np.concatenate([found.centroids[of[new]], confirmed.velocities[new]], axis=1)
-            piece = np.zeros(len(new), dtype=bool)
-            for k in range(len(self)):
-                piece |= one_object(pieces, self.x[k], period, s.merge_m)
-            new = new[~piece]
+            # (B, K): birth b a piece of track k's object
+            piece = one_object(pieces[:, None, :], self.x[None, :, :], period, s.merge_m)
+            new = new[~piece.any(axis=1)]
         if len(new) == 0:
             return
         c, R = confirmed.take(new), R_all[of[new]]
