@@ -426,3 +426,27 @@ def test_a_lock_on_a_static_object_is_given_up_for_the_drone() -> None:
     on_car_alone, on_drone_alone, _ = run(False)
     assert all(on_car_alone[10:])
     assert not any(on_drone_alone)
+
+
+def test_a_track_coasting_down_keeps_on_the_ground_the_classes_learn() -> None:
+    """An object 40 m out descends at 5 m/s and is lost 1.5 m up; its track coasts on
+    in view for its coasting time.  The classes learn the ground (z = 0) from the
+    returns the crop drops, and the track keeps on or above it; without the classes
+    there is no ground, and it sinks on below."""
+
+    def lowest(classes: bool) -> float:
+        g = np.random.default_rng(2)
+        pipe = _pipeline_with(True)
+        if not classes:
+            pipe.classifier = None
+        low = np.inf
+        for k in range(40):
+            at = (40.0, 5.0, 6.0 - 5.0 * (0.1 * k + 0.05))
+            pts = [_ground(g)] + ([_drone(g, at)] if at[2] > 1.5 else [])
+            r = pipe.step(_frame(0.1 * k, np.vstack(pts)))
+            if r.tracks is not None and len(r.tracks):
+                low = min(low, float(r.tracks.positions[:, 2].min()))
+        return low
+
+    assert -0.1 < lowest(classes=True) < 1.5
+    assert lowest(classes=False) < -5.0
