@@ -17,18 +17,11 @@ from dronetrack.track.cv_bank import (
     cv_process_noise,
     cv_update,
     gate_costs,
+    on_or_above,
 )
 from dronetrack.track.kalman import cv_transition, kf_predict, kf_update, position_selector
-from dronetrack.track.multi import (
-    Floor,
-    InView,
-    MultiTargetTracker,
-    TrackSettings,
-    close_pairs,
-    on_or_above,
-    one_object,
-    within_smear,
-)
+from dronetrack.track.multi import Floor, InView, MultiTargetTracker, TrackSettings
+from dronetrack.track.same_object import close_pairs, one_object, within_smear
 from dronetrack.types import Candidates, Detections, TrackEstimate
 
 T = 0.1  # frame period [s]

@@ -42,6 +42,7 @@ __all__ = [
     "cv_update",
     "gate_costs",
     "measurement_noise",
+    "on_or_above",
 ]
 
 INFEASIBLE = 1e12  # an assignment cost no pair inside the gates can reach
@@ -231,3 +232,22 @@ def associate(cost: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
 def measurement_noise(found: Detections, sigma_meas: float) -> FloatArray:
     """R_j = Σ_j + σ₀² I for each cluster j (D, 3, 3)."""
     return np.asarray(found.covariances, dtype=np.float64) + sigma_meas**2 * np.eye(3)
+
+
+def on_or_above(x: FloatArray, ground: FloatArray) -> FloatArray:
+    """The states ``x`` (K, 6) = [p, v] kept on or above the ``ground``'s height under
+    each (K,) [m; NaN: unknown, no bound]: a state below it is projected onto it,
+    z ← g, and no longer sinks there, v_z ← max(v_z, 0).
+
+    The ground returns the sensor's pulses, so nothing it tracks is below it; a track
+    coasting on a velocity that points down (a far fragment's centroid jitter gives
+    metres a second) would otherwise sink tens of metres below it within its coasting
+    time.  The projection of the estimate onto z ≥ g with the identity weight (z alone
+    moves, not the states correlated with it), the covariance kept, and v_z clipped.
+    """
+    out = np.array(x, dtype=np.float64, copy=True)
+    with np.errstate(invalid="ignore"):
+        below = out[:, 2] < ground  # NaN compares False
+    out[below, 2] = ground[below]
+    out[below, 5] = np.maximum(out[below, 5], 0.0)
+    return out
