@@ -6,7 +6,8 @@ against it through the real protocols (``ptu://``).
 A seed 003 scan strategy (``sweep``, ±30° at 30°/s): the pan the PTU reports, as the
 live run logs it, is the strategy's triangle wave, a little late.  Measured: 0.31 s
 late, within 0.46-0.59° of the wave away from its bounces on a quiet machine, 2.0° at
-a load average of 3; the test takes about 12 s here.
+a load average of 3, except in the half second after the scan, when the host pauses its
+commands once to build the background map; the test takes about 12 s here.
 
 Tracking with the PTU against ``simulate`` is tested on seed 003's own rig, a VLP-16
 on the PTU (``test_live_end_to_end.py``), and the strategies' reactions to a
@@ -95,9 +96,15 @@ def test_a_sweep_moves_the_emulated_ptu_as_the_strategy_says(tmp_path: Path) -> 
     assert straight.sum() >= 30
     off = np.abs(pan - expected)[straight]
     assert float(np.median(off)) < 1.0
-    # A frame handled late on a loaded machine logs a reading up to a frame period and
-    # a poll period (20 Hz) old: (0.1 + 0.05) s · 30°/s = 4.5° (2.0° seen at load 3).
-    assert off.max() < (0.1 + 0.05) * rate
+    # When the scan ends the host builds the background map (55-90 ms here, about 0.2 s
+    # with two busy processes beside the test on 2 cores) before it sends the next
+    # command: the PTU stops at its last target once, then catches up over a few frames
+    # (4.2-5.5° late with those two processes, 8.3° with three).  Past that half second,
+    # a frame handled late logs a reading up to a frame period and a poll period (20 Hz)
+    # old: (0.1 + 0.05) s · 30°/s = 4.5° (1.2-3.0° seen with the two processes).
+    steady = straight & (t >= t[0] + 0.5)
+    assert steady.sum() >= 25
+    assert np.abs(pan - expected)[steady].max() < (0.1 + 0.05) * rate
     assert pan.max() > hi - 2.0
     assert pan.min() < lo + 2.0
     assert np.abs(tilt).max() < 0.02  # the sweep's tilt, 0°, to the unit's resolution
