@@ -521,3 +521,24 @@ def test_a_structures_evidence_takes_a_track_out_of_the_open_air_once_it_is_a_sh
     assert in_open_air(replace(four, propped=np.ones(1), joined=np.ones(1)))[0]
     assert not in_open_air(replace(five, joined=share, moved=np.array([3.4])))[0]
     assert in_open_air(replace(five, joined=share, moved=np.array([3.6])))[0]
+
+
+def test_a_part_of_a_structure_in_the_air_is_static_where_its_fragments_land() -> None:
+    """A sign board's fragments 100 m out, propped or joined in a fifth of the frames
+    (``WORLD_SHARE``), land 2.5 m apart: beyond the 1 m a still object may wander
+    there, within 2 θ_c r (3.5 m).  The selection already holds such a track out of
+    the open air (``in_open_air``); it is static once it is old enough, whether or not
+    its speed said it hovered.  Past 2 θ_c r it flew (a drone that stopped beside a
+    mast); on the ground or cut by the view's floor it may be a person who walks."""
+    base = _life(1.5, np.array([100.0, 0.0, 6.0]), np.zeros(3), 0.1)
+    share = np.array([WORLD_SHARE])
+    board = replace(base, moved=np.array([2.5]), hovered=np.zeros(1, dtype=bool))
+    assert classify(board)[0][0] != STATIC  # free air: no evidence of a structure
+    for evidence in ({"propped": share}, {"joined": share}):
+        assert not in_open_air(replace(board, **evidence))[0]
+        assert classify(replace(board, **evidence))[0][0] == STATIC
+        assert classify(replace(board, moved=np.array([3.6]), **evidence))[0][0] != STATIC
+        young = _life(0.8, np.array([100.0, 0.0, 6.0]), np.zeros(3), 0.1)
+        assert classify(replace(young, moved=np.array([2.5]), **evidence))[0][0] != STATIC
+        for person in ({"grounded": np.ones(1)}, {"cut": np.ones(1)}):
+            assert classify(replace(board, **evidence, **person))[0][0] != STATIC
