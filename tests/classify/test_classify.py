@@ -542,3 +542,68 @@ def test_a_part_of_a_structure_in_the_air_is_static_where_its_fragments_land() -
         assert classify(replace(young, moved=np.array([2.5]), **evidence))[0][0] != STATIC
         for person in ({"grounded": np.ones(1)}, {"cut": np.ones(1)}):
             assert classify(replace(board, **evidence, **person))[0][0] != STATIC
+
+
+def test_an_heir_takes_the_life_of_the_track_at_rest_and_others_are_forgotten() -> None:
+    """A still object on the ground, watched 1.5 s, is static; its track ends for room
+    and rests (``track.rest``), and a birth on it is its heir: static from its first
+    frame.  Without the inheritance it is too young to tell; a track that ended and
+    does not rest is forgotten."""
+    p = [40.0, 5.0, 1.5]
+
+    def frame(lives: TrackLives, t: float, ident: int, **kw: object) -> LifeFeatures:
+        tracks = _tracks([p], [[0, 0, 0]], [ident])
+        obs = observe(tracks, _found([p], [p[2] - 0.6]), np.zeros(3), np.zeros(1), floor_z=1.0)
+        return lives.update(t, tracks, obs, **kw)  # type: ignore[arg-type]
+
+    outcomes = []
+    for inherit in (True, False):
+        lives = TrackLives(hover_speed=4.0, hover_frames=3)
+        for k in range(16):
+            life = frame(lives, k * T, 7)
+        assert classify(life)[0][0] == STATIC
+        rest = np.array([7])
+        heirs = (np.array([12]), rest) if inherit else None
+        heir = frame(lives, 1.8, 12, resting=rest, heirs=heirs)
+        outcomes.append(int(classify(heir)[0][0]))
+        assert heir.observed[0] == (17 if inherit else 1)
+    assert outcomes[0] == STATIC
+    assert outcomes[1] != STATIC
+    lives = TrackLives()
+    frame(lives, 0.0, 7)
+    frame(lives, 0.1, 8, resting=np.array([7]))
+    assert len(lives) == 2
+    frame(lives, 0.2, 8)
+    assert len(lives) == 1
+
+
+def test_a_hover_counts_for_a_drone_only_where_the_world_showed_in_under_half_its_frames() -> None:
+    """A low fragment of a structure 125 m out shows a different kind of the world's
+    evidence from frame to frame: grounded in 4 of 10 observations and crowded in 3
+    others, each under its own share of half, the world's in 7 of 10 together
+    (``world_seen``: one observation counts once).  It held still in free space for three
+    frames (``hovered_free``), but that hover counts for a drone no more.  With the
+    world's evidence in 4 of 10 observations (a drone passing a mast and crossing
+    another) the hover counts."""
+    kinds = ["ground", "crowd"] * 3 + ["ground"] + ["free"] * 3
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    for k, kind in enumerate(kinds):
+        pos = [[125.0, 0.0, 2.0], [125.0, 1.5, 2.0]]
+        tracks = _tracks(pos, [[0, 0, 0]] * 2, [1, 2])
+        # the fragment's bottom on the ground (z 0) or 1.5 m over it; its neighbour
+        # beside it (1.5 m) or 40 m off
+        low = 0.05 if kind == "ground" else 1.5
+        if kind != "crowd":
+            pos[1] = [125.0, 40.0, 2.0]
+        obs = observe(tracks, _found(pos, [low, 1.5]), np.zeros(3), np.zeros(2), crowd_gap_m=2.0)
+        life = lives.update(k * T, tracks, obs)
+    assert (life.grounded[0], life.crowded[0], life.world_seen[0]) == (0.4, 0.3, 0.7)
+    assert life.hovered_free[0]
+    fragment = replace(
+        life, **{name: getattr(life, name)[:1] for name in life.__dataclass_fields__}
+    )
+    assert classify(fragment)[0][0] != DRONE
+    passing = replace(
+        fragment, grounded=np.array([0.2]), crowded=np.array([0.2]), world_seen=np.array([0.4])
+    )
+    assert classify(passing)[0][0] == DRONE

@@ -19,6 +19,7 @@ from dronetrack.config.rig import make_turret
 from dronetrack.geometry.transforms import make_pose
 from dronetrack.pipeline import Pipeline
 from dronetrack.pipeline.factory import build_pipeline
+from dronetrack.track.multi import MultiTargetTracker
 from dronetrack.types import Frame
 
 TURRET = make_turret("widowx")
@@ -450,3 +451,46 @@ def test_a_track_coasting_down_keeps_on_the_ground_the_classes_learn() -> None:
 
     assert -0.1 < lowest(classes=True) < 1.5
     assert lowest(classes=False) < -5.0
+
+
+class _NoHeirs(MultiTargetTracker):
+    """A track layer whose births are never heirs."""
+
+    @property
+    def heirs(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+
+
+def test_a_crate_whose_track_ended_for_room_is_static_again_at_its_next_birth() -> None:
+    """Three crates stand on the ground, and the track layer holds two tracks: at the
+    cap the static ones end first (``track.multi``), and each crate's clusters give
+    birth again.  A birth on a crate whose track ended for room is its heir
+    (``track.rest``) and takes its life, so it is static from its first frame; without
+    the inheritance every such birth starts again from nothing, unknown for a second."""
+    crates = [(40.0, 10.0, 1.6), (50.0, -15.0, 1.6), (60.0, 25.0, 1.6)]
+
+    def classes(inherit: bool) -> list[str]:
+        g = np.random.default_rng(5)
+        pipe = _pipeline_with(True)
+        assert pipe.acquisition is not None
+        assert pipe.acquisition.objects is not None
+        kind = MultiTargetTracker if inherit else _NoHeirs
+        layer = kind(replace(pipe.acquisition.objects.settings, max_tracks=2))
+        pipe.acquisition = replace(pipe.acquisition, objects=layer)
+        out: list[str] = []
+        for k in range(80):
+            pts = [
+                np.array(c) + g.uniform([-0.8, -0.5, -0.6], [0.8, 0.5, 0.6], (12, 3))
+                for c in crates
+            ]
+            r = pipe.step(_frame(0.1 * k, np.vstack([*pts, _ground(g)])))
+            if k >= 30 and r.tracks is not None:
+                out += list(r.tracks.class_names)
+        return out
+
+    heirs, none = classes(True), classes(False)
+    assert len(heirs) > 50
+    assert len(none) > 50
+    share = heirs.count("static") / len(heirs)
+    assert share > 0.9
+    assert none.count("static") / len(none) < share - 0.2

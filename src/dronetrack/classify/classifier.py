@@ -67,6 +67,8 @@ class TrackClassifier:
         foreground: NDArray[np.int64],
         sensor: FloatArray,
         is_background: BackgroundTest | None = None,
+        resting: NDArray[np.int64] | None = None,
+        heirs: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
     ) -> Tracks:
         """``tracks`` after the frame ending at ``t`` with their classes and p_drone.
 
@@ -76,7 +78,10 @@ class TrackClassifier:
         and the view's floor (``features.view_floor``) from the same sample each frame;
         ``sensor`` (3,) is the sensor's position, ``is_background`` the background
         map's test (None: no map yet).  The propped test probes the foreground and the
-        ground's sample of the other returns (a pole outside the map is foreground)."""
+        ground's sample of the other returns (a pole outside the map is foreground).
+        The lives of the identities ``resting`` (``track.rest``) are kept for an heir
+        (``heirs``: new identities and those whose lives they take); those of the other
+        tracks that ended are forgotten."""
         stride = self.ground.stride
         keep = np.ones((len(world) + stride - 1) // stride, dtype=bool)
         keep[foreground[foreground % stride == 0] // stride] = False  # every stride-th row
@@ -96,7 +101,7 @@ class TrackClassifier:
             floor=view_floor(others[::FLOOR_STRIDE], sensor),
             below=np.concatenate([world[foreground], others]),
         )
-        life = self.lives.update(t, tracks, obs)
+        life = self.lives.update(t, tracks, obs, resting, heirs)
         classes, p_drone = classify(life, self.rules)
         air = in_open_air(life, self.rules)
         return replace(tracks, classes=classes, p_drone=p_drone, open_air=air)

@@ -270,6 +270,9 @@ class LifeFeatures:
     crowded: FloatArray
     cut: FloatArray
     propped: FloatArray
+    # share of its observations that showed the world: any of grounded, joined, propped,
+    # crowded or cut (one observation counts once, whichever it showed)
+    world_seen: FloatArray
     extent: FloatArray  # the largest extent seen [m]
     hovered: NDArray[np.bool_]
     # hovered in free space: in observations neither grounded, cut, joined, propped nor
@@ -288,8 +291,24 @@ _COUNTS = (
     "crowded",
     "cut",
     "propped",
+    "world_seen",
     "slow_run",
     "free_run",
+)
+
+# the other per-track arrays of ``TrackLives``
+_LIFE = (
+    "first_t",
+    "last_t",
+    "seen_s",
+    "first_p",
+    "moved",
+    "extent",
+    "range_m",
+    "hovered",
+    "hovered_free",
+    "min_speed",
+    "aloft",
 )
 
 
@@ -313,6 +332,7 @@ class TrackLives:
         self.crowded = np.empty(n, dtype=np.int64)
         self.cut = np.empty(n, dtype=np.int64)
         self.propped = np.empty(n, dtype=np.int64)
+        self.world_seen = np.empty(n, dtype=np.int64)
         self.extent = np.empty(n)
         self.range_m = np.empty(n)
         self.slow_run = np.empty(n, dtype=np.int64)
@@ -325,10 +345,24 @@ class TrackLives:
     def __len__(self) -> int:
         return len(self._row)
 
-    def update(self, t: float, tracks: Tracks, obs: Observations) -> LifeFeatures:
-        """Take the frame ending at ``t``: forget tracks that ended, start new ones, add
-        each updated track's observation; the features of ``tracks``."""
-        self._forget(set(tracks.ids.tolist()))
+    def update(
+        self,
+        t: float,
+        tracks: Tracks,
+        obs: Observations,
+        resting: NDArray[np.int64] | None = None,
+        heirs: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+    ) -> LifeFeatures:
+        """Take the frame ending at ``t``: give each heir its life (``heirs``: the new
+        identities and those whose lives they take), forget tracks that ended (but the
+        identities ``resting``, an heir may come), start new ones, add each updated
+        track's observation; the features of ``tracks``."""
+        if heirs is not None:
+            self._inherit(*heirs)
+        alive = set(tracks.ids.tolist())
+        if resting is not None:
+            alive.update(np.asarray(resting).tolist())
+        self._forget(alive)
         rows = np.array([self._row_of(int(i), t) for i in tracks.ids], dtype=np.intp)
         u = obs.updated
         r = rows[u]
@@ -350,6 +384,8 @@ class TrackLives:
         self.crowded[r] += obs.crowded[u]
         self.cut[r] += obs.cut[u]
         self.propped[r] += obs.propped[u]
+        world = obs.grounded | obs.joined | obs.propped | obs.crowded | obs.cut
+        self.world_seen[r] += world[u]
         self.extent[r] = np.fmax(self.extent[r], obs.extent[u])
         self.range_m[r] = np.fmax(self.range_m[r], obs.range_m[u])
         later = self.observed[r] > 1  # a track's first velocity is the birth's guess
@@ -379,6 +415,7 @@ class TrackLives:
             crowded=self.crowded[rows] / n,
             cut=self.cut[rows] / n,
             propped=self.propped[rows] / n,
+            world_seen=self.world_seen[rows] / n,
             extent=self.extent[rows].copy(),
             hovered=self.hovered[rows].copy(),
             hovered_free=self.hovered_free[rows].copy(),
@@ -407,6 +444,18 @@ class TrackLives:
         self.aloft = np.append(self.aloft, 1.0)
         return row
 
+    def _inherit(self, new: NDArray[np.int64], old: NDArray[np.int64]) -> None:
+        """A copy of the life of each identity ``old`` for the new one beside it (those
+        without a life, or whose heir has one already, are passed over)."""
+        for heir, of in zip(np.asarray(new).tolist(), np.asarray(old).tolist(), strict=True):
+            row = self._row.get(int(of))
+            if row is None or int(heir) in self._row:
+                continue
+            self._row[int(heir)] = len(self.first_t)
+            for name in (*_LIFE, *_COUNTS):
+                column = getattr(self, name)
+                setattr(self, name, np.concatenate([column, column[row : row + 1]]))
+
     def _forget(self, alive: set[int]) -> None:
         """Drop the lives of tracks that ended (their rows are compacted)."""
         gone = [i for i in self._row if i not in alive]
@@ -414,7 +463,6 @@ class TrackLives:
             return
         keep_ids = [i for i in self._row if i in alive]
         keep = np.array([self._row[i] for i in keep_ids], dtype=np.intp)
-        rest = ("first_t", "last_t", "seen_s", "first_p", "moved", "extent", "range_m")
-        for name in (*rest, "hovered", "hovered_free", "min_speed", "aloft", *_COUNTS):
+        for name in (*_LIFE, *_COUNTS):
             setattr(self, name, getattr(self, name)[keep])
         self._row = {i: n for n, i in enumerate(keep_ids)}

@@ -23,7 +23,15 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
                                         cluster 32 m away (its gate grown while
                                         unseen) and kept its hover: the bird was
                                         classed drone in 29 % of its frames
-                                        (``outdoor-clutter`` seed 6)
+                                        (``outdoor-clutter`` seed 6).  Nor does it
+                                        count where the world showed in half its
+                                        observations or more, whichever kind each
+                                        showed (``world_seen``): a low fragment of a
+                                        structure 125-160 m out, grounded in 44 % of
+                                        them and crowded in a third, each under its
+                                        own half, hovered in free space for three
+                                        frames and was classed drone (p 0.98), and
+                                        the turret held it (``outdoor-unscanned``)
     grounded (≥ half its frames)  −4    its bottom is the ground or the crop floor
     joined (≥ a fifth)            −3    a map cell beside or below it: part of a structure
     propped (≥ a fifth)           −3    returns just below it: a mast's or a tree's top
@@ -235,8 +243,11 @@ def classify(
     still = life.moved <= np.maximum(rules.still_m, wander)
     seen = life.observed >= rules.min_observed
     flying = ~still & ~life.hovered & seen
+    # the world's evidence in most of its observations, whichever kind each showed
+    of_the_world = life.world_seen >= 0.5
+    free = ~(grounded | cut | joined | propped | crowded | of_the_world)
     logit = (
-        W_HOVERED * (life.hovered_free & ~(grounded | cut | joined | propped | crowded))
+        W_HOVERED * (life.hovered_free & free)
         + W_GROUNDED * grounded
         + W_JOINED * joined
         + W_PROPPED * propped

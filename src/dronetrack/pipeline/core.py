@@ -271,7 +271,9 @@ class Pipeline:
             return tracks
         sensor = pose[:3, 3]
         test = self._in_background if self._has_background else None
-        return self.classifier.step(t, tracks, found, fg.world, fg.index, sensor, test)
+        return self.classifier.step(
+            t, tracks, found, fg.world, fg.index, sensor, test, objects.resting, objects.heirs
+        )
 
     @property
     def _has_background(self) -> bool:

@@ -96,6 +96,16 @@ class ObjectTracker(Protocol):
         """The tracks the classes hold no drone after a frame: at the cap they die first."""
         ...
 
+    @property
+    def resting(self) -> NDArray[np.int64]:
+        """The identities of ended tracks whose lives an heir may take (kept meanwhile)."""
+        ...
+
+    @property
+    def heirs(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(new identities, the resting ones whose lives they take) of the last step."""
+        ...
+
     def reset(self) -> None:
         """Forget every track."""
         ...

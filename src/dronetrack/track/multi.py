@@ -40,6 +40,12 @@ which took its cluster in turn.)  ``merge_s`` (1 s) keeps apart two objects that
 cross: at 2 m/s between them they are within 1 m of each other for 1 s at most.
 Identities are consecutive integers from 1, never reused in a run.
 
+**At the cap** (``max_tracks``) the tracks the classes hold no drone end first (see
+``_births``).  Their objects are still there, so such a track *rests* for ``coast_s``
+(``track.rest``): a birth within ``merge_m`` of its last fix is its heir, a new
+identity to which the classes give the resting track's life (``heirs``), so a
+structure's fragment reborn after its track was classed static is static at once.
+
 **The lock carries an identity.**  The turret's tracker follows one object with its
 own filter (``note_lock``: after each frame its estimate and the track it holds, or,
 while it stays locked, the one it held last).
@@ -78,6 +84,7 @@ from dronetrack.track.cv_bank import (
     measurement_noise,
     on_or_above,
 )
+from dronetrack.track.rest import Resting, match_rested
 from dronetrack.track.same_object import close_pairs, one_object
 from dronetrack.track.track_settings import TrackSettings
 from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
@@ -92,6 +99,9 @@ __all__ = [
     "MultiTargetTracker",
     "TrackSettings",
 ]
+
+
+_NO_HEIRS = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
 
 
 def _cluster_of(candidates: Candidates, found: Detections) -> NDArray[np.intp]:
@@ -139,9 +149,23 @@ class MultiTargetTracker:
         self._together = {}
         self._sharing = {}
         self._lock = None
+        self._rest = Resting()
+        self._heirs = _NO_HEIRS
 
     def __len__(self) -> int:
         return len(self.ids)
+
+    @property
+    def resting(self) -> NDArray[np.int64]:
+        """The identities at rest (``track.rest``): ended for room, an heir may take
+        their lives."""
+        return self._rest.ids.copy()
+
+    @property
+    def heirs(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(new identities, the identities at rest whose lives they take) of the last
+        step's births (``track.rest``)."""
+        return self._heirs[0].copy(), self._heirs[1].copy()
 
     def step(
         self,
@@ -166,6 +190,7 @@ class MultiTargetTracker:
         """
         s = self.settings
         t_z = t if t_meas is None else min(t_meas, t)
+        self._heirs = _NO_HEIRS
         self._predict(t_z, floor)
         R = measurement_noise(found, s.sigma_meas)
         reach = s.v_max * np.maximum(t_z - self.t_update, 0.0) + s.gate_m
@@ -209,6 +234,7 @@ class MultiTargetTracker:
         self._drop(~self._duplicates(t_z))
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True
+        self._rest.expire(t_z, s.coast_s)
         # the frame spans T = 2 (t − t_z): its clusters describe its middle
         self._births(t_z, confirmed, found, of, taken, R, period=2.0 * (t - t_z))
         self._predict(t, floor)
@@ -377,6 +403,12 @@ class MultiTargetTracker:
         P[:, 3:, 3:] = s.birth_sigma_v**2 * np.eye(3)
         ids = self._next_id + np.arange(k, dtype=np.int64)
         self._next_id += k
+        # a birth on the object of a track at rest is its heir (``track.rest``)
+        back, rested = match_rested(c.positions, self._rest.p_update, s.merge_m)
+        self._heirs = (ids[back], self._rest.ids[rested])
+        gone = np.ones(len(self._rest), dtype=bool)
+        gone[rested] = False
+        self._rest.keep(gone)
         self.ids = np.concatenate([self.ids, ids])
         self.x = np.concatenate([self.x, x])
         self.P = np.concatenate([self.P, P])
@@ -402,6 +434,9 @@ class MultiTargetTracker:
             order = np.lexsort((self.ids, -self.updates, -self.t_update, unlikely, ~held))
             keep = np.zeros(len(self), dtype=bool)
             keep[order[: s.max_tracks]] = True
+            # their objects are still there: those held no drone rest (``track.rest``)
+            rest = ~keep & unlikely
+            self._rest.add(t, self.ids[rest], self.p_update[rest])
             self._drop(keep)
 
     def _missed_now(self) -> FloatArray:
