@@ -397,7 +397,7 @@ class TrackLives:
         self.hovered[r] |= self.slow_run[r] >= self.hover_frames
         self.hovered[rows] |= tracks.hovered & seen_free
         # and in free space: the same, in observations nothing says are of the world
-        free = seen_free & ~obs.joined & ~obs.propped & ~obs.crowded
+        free = u & ~world
         slow_free = slow & free[u]
         self.free_run[r] = np.where(slow_free, self.free_run[r] + 1, 0)
         self.hovered_free[r] |= self.free_run[r] >= self.hover_frames
@@ -447,14 +447,17 @@ class TrackLives:
     def _inherit(self, new: NDArray[np.int64], old: NDArray[np.int64]) -> None:
         """A copy of the life of each identity ``old`` for the new one beside it (those
         without a life, or whose heir has one already, are passed over)."""
+        rows: list[int] = []
         for heir, of in zip(np.asarray(new).tolist(), np.asarray(old).tolist(), strict=True):
             row = self._row.get(int(of))
             if row is None or int(heir) in self._row:
                 continue
-            self._row[int(heir)] = len(self.first_t)
+            self._row[int(heir)] = len(self.first_t) + len(rows)
+            rows.append(row)
+        if rows:
             for name in (*_LIFE, *_COUNTS):
                 column = getattr(self, name)
-                setattr(self, name, np.concatenate([column, column[row : row + 1]]))
+                setattr(self, name, np.concatenate([column, column[rows]]))
 
     def _forget(self, alive: set[int]) -> None:
         """Drop the lives of tracks that ended (their rows are compacted)."""
