@@ -9,13 +9,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dronetrack.classify.features import (
-    SEEN_GAP_S,
-    LifeFeatures,
-    TrackLives,
-    observe,
-    view_floor,
-)
+from dronetrack.classify.features import SEEN_GAP_S, LifeFeatures, TrackLives
+from dronetrack.classify.observe import observe, view_floor
 from dronetrack.classify.rules import (
     BIRD,
     DRONE,

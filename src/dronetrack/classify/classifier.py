@@ -1,5 +1,6 @@
 """The classify stage: each frame, the ground learnt from the frame's returns, each
-track's observation, its life, and its class and p_drone (``features``, ``rules``)."""
+track's observation, its life, and its class and p_drone (``observe``, ``features``,
+``rules``)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.classify.features import BackgroundTest, TrackLives, observe, view_floor
+from dronetrack.classify.features import TrackLives
+from dronetrack.classify.observe import BackgroundTest, observe, view_floor
 from dronetrack.classify.rules import ClassRules, classify, in_open_air
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.preprocess.ground import GroundGrid
@@ -75,7 +77,7 @@ class TrackClassifier:
         ``world`` (N, 3) is every return of the frame and ``foreground`` the rows of it
         that are foreground: the ground is learnt from a sample of the others, every
         ``ground_every`` frames (it changes slowly; a sample of a frame costs 0.15 ms),
-        and the view's floor (``features.view_floor``) from the same sample each frame;
+        and the view's floor (``observe.view_floor``) from the same sample each frame;
         ``sensor`` (3,) is the sensor's position, ``is_background`` the background
         map's test (None: no map yet).  The propped test probes the foreground and the
         ground's sample of the other returns (a pole outside the map is foreground).

@@ -65,7 +65,7 @@ it, decides by the share s = k / n:
     k ln(q / ε) + (n − k) ln((1 − q) / (1 − ε)) ≥ 0
     ⟺  s ≥ s* = ln((1 − ε) / (1 − q)) / ln(q (1 − ε) / (ε (1 − q)))
 
-With q = 0.29 (the returns below a lattice mast's top, ``classify.features``), s* is
+With q = 0.29 (the returns below a lattice mast's top, ``classify.observe``), s* is
 0.09 for ε = 0.01 and 0.18 for ε = 0.1: a fifth holds a drone that shows such
 evidence by chance in up to a tenth of its frames (passing a crown, hovering beside a
 mast) as not part of the world.  A majority (s ≥ ½) asks for q well above ½, which

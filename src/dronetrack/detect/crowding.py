@@ -16,7 +16,7 @@ hovering 2 m from a Mid-360.
 
 Two stages use it: the detect stage's tentative tracks spend their bounded room on
 the clusters that stand alone first (``detect.tentative``), and the classes count
-a track's crowded observations (``classify.features``).
+a track's crowded observations (``classify.observe``).
 """
 
 from __future__ import annotations

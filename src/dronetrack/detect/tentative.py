@@ -216,7 +216,7 @@ class TentativeTracks:
     fill the room for seconds, and a drone that came into view among them would be
     dropped at its first detection in every frame until the map learnt them.  Such
     fragments stand close to each other, while a drone flies in free space
-    (``classify.features``: crowded in 84 % and 0.1 % of their frames on
+    (``classify.observe``: crowded in 84 % and 0.1 % of their frames on
     ``outdoor-unscanned``).  The crowded tracks that are kept are the most detected, so
     the same fragments keep their tracks rather than taking turns.
     """

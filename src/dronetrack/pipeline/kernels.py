@@ -169,7 +169,7 @@ def _object_tracks() -> None:
 
 def _classes() -> None:
     """The classify stage's test of the column below each track (``propped``)."""
-    from dronetrack.classify.features import stands_on
+    from dronetrack.classify.observe import stands_on
 
     c = np.array([[10.0, 0.0, 5.0]])
     below = np.array([[10.0, 0.0, 4.0], [10.0, 3.0, 4.5]])

@@ -26,26 +26,32 @@ both gates:
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Detections
 
 __all__ = [
     "INFEASIBLE",
+    "Floor",
     "associate",
     "cv_predict",
     "cv_process_noise",
     "cv_update",
     "gate_costs",
+    "ground_bound",
     "measurement_noise",
     "on_or_above",
 ]
 
 INFEASIBLE = 1e12  # an assignment cost no pair inside the gates can reach
+Floor = Callable[[FloatArray], FloatArray]  # points (K, 2) → the ground's height (NaN: unknown)
 
 
 def cv_process_noise(dt: FloatArray, sigma_a: float) -> FloatArray:
@@ -251,3 +257,21 @@ def on_or_above(x: FloatArray, ground: FloatArray) -> FloatArray:
     out[below, 2] = ground[below]
     out[below, 5] = np.maximum(out[below, 5], 0.0)
     return out
+
+
+def ground_bound(x: FloatArray, p_update: FloatArray, floor: Floor) -> FloatArray:
+    """(K,) the height each track keeps on or above: the ground under it, g, where
+    its last fix z_u was on or above it; NaN (no bound) where the ground is not
+    known, where its position is not finite, and where it was measured lower
+    (z_u < g: the ground learnt there is a crown or a wall top that hid the real
+    one, and a measured track is neither lifted nor held at its fix)."""
+    xy = x[:, :2]
+    finite = np.isfinite(xy).all(axis=1)
+    ground = np.full(len(x), np.nan)
+    if finite.any():
+        g = np.asarray(floor(xy[finite]), dtype=np.float64).reshape(-1)
+        if len(g) != int(finite.sum()):
+            raise InputError(f"floor: {len(g)} heights for {int(finite.sum())} points")
+        ground[finite] = g
+    with np.errstate(invalid="ignore"):
+        return np.where(ground <= p_update[:, 2], ground, np.nan)

@@ -73,14 +73,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.detect.lock import SAME_TARGET_M
-from dronetrack.errors import InputError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.cv_bank import (
     INFEASIBLE,
+    Floor,
     associate,
     cv_predict,
     cv_update,
     gate_costs,
+    ground_bound,
     measurement_noise,
     on_or_above,
 )
@@ -91,7 +92,6 @@ from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
 
 LockNote = tuple[int, FloatArray, FloatArray, float]  # held id, estimate p, v, its time
 InView = Callable[[FloatArray], NDArray[np.bool_]]  # positions (K, 3) → seen this frame
-Floor = Callable[[FloatArray], FloatArray]  # points (K, 2) → the ground's height (NaN: unknown)
 
 __all__ = [
     "Floor",
@@ -334,24 +334,7 @@ class MultiTargetTracker:
         self.x, self.P = cv_predict(self.x, self.P, dt, self.settings.sigma_acc)
         self.t = np.maximum(self.t, t)
         if floor is not None and len(self):
-            self.x = on_or_above(self.x, self._ground_bound(floor))
-
-    def _ground_bound(self, floor: Floor) -> FloatArray:
-        """(K,) the height each track keeps on or above: the ground under it, g, where
-        its last fix z_u was on or above it; NaN (no bound) where the ground is not
-        known, where its position is not finite, and where it was measured lower
-        (z_u < g: the ground learnt there is a crown or a wall top that hid the real
-        one, and a measured track is neither lifted nor held at its fix)."""
-        xy = self.x[:, :2]
-        finite = np.isfinite(xy).all(axis=1)
-        ground = np.full(len(self), np.nan)
-        if finite.any():
-            g = np.asarray(floor(xy[finite]), dtype=np.float64).reshape(-1)
-            if len(g) != int(finite.sum()):
-                raise InputError(f"floor: {len(g)} heights for {int(finite.sum())} points")
-            ground[finite] = g
-        with np.errstate(invalid="ignore"):
-            return np.where(ground <= self.p_update[:, 2], ground, np.nan)
+            self.x = on_or_above(self.x, ground_bound(self.x, self.p_update, floor))
 
     def _note_hover(self, confirmed: Candidates, of: NDArray[np.intp]) -> None:
         """A track whose cluster is a candidate that hovered has hovered (one-way);
