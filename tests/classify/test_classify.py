@@ -270,16 +270,19 @@ def test_a_fragment_that_wanders_over_a_mapped_crown_is_static_and_a_person_is_n
 
 
 def test_on_the_ground_a_fragment_beside_the_map_is_static_where_its_fragments_land() -> None:
-    """On the ground nothing hovers, so a grounded track joined in half its observations
-    whose clusters land within 2 θ_c r of the first is static without a hover: the base
-    of a far structure 150 m out, its fragments up to 3 m apart (more than the 1.5 m a
-    still object may wander there, within 2 θ_c r = 5.2 m).  Not static: the same base
-    with no map cell beside it, one whose fragments land 8 m apart, and a person walking
-    at 1.4 m/s beside a mapped wall 108 m out, once past 2 θ_c r (3.8 m)."""
+    """On the ground nothing hovers, so a grounded track joined in half its observations,
+    or beyond reach, whose clusters land within 2 θ_c r of the first is static without a
+    hover: the base of a far structure 150 m out, its fragments up to 3 m apart (more
+    than the 1.5 m a still object may wander there, within 2 θ_c r = 5.2 m), and one
+    220 m out, beyond reach, with no map cell beside it, its fragments up to 5 m apart
+    (2 θ_c r = 7.7 m).  Not static: the base 150 m out with no map cell beside it, one
+    whose fragments land 12 m apart, and a person walking at 1.4 m/s beside a mapped
+    wall 108 m out, once past 2 θ_c r (3.8 m)."""
     rng = np.random.default_rng(5)
     base, bare, wide = [150.0, 0.0, 1.0], [0.0, 150.0, 1.0], [-150.0, 0.0, 1.0]
+    far = [0.0, -220.0, 1.0]
     walker = np.array([100.0, 40.0, 0.9])
-    spread = [1.5, 1.5, 6.0]  # each frame's cluster within ±spread m along the ground
+    spread = [1.5, 1.5, 6.0, 2.5]  # each frame's cluster within ±spread m along the ground
     lives = TrackLives(hover_speed=4.0, hover_frames=3)
     life, walker_static = None, []
 
@@ -290,31 +293,36 @@ def test_on_the_ground_a_fragment_beside_the_map_is_static_where_its_fragments_l
         return np.asarray(near[0] | near[1] | wall)
 
     for k in range(40):
-        jitter = rng.uniform(-1.0, 1.0, 3) * spread
+        jitter = rng.uniform(-1.0, 1.0, 4) * spread
         pos = np.array(
             [
                 np.add(base, [jitter[0], 0.0, 0.0]),
                 np.add(bare, [0.0, jitter[1], 0.0]),
                 np.add(wide, [jitter[2], 0.0, 0.0]),
                 np.add(walker, [1.4 * k * T, 0.0, 0.0]),
+                np.add(far, [jitter[3], 0.0, 0.0]),
             ]
         )
-        velocities = [[0, 0, 0]] * 3 + [[1.4, 0, 0]]
-        tracks = _tracks(pos.tolist(), velocities, [1, 2, 3, 4])
-        found = _found(pos.tolist(), [0.05] * 4)
-        obs = observe(tracks, found, np.zeros(3), np.zeros(4), limit_m=195.0, is_background=mapped)
+        velocities = [[0, 0, 0]] * 3 + [[1.4, 0, 0], [0, 0, 0]]
+        tracks = _tracks(pos.tolist(), velocities, [1, 2, 3, 4, 5])
+        found = _found(pos.tolist(), [0.05] * 5)
+        obs = observe(tracks, found, np.zeros(3), np.zeros(5), limit_m=195.0, is_background=mapped)
         assert obs.grounded.all()
-        assert obs.joined.tolist() == [True, False, True, True]
+        assert obs.joined.tolist() == [True, False, True, True, False]
+        assert obs.beyond_reach.tolist() == [False] * 4 + [True]
         life = lives.update(k * T, tracks, obs)
         classes, _ = classify(life)
         if classes[3] == STATIC:
             walker_static.append(k * T)
     assert life is not None
     assert np.all(life.moved[:3] > 0.01 * 150.0)  # none still by the wander bound
+    assert life.moved[4] > 0.01 * 220.0
     assert life.moved[0] < 2 * CROWD_RAD * 150.0 < life.moved[2]
+    assert life.moved[4] < 2 * CROWD_RAD * 220.0
     assert not life.hovered.any()
     classes, _ = classify(life)
     assert classes.tolist()[:3] == [STATIC, UNKNOWN, UNKNOWN]
+    assert classes[4] == STATIC
     # the person is static only while within 2 θ_c r of where it was first seen
     assert classes[3] != STATIC
     assert max(walker_static, default=0.0) <= 2 * CROWD_RAD * life.range_m[3] / 1.4
