@@ -1,4 +1,5 @@
-"""The acquisition figures: acquire_s, reacquire_s, lock_on_visible_pct, false_lock_pct."""
+"""The acquisition figures: acquire_s, reacquire_s, lock_on_visible_pct, false_lock_pct,
+revisit_max_s."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from dronetrack.eval.metrics import (
     lock_transfers,
     locked_on,
     reacquire_times,
+    revisit_max_s,
 )
 
 T = 0.1 * np.arange(1, 31)  # frame ends of a 10 Hz run [s]
@@ -217,3 +219,45 @@ def test_lock_transfers_are_false_lock_starts_after_a_correct_frame(
     lost_before = live.copy()
     lost_before[:-1] &= ~off[1:]  # lose the lock the frame before each false one
     assert lock_transfers(err, lost_before, 4.0) == 0
+
+
+def test_a_drones_longest_wait_for_the_turret_counts_only_where_a_look_could_find_it() -> None:
+    """A turret shared by two drones over 5 s at 10 Hz: it holds A on frames 0-9 and
+    40-49 and B on 10-39.  A waits 3.0 s, frames 10-39; B, served from frame 10, waits
+    1.0 s after its last one (39) to the end.  With A out of reach on frames 15-34 it
+    waits 1.0 s (frames 10-14 and 35-39); a drone never locked on has no wait."""
+    t = 0.1 * np.arange(1, 51)
+    a = _mask(50, (0, 10), (40, 50))
+    everywhere = np.ones(50, dtype=bool)
+    assert revisit_max_s(t, a, everywhere) == pytest.approx(3.0)
+    assert revisit_max_s(t, ~a, everywhere) == pytest.approx(1.0)
+    assert revisit_max_s(t, a, ~_mask(50, (15, 35))) == pytest.approx(1.0)
+    assert revisit_max_s(t, everywhere, everywhere) == 0.0  # held throughout
+    assert revisit_max_s(t, np.zeros(50, dtype=bool), everywhere) is None
+    assert revisit_max_s(t, a, np.zeros(50, dtype=bool)) is None  # never present
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.booleans(), min_size=2, max_size=60),
+    st.lists(st.booleans(), min_size=60, max_size=60),
+)
+def test_a_wait_is_at_most_the_time_present_unlocked_after_the_first_lock(
+    locked: list[bool], present: list[bool]
+) -> None:
+    n = len(locked)
+    t = 0.1 * np.arange(1, n + 1)
+    held, here = np.array(locked), np.array(present[:n])
+    wait = revisit_max_s(t, held, here)
+    if not (held & here).any():
+        assert wait is None
+        return
+    assert wait is not None
+    after = np.arange(n) > np.flatnonzero(held & here)[0]
+    assert 0.0 <= wait <= 0.1 * (here & ~held & after).sum() + 1e-9
+    # a wait as long as its longest run of such frames, at least
+    runs, run = [0], 0
+    for waiting, lock in zip(here & ~held & after, held & here, strict=True):
+        run = 0 if lock else run + int(waiting)
+        runs.append(run)
+    assert wait >= 0.1 * max(runs) - 1e-9

@@ -137,6 +137,8 @@ def test_each_drones_figures_score_the_turrets_estimate_against_it() -> None:
     assert drones[1]["lock_on_visible_pct"] == pytest.approx(100.0 * 20 / 30)
     assert drones[1]["acquire_s"] == pytest.approx(1.0)
     assert drones[1]["visible_frames"] == 30
+    assert drones[0]["revisit_max_s"] is None  # never locked on
+    assert drones[1]["revisit_max_s"] == 0.0  # held from its first lock on
 
 
 @pytest.mark.slow

@@ -43,6 +43,7 @@ __all__ = [
     "nice_bin_width",
     "points_by_distance",
     "reacquire_times",
+    "revisit_max_s",
     "rmse",
     "timing",
 ]
@@ -298,6 +299,31 @@ def lock_on_visible_pct(visible: NDArray[np.bool_], locked: NDArray[np.bool_]) -
     """``lock_on_visible_pct``: locked-on frames among the visible ones [%]; None if none."""
     n = int(np.count_nonzero(visible))
     return 100.0 * int(np.count_nonzero(visible & locked)) / n if n else None
+
+
+def revisit_max_s(
+    t: FloatArray, locked: NDArray[np.bool_], present: NDArray[np.bool_]
+) -> float | None:
+    """``revisit_max_s``: the longest wait [s] of a drone for the turret, from its first
+    locked-on frame on: the time it was ``present`` (in the field and within reach, where
+    a look could find it) without a lock, between two locked-on frames or after the last
+    one to the end.  Each frame counts its spacing from the one before (the first, the
+    median spacing); a drone out of reach waits for no look, and one held whenever
+    present waits 0.  None if it was never locked on while present.
+
+        wait_s = Σ Δt_i over present, unlocked frames i with s_i = s,  s_i = Σ_{j ≤ i} [locked_j]
+        revisit_max_s = max over s ≥ 1 of wait_s
+    """
+    t = np.asarray(t, dtype=np.float64)
+    present = np.asarray(present, dtype=bool)
+    served = np.asarray(locked, dtype=bool) & present
+    if not served.any():
+        return None
+    dt = np.diff(t, prepend=t[0] - (np.median(np.diff(t)) if len(t) > 1 else 0.0))
+    since = np.cumsum(served)  # s_i: the locks so far, the segment each frame waits in
+    waiting = present & ~served & (since > 0)
+    wait = np.bincount(since, weights=np.where(waiting, dt, 0.0))
+    return float(wait.max())
 
 
 def false_lock_pct(errors: FloatArray, tracked: NDArray[np.bool_], radius: float) -> float | None:

@@ -27,7 +27,12 @@ from numpy.typing import NDArray
 
 from dronetrack.classify.rules import ClassRules
 from dronetrack.errors import MissingExtraError
-from dronetrack.eval.metrics import acquisition_metrics, scored_tracking
+from dronetrack.eval.metrics import (
+    acquisition_metrics,
+    locked_on,
+    revisit_max_s,
+    scored_tracking,
+)
 from dronetrack.eval.tracks import TracksLog
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import TRACK_CLASSES, ObjectTruth
@@ -113,7 +118,9 @@ def drone_figures(
     """Each drone's own figures, as ``TrackLog.summary`` scores drone 0 against the
     turret's estimate ``est`` (frames, 3) and its lock ``tracked``: ``coverage_pct``,
     ``max_tracking_distance_m``, ``acquire_s``, ``lock_on_visible_pct`` and the rest of
-    ``acquisition_metrics``, and its ``visible_frames``.  ``in_field``: per drone, its
+    ``acquisition_metrics``, its ``visible_frames`` and ``revisit_max_s``
+    (``eval.metrics``: its longest wait for the turret while in the field and within
+    reach).  ``in_field``: per drone, its
     frames inside the detection area (None: all); ``reach_m``: the sensor's reach for
     the drone [m], from which ``acquire_in_reach_s`` counts (None: left out)."""
     if len(objects) != len(t):
@@ -133,6 +140,12 @@ def drone_figures(
         coverage, distance = scored_tracking(err, ranges[:, k], radius, measured)
         figures = acquisition_metrics(t, err, tracked, counts, radius, field, ranges[:, k], reach_m)
         visible = counts > 0 if field is None else (counts > 0) & field
+        # where a look could find it: in the field (if known) and within reach (if known)
+        present = np.asarray(np.isfinite(gt).all(axis=1), dtype=bool)
+        if field is not None:
+            present &= np.asarray(field, dtype=bool)
+        if reach_m is not None:
+            present &= ranges[:, k] <= reach_m
         row: dict[str, Any] = {
             "id": int(objects.ids[k]),
             "coverage_pct": coverage,
@@ -148,6 +161,7 @@ def drone_figures(
         ):
             if key in figures:
                 row[key] = figures[key]
+        row["revisit_max_s"] = revisit_max_s(t, locked_on(err, tracked, radius), present)
         out.append(row)
     return out
 
@@ -282,8 +296,8 @@ def drone_summary(drones: list[dict[str, Any]]) -> dict[str, float]:
     ``*_min_pct``), of ``acquire_s`` (``acquire_mean_s``, ``acquire_max_s``, over the
     drones acquired), of ``acquire_in_reach_s``, ``track_acquire_s`` and
     ``track_acquire_in_reach_s`` (likewise), ``never_acquired`` (drones
-    visible but never acquired) and ``id_switches_max``; NaN where no drone has the
-    figure."""
+    visible but never acquired), ``id_switches_max`` and ``revisit_max_s`` (the worst
+    drone's longest wait for the turret); NaN where no drone has the figure."""
     out: dict[str, float] = {}
     for key in ("coverage", "lock_on_visible", "own_track"):
         mean, low = _over([d.get(f"{key}_pct") for d in drones], min)
@@ -295,4 +309,5 @@ def drone_summary(drones: list[dict[str, Any]]) -> dict[str, float]:
         sum(d.get("acquire_s") is None and d.get("visible_frames", 0) > 0 for d in drones)
     )
     out["id_switches_max"] = _over([d.get("id_switches") for d in drones], max)[1]
+    out["revisit_max_s"] = _over([d.get("revisit_max_s") for d in drones], max)[1]
     return out

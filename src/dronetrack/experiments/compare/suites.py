@@ -376,6 +376,7 @@ _MULTI_GROUPS = (
             "own_track_min_pct",
             "own_track_mean_pct",
             "id_switches_max",
+            "revisit_max_s",
         ),
         "Each drone's figures of metrics.json's drones, per run the minimum (_min), the "
         "maximum (_max) or the mean (_mean) over the drones: coverage against the "
@@ -388,7 +389,10 @@ _MULTI_GROUPS = (
         "pairs), as the targets count: a drone flying in from beyond reach draws single "
         "returns out there; lock_on_visible: its locked-on frames over its visible "
         "frames; own_track: the share of its visible frames in which a track matched it "
-        "(motmetrics); id_switches: its identity switches.",
+        "(motmetrics); id_switches: its identity switches; revisit_max_s: the longest "
+        "time a drone in the field and within reach waited for the turret between two "
+        "locked-on frames (or after the last), from its first lock, the largest over the "
+        "drones (the shared turret's revisit_s is 10 s).",
     ),
     MetricGroup(
         "Multi-object figures (motmetrics, over the drones)",
