@@ -118,6 +118,10 @@ Classes, in this order:
 - **bird**: p_drone ≤ ``bird_p``, in the air, never slower than ``v_stall``, over
   ``min_observed`` clusters;
 - **unknown**: the rest (a person walking, a drone in fast flight seen too briefly).
+
+The returns' intensity and their count are left out: in the simulator they tell a
+bird by its one reflectivity and its small size, which real birds do not share
+(``experiments.appearance``, docs/pipeline.md).
 """
 
 from __future__ import annotations
