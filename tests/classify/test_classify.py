@@ -631,6 +631,33 @@ def test_an_heir_takes_the_life_of_the_track_at_rest_and_others_are_forgotten() 
     assert len(lives) == 1
 
 
+def test_an_heir_counts_how_far_it_moved_from_its_own_first_cluster() -> None:
+    """A fragment of a tree line 150 m out whose track crept 6 m along it (past the
+    2 θ_c r = 5.2 m a fragment lands within) ends for room; the birth at its last fix
+    is its heir, whose clusters land within 0.5 m of each other: its d_max is 0.5 m,
+    not the chain's 6.5 m, while the rest of its life (its observations, its age) is
+    the resting track's."""
+
+    def frame(lives: TrackLives, t: float, ident: int, y: float, **kw: object) -> LifeFeatures:
+        p = [150.0, y, 12.0]
+        tracks = _tracks([p], [[0, 0, 0]], [ident])
+        obs = observe(tracks, _found([p], [p[2] - 0.5]), np.zeros(3), np.zeros(1), floor_z=0.0)
+        return lives.update(t, tracks, obs, **kw)  # type: ignore[arg-type]
+
+    for inherit in (True, False):
+        lives = TrackLives()
+        for k in range(13):
+            life = frame(lives, k * T, 7, 0.5 * k)
+        assert life.moved[0] == pytest.approx(6.0)
+        rest = np.array([7])
+        heirs = (np.array([12]), rest) if inherit else None
+        frame(lives, 1.5, 12, 6.0, resting=rest, heirs=heirs)
+        heir = frame(lives, 1.6, 12, 6.5)
+        assert heir.moved[0] == pytest.approx(0.5)
+        assert heir.observed[0] == (15 if inherit else 2)
+        assert heir.age[0] == pytest.approx(1.6 if inherit else 0.1)
+
+
 def test_a_hover_counts_for_a_drone_only_where_the_world_showed_in_under_half_its_frames() -> None:
     """A low fragment of a structure 125 m out shows a different kind of the world's
     evidence from frame to frame: grounded in 4 of 10 observations and crowded in 3

@@ -6,8 +6,9 @@ Over a track's life its observations (``classify.observe``: grounded, joined,
 crowded, cut, propped, beyond reach, its speed |v| and its clusters' centroids) give
 its age, how long it was watched (the spacing of its updates, each counted up to
 ``SEEN_GAP_S``, so not the time it was out of view or missed), how far it ever moved
-from its first position (d_max), the shares of its observations grounded, joined,
-crowded, cut, propped or beyond reach, its largest extent, *aloft*: the share of its
+from its first position (d_max; an heir's from its own first,
+``TrackLives._inherit``), the shares of its observations grounded, joined, crowded,
+cut, propped or beyond reach, its largest extent, *aloft*: the share of its
 recent observations not grounded (an exponential average over about the last three,
 a ← (1 − α) a + α [not grounded], α = ``ALOFT_ALPHA``, from a = 1: off the ground
 until seen on it), so a drone that lifted off is off the ground again within a few
@@ -152,7 +153,8 @@ class TrackLives:
         u = obs.updated
         r = rows[u]
         first = self.observed[r] == 0
-        self.first_p[r[first]] = obs.centroid[u][first]
+        anchor = np.isnan(self.first_p[r, 0])  # its first cluster, or an heir's own first
+        self.first_p[r[anchor]] = obs.centroid[u][anchor]
         # watched: Σ min(t_k − t_{k−1}, SEEN_GAP_S) over its updates (not the time it was
         # out of view or missed)
         self.seen_s[r] += np.where(first, 0.0, np.minimum(t - self.last_t[r], SEEN_GAP_S))
@@ -231,7 +233,14 @@ class TrackLives:
 
     def _inherit(self, new: NDArray[np.int64], old: NDArray[np.int64]) -> None:
         """A copy of the life of each identity ``old`` for the new one beside it (those
-        without a life, or whose heir has one already, are passed over)."""
+        without a life, or whose heir has one already, are passed over), but for how
+        far it moved: the heir's d_max counts from its own first cluster.  An heir is
+        the resting track's object by its place, within ``merge_m`` of its last fix,
+        not by its path: a long structure's fragments, ended for room and reborn hop
+        by hop, chain along it, and the chain's d_max is the structure's length, not
+        any fragment's motion (on ``outdoor-unscanned``, seeds 0-9, heirs over tree
+        lines 115-190 m out carried 5-12 m, past the 2 θ_c r a fragment may land
+        within, and were never classed static)."""
         rows: list[int] = []
         for heir, of in zip(np.asarray(new).tolist(), np.asarray(old).tolist(), strict=True):
             row = self._row.get(int(of))
@@ -243,6 +252,9 @@ class TrackLives:
             for name in (*_LIFE, *_COUNTS):
                 column = getattr(self, name)
                 setattr(self, name, np.concatenate([column, column[rows]]))
+            # d_max counts from the heir's own first cluster (see ``_inherit``)
+            self.first_p[-len(rows) :] = np.nan
+            self.moved[-len(rows) :] = 0.0
 
     def _forget(self, alive: set[int]) -> None:
         """Drop the lives of tracks that ended (their rows are compacted)."""
