@@ -14,6 +14,7 @@ from dronetrack.classify.observe import observe, view_floor
 from dronetrack.classify.rules import (
     BIRD,
     DRONE,
+    FAR_OBSERVED,
     STATIC,
     UNKNOWN,
     WORLD_SHARE,
@@ -415,6 +416,24 @@ def test_a_still_object_on_the_ground_is_static_after_a_second() -> None:
 def test_a_still_object_beyond_the_drones_reach_is_static() -> None:
     life = _life(1.5, np.array([220.0, 0.0, 3.0]), np.zeros(3), 0.5)
     assert classify(life)[0][0] == STATIC
+
+
+def test_beyond_reach_three_clusters_tell_a_still_object_static() -> None:
+    """A far structure's few returns update its track in one frame of three or four:
+    watched 1.5 s in three clusters 220 m out, beyond reach, it held still and is
+    static; in two it is not yet (one displacement is no still test), nor is a track
+    as sparse within reach (150 m), which needs ``min_observed`` (5)."""
+    rules = ClassRules()
+    assert rules.min_observed > FAR_OBSERVED
+    for x, clusters, static in (
+        (220.0, FAR_OBSERVED, True),
+        (220.0, FAR_OBSERVED - 1, False),
+        (150.0, FAR_OBSERVED, False),
+        (150.0, rules.min_observed, True),
+    ):
+        life = _life(1.5, np.array([x, 0.0, 1.5]), np.zeros(3), 0.6)  # on the ground
+        sparse = replace(life, observed=np.array([clusters]))
+        assert bool(classify(sparse, rules)[0][0] == STATIC) is static, (x, clusters)
 
 
 def test_what_holds_still_beyond_the_drones_reach_is_static_however_its_returns_wander() -> None:
