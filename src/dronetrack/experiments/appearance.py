@@ -3,15 +3,17 @@ gives a frame and how bright they are (the Livox reflectivity encoding), by rang
 by the angle off the sensor's axis, where the scan pattern's density differs.
 
 The classify stage (``classify.rules``) weighs neither (see docs/pipeline.md,
-Classes).  This measures why: in the simulator both would tell a drone from a bird
-almost perfectly, for reasons a real site does not give.
+Classes).  This measures why: in the simulator the intensity would tell a drone from
+a bird in every frame, and the count near the sensor, for reasons a real site does
+not give.
 
 - Every bird has one reflectivity (``[scene.clutter] bird_reflectivity``, 0.3 diffuse),
   so every bird return has one intensity, while a drone's shell, arms and propellers
   give a spread.  Real birds range from a crow's black to a gull's white.
 - The simulator's birds are 0.2-0.5 m across (``bird_size_m``) and 0.1 L thick, so
-  they return fewer points than a Phantom 4 in the same part of the pattern.  Pigeons,
-  crows and gulls span 0.6-1.5 m, as large as a drone or larger.
+  within 70 m they return fewer points than a Phantom 4 in the same part of the
+  pattern (beyond, as many).  Pigeons, crows and gulls span 0.6-1.5 m, as large as a
+  drone or larger.
 
 ``python -m dronetrack.experiments.appearance [SCENARIO] [--seeds 10,11,...]`` flies
 the scenario (``outdoor-clutter`` by default: the default flight amid five birds)
