@@ -163,11 +163,14 @@ def appearance_rows(
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    from dronetrack.cli.options import scenario_from_options
+    from pathlib import Path
+
+    from dronetrack.config.run import apply_overrides, load_scenario_file
+    from dronetrack.config.scenarios import SCENARIOS, get_scenario
     from dronetrack.jobs.simulate import run_simulation
 
     parser = argparse.ArgumentParser(prog="python -m dronetrack.experiments.appearance")
-    parser.add_argument("scenario", nargs="?", default="outdoor-clutter")
+    parser.add_argument("scenario", nargs="?", default="outdoor-clutter", help="a name or a .toml")
     parser.add_argument("--seeds", default="10,11,12,13,14")
     args = parser.parse_args(argv)
     try:
@@ -176,8 +179,14 @@ def main(argv: Sequence[str] | None = None) -> None:
         parser.error(f"--seeds: a comma-separated list of integers, got {args.seeds!r}")
     log = SightingLog()
     try:
+        name = str(args.scenario)
+        base = (
+            load_scenario_file(Path(name), SCENARIOS)
+            if name.endswith(".toml")
+            else get_scenario(name)
+        )
         for seed in seeds:
-            run_simulation(scenario_from_options(args.scenario, None, seed=seed), sinks=[log])
+            run_simulation(apply_overrides(base, seed=seed), sinks=[log])
     except DronetrackError as err:
         parser.error(str(err))
     print("kind   range [m]  off axis [°]  frames  returns p10/50/90  intensity p10/50/90")
