@@ -163,10 +163,8 @@ def appearance_rows(
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    from pathlib import Path
-
-    from dronetrack.config.run import apply_overrides, load_scenario_file
-    from dronetrack.config.scenarios import SCENARIOS, get_scenario
+    from dronetrack.config.run import apply_overrides
+    from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.simulate import run_simulation
 
     parser = argparse.ArgumentParser(prog="python -m dronetrack.experiments.appearance")
@@ -179,12 +177,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         parser.error(f"--seeds: a comma-separated list of integers, got {args.seeds!r}")
     log = SightingLog()
     try:
-        name = str(args.scenario)
-        base = (
-            load_scenario_file(Path(name), SCENARIOS)
-            if name.endswith(".toml")
-            else get_scenario(name)
-        )
+        base = get_scenario(str(args.scenario))  # a name or a .toml file
         for seed in seeds:
             run_simulation(apply_overrides(base, seed=seed), sinks=[log])
     except DronetrackError as err:
