@@ -84,7 +84,9 @@ def test_two_drones_share_the_turret_every_revisit_period() -> None:
     assert served[0] == 1  # the held drone is kept at first (equal threat)
     assert len(changes) >= 3  # turns to the other and back, time after time
     gaps = np.diff([0, *changes]) * 0.1
-    assert np.all(gaps <= 5.0 + 0.1 + 1e-9)  # each waits no longer than the revisit period
+    # each is due look_s before the revisit period, so a look that lands within look_s
+    # lands within it
+    assert np.all(gaps <= 5.0 - 1.5 + 0.1 + 1e-9)
     assert np.all(gaps[1:] >= 1.0 - 1e-9)  # and holds the turret at least hold_s
 
 
@@ -135,8 +137,9 @@ def test_stale_and_bird_tracks_are_no_candidates() -> None:
 
 
 def test_a_drone_out_of_view_stays_a_candidate_and_is_looked_at_again() -> None:
-    """Track 2 was last seen 6 s ago, out of the sensor's view all that time (the turret
-    served track 1): it is not missed, so it is revisited after revisit_s."""
+    """Track 2 was last held at 1 s and has been out of the sensor's view since (the
+    turret served track 1): it is not missed, so it is looked at again look_s before
+    revisit_s is up (so that the look lands within it)."""
     chooser = TargetChooser(ChooseSettings(revisit_s=5.0, hold_s=1.0, fresh_s=1.0))
     pos, both = [[60, -40, 20], [60, 40, 20]], [DRONE, DRONE]
     assert chooser.choose(0.0, _tracks(0.0, pos, both, [0.98, 0.98]), 1) == 1
@@ -149,7 +152,7 @@ def test_a_drone_out_of_view_stays_a_candidate_and_is_looked_at_again() -> None:
         if served == 2:
             break
     assert served == 2
-    assert t == pytest.approx(1.0 + 5.0, abs=0.15)
+    assert t == pytest.approx(1.0 + 5.0 - ChooseSettings().look_s, abs=0.15)
     # missed in view for 2 s (> fresh_s): no candidate, the choice is the acquisition's
     missed = _tracks(9.0, pos, both, [0.98, 0.98], [9.0, 7.0], [0.0, 0.0])
     assert TargetChooser().choose(9.0, missed, 1) is None
@@ -246,3 +249,54 @@ def test_the_books_keep_only_the_tracks_alive() -> None:
     assert set(chooser.first_seen) <= {99, 100}
     assert set(chooser.held_at) <= {99, 100}
     assert chooser.looked <= {99, 100}
+
+
+def test_a_look_is_not_cut_short_by_a_greater_threat() -> None:
+    """A look at a track out of view (served, not held) goes on for look_s even though
+    the held drone is far more threatening: a threat that took the turret back after
+    the hold would end every look at a less likely drone before the turret got there.
+    Once given up, the threat decides again."""
+    s = ChooseSettings(revisit_s=100.0, hold_s=0.5, look_s=1.5, hysteresis=1.5)
+    chooser = TargetChooser(s)
+    pos = [[40, 0, 10], [120, 60, 20]]  # track 1 near, track 2 far: 1 is 3x the threat
+    cls, p = [DRONE, UNKNOWN], [0.98, 0.5]
+    served = []
+    for k in range(30):
+        t = 0.1 * k
+        served.append(chooser.choose(t, _tracks(t, pos, cls, p, [t, 0.0], [0.0, t]), 1))
+    assert served[0] == 1  # the held one first (fair: within hysteresis of none)
+    first = served.index(2)  # the new track's first look, after the hold
+    assert first == 5
+    assert set(served[first : first + 15]) == {2}  # held for the whole look_s
+    assert served[first + 15] == 1  # then given up
+
+
+def test_a_look_turns_to_a_new_track_found_in_its_gate() -> None:
+    """While the turret looks for a track out of view, a new track born within its gate
+    (the Mahalanobis distance on its grown position covariance, d² ≤ χ²₃(0.99)) is the
+    object looked for, found: it is served at once, without waiting out the hold.  One
+    outside the gate waits for the hold like any new track."""
+    s = ChooseSettings(revisit_s=100.0, hold_s=1.0, look_s=1.5)
+
+    def frame(t: float, third: list[float], sigma: float) -> Tracks:
+        tracks = _tracks(
+            t, [[40, 0, 10], [100, 50, 20], third], [DRONE, UNKNOWN, UNKNOWN], [0.98, 0.5, 0.5]
+        )
+        cov = tracks.covariances.copy()
+        cov[1, :3, :3] = np.eye(3) * sigma**2  # track 2 coasted: σ grew
+        return replace(tracks, covariances=cov)
+
+    for third, found in (([120.0, 40.0, 20.0], True), ([40.0, -60.0, 20.0], False)):
+        chooser = TargetChooser(s)
+        chooser.choose(
+            0.0, _tracks(0.0, [[40, 0, 10], [100, 50, 20]], [DRONE, UNKNOWN], [0.98, 0.5]), 1
+        )
+        assert (
+            chooser.choose(
+                1.0, _tracks(1.0, [[40, 0, 10], [100, 50, 20]], [DRONE, UNKNOWN], [0.98, 0.5]), 1
+            )
+            == 2
+        )
+        # 22 m from track 2's prediction, σ 10 m: d² = 4.9; or 113 m away: d² = 128
+        served = chooser.choose(1.2, frame(1.2, third, 10.0), 1)
+        assert served == (3 if found else 2)

@@ -208,12 +208,29 @@ class TargetChooser:
     it while the turret serves another (``track.multi``), so that a drone far away in
     angle is looked at again where it is predicted.  The served track keeps the turret
     for ``hold_s`` at least; then it gives way to a candidate never served yet (so each
-    new object gets a look at once), to a candidate not served for ``revisit_s`` (the
-    most overdue first), so that two drones far apart in angle share the turret, or to
+    new object gets a look at once), to a candidate not served for ``revisit_s`` less
+    ``look_s`` (the most overdue first), so that two drones far apart in angle share
+    the turret and a look that lands within ``look_s`` lands within ``revisit_s``, or to
     a candidate ``hysteresis`` times as threatening (``threat``).  A served track that the
     tracker does not hold after ``look_s`` (it was not found where it was predicted)
-    gives way too and is not chosen again until it is seen anew.  With one candidate
-    or none nothing is chosen: the single-target acquisition decides alone.
+    gives way too and is not chosen again until it is seen anew.  Until then a greater
+    threat does not cut the look short: it would end every look at a less likely drone
+    before the turret got there.  While it looks, a new track born within the
+    looked-for track's gate (d² ≤ χ²₃(0.99) on its position covariance, grown while it
+    coasted) is taken for the object found and served at once.  With one candidate or
+    none nothing is chosen: the single-target acquisition decides alone.
+
+    On ``outdoor-two-drones`` and ``outdoor-swarm`` (seeds 0-9), revisits due at
+    ``revisit_s`` and looks cut short by the threat after ``hold_s`` kept a drone
+    waiting for the turret up to 12.4 and 10.8 s a run (the mean of the runs' longest
+    wait): the look at the drone out of view started only when ``revisit_s`` was up,
+    took a second to land, and a look at a drone whose steady flight had lowered its
+    p_drone was given up after the hold, the turret back on the other.  With the three
+    rules the longest waits are 10.0 and 9.5 s, and the identity switches 0.3 and 0.4
+    a run (from 0.9 and 0.5).  More looks mean more entries into view, each a couple of
+    frames before the detect stage confirms the drone anew: the share of the unwatched
+    drone's visible frames its track matched fell from 91.4 to 89.3 % (two drones; the
+    worst drone of each run) and from 95.5 to 95.2 % (swarm).
     """
 
     def __init__(self, settings: ChooseSettings | None = None) -> None:
@@ -263,6 +280,10 @@ class TargetChooser:
             best = int(np.argmax(score))
             pick = held if held is not None and score[held] * s.hysteresis >= score[best] else best
             return self._serve(t, int(ids[pick]))
+        if self.served != locked:  # a look: a new track in the looked-for one's gate is it
+            found = _found_in_gate(tracks, idx, current, [self._new(int(i)) for i in ids])
+            if found >= 0:
+                return self._serve(t, int(ids[found]))
         if t - self.since < s.hold_s:
             return self.served
         if self.served != locked and t - self.since >= s.look_s:  # not found: give way
@@ -276,9 +297,11 @@ class TargetChooser:
             for n, i in enumerate(ids)
             if i != self.served
         ]
-        late = [(wait, n) for wait, new, n in overdue if new or wait >= s.revisit_s]
+        late = [(wait, n) for wait, new, n in overdue if new or wait >= s.revisit_s - s.look_s]
         if late:
             return self._serve(t, int(ids[max(late)[1]]))
+        if self.served != locked:
+            return self.served  # a look goes on for look_s: no threat cuts it short
         best = int(np.argmax(score))
         if score[best] > s.hysteresis * score[current]:
             return self._serve(t, int(ids[best]))
@@ -300,3 +323,23 @@ class TargetChooser:
             self.served, self.since = ident, t
         self.looked.add(ident)
         return ident
+
+
+# χ²(3) at 0.99: a position within the gate of a track's position covariance
+GATE_D2 = 11.34
+
+
+def _found_in_gate(tracks: Tracks, idx: NDArray[np.intp], looked: int, new: list[bool]) -> int:
+    """Of the candidates ``idx`` (indices into ``tracks``), the position in ``idx`` of the
+    new track (``new``) nearest the looked-for one ``looked`` (a position in ``idx``) by
+    the Mahalanobis distance on its position covariance P, if within the gate; −1 if none.
+
+        d² = (p_k − p̂)ᵀ P⁻¹ (p_k − p̂) ≤ χ²₃(0.99)"""
+    k = idx[looked]
+    others = [n for n in range(len(idx)) if new[n] and n != looked]
+    if not others:
+        return -1
+    gap = tracks.positions[idx[others]] - tracks.positions[k]
+    d2 = np.einsum("ij,ij->i", gap, np.linalg.solve(tracks.covariances[k, :3, :3], gap.T).T)
+    best = int(np.argmin(d2))
+    return others[best] if d2[best] <= GATE_D2 else -1
