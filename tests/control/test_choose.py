@@ -286,17 +286,13 @@ def test_a_look_turns_to_a_new_track_found_in_its_gate() -> None:
         cov[1, :3, :3] = np.eye(3) * sigma**2  # track 2 coasted: σ grew
         return replace(tracks, covariances=cov)
 
-    for third, found in (([120.0, 40.0, 20.0], True), ([40.0, -60.0, 20.0], False)):
+    two = ([[40, 0, 10], [100, 50, 20]], [DRONE, UNKNOWN], [0.98, 0.5])
+    # 22 m from track 2's prediction, σ 10 m: d² = 5.0; 125 m away: d² = 157; a track
+    # with a singular covariance (no spread) has no gate
+    cases = (([120.0, 40.0, 20.0], 10.0, True), ([40.0, -60.0, 20.0], 10.0, False))
+    for third, sigma, found in (*cases, ([120.0, 40.0, 20.0], 0.0, False)):
         chooser = TargetChooser(s)
-        chooser.choose(
-            0.0, _tracks(0.0, [[40, 0, 10], [100, 50, 20]], [DRONE, UNKNOWN], [0.98, 0.5]), 1
-        )
-        assert (
-            chooser.choose(
-                1.0, _tracks(1.0, [[40, 0, 10], [100, 50, 20]], [DRONE, UNKNOWN], [0.98, 0.5]), 1
-            )
-            == 2
-        )
-        # 22 m from track 2's prediction, σ 10 m: d² = 4.9; or 113 m away: d² = 128
-        served = chooser.choose(1.2, frame(1.2, third, 10.0), 1)
+        chooser.choose(0.0, _tracks(0.0, *two), 1)
+        assert chooser.choose(1.0, _tracks(1.0, *two), 1) == 2  # its first look
+        served = chooser.choose(1.2, frame(1.2, third, sigma), 1)
         assert served == (3 if found else 2)

@@ -361,7 +361,8 @@ class ChooseConfig(StrictModel):
 
     enabled: bool = False
     protected_m: Vec3 = (0.0, 0.0, 0.0)  # the point the site protects (world frame)
-    revisit_s: float = Field(10.0, gt=0)  # a drone not served this long is looked at
+    # the longest a drone waits for the turret: a look at it starts look_s before
+    revisit_s: float = Field(10.0, gt=0)
     hysteresis: float = Field(1.5, ge=1)  # another must be this much more threatening
     hold_s: float = Field(1.0, ge=0)  # the least time a served track keeps the turret
     look_s: float = Field(1.5, gt=0)  # a look at a track out of view is given up after

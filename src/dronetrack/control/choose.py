@@ -167,10 +167,11 @@ class ChooseSettings:
 
     protected: the point the site protects [m]; d_ref, v_ref: the threat's scales;
     hysteresis: another track must be this much more threatening (1.5: 50 % more) to
-    take the turret; hold_s: the least time a served track keeps it; revisit_s: a
-    candidate not served for this long is looked at again; look_s: how long a look at a
-    track out of view lasts before it is given up; fresh_s: a track missed for longer
-    (in the sensor's view without an update: ``Tracks.missed_s``) is no candidate; apart_m:
+    take the turret; hold_s: the least time a served track keeps it; revisit_s: the
+    longest a candidate waits for the turret (a look at it starts look_s before);
+    look_s: how long a look at a track out of view lasts before it is given up;
+    fresh_s: a track missed for longer (in the sensor's view without an update:
+    ``Tracks.missed_s``) is no candidate; apart_m:
     a track this close to the held one is a second track on the same drone, no
     candidate; min_p: the least p_drone of a candidate not classed drone
     (``worth_a_look``).
@@ -340,6 +341,9 @@ def _found_in_gate(tracks: Tracks, idx: NDArray[np.intp], looked: int, new: list
     if not others:
         return -1
     gap = tracks.positions[idx[others]] - tracks.positions[k]
-    d2 = np.einsum("ij,ij->i", gap, np.linalg.solve(tracks.covariances[k, :3, :3], gap.T).T)
+    try:
+        d2 = np.einsum("ij,ij->i", gap, np.linalg.solve(tracks.covariances[k, :3, :3], gap.T).T)
+    except np.linalg.LinAlgError:  # a singular P: no spread to gate on
+        return -1
     best = int(np.argmin(d2))
     return others[best] if d2[best] <= GATE_D2 else -1
