@@ -281,27 +281,30 @@ class TargetChooser:
             best = int(np.argmax(score))
             pick = held if held is not None and score[held] * s.hysteresis >= score[best] else best
             return self._serve(t, int(ids[pick]))
-        if self.served != locked:  # a look: a new track in the looked-for one's gate is it
-            found = _found_in_gate(tracks, idx, current, [self._new(int(i)) for i in ids])
+        looking = self.served != locked  # the turret looks for the served track
+        new = [self._new(int(i)) for i in ids]
+        if looking:  # a new track in the looked-for one's gate is it, found
+            found = _found_in_gate(tracks, idx, current, new)
             if found >= 0:
                 return self._serve(t, int(ids[found]))
         if t - self.since < s.hold_s:
             return self.served
-        if self.served != locked and t - self.since >= s.look_s:  # not found: give way
+        if looking and t - self.since >= s.look_s:  # not found: give way
             self.given_up[int(ids[current])] = float(tracks.last_seen[idx[current]])
             others = np.flatnonzero(ids != ids[current])
             return self._serve(t, int(ids[others[np.argmax(score[others])]]))
-        # due: not served for revisit_s, or never served at all (a first look is given
-        # once, so two tracks that cannot be found do not take turns for good)
-        overdue = [
-            (t - self.held_at.get(int(i), self.first_seen[int(i)]), self._new(int(i)), n)
+        # due: not served for revisit_s − look_s (a look then lands within revisit_s), or
+        # never served at all (a first look is given once, so two tracks that cannot be
+        # found do not take turns for good)
+        waits = [
+            (t - self.held_at.get(int(i), self.first_seen[int(i)]), n)
             for n, i in enumerate(ids)
             if i != self.served
         ]
-        late = [(wait, n) for wait, new, n in overdue if new or wait >= s.revisit_s - s.look_s]
+        late = [(wait, n) for wait, n in waits if new[n] or wait >= s.revisit_s - s.look_s]
         if late:
             return self._serve(t, int(ids[max(late)[1]]))
-        if self.served != locked:
+        if looking:
             return self.served  # a look goes on for look_s: no threat cuts it short
         best = int(np.argmax(score))
         if score[best] > s.hysteresis * score[current]:
