@@ -255,8 +255,8 @@ class Tracks:
         ``in_open_air``); left out: True.
     missed_s: (K,) how long it has been in the sensor's field of view without an
         update since its last one [s]: a track out of view is not missed; left out: 0.
-    in_view: (K,) whether it was in the sensor's field of view this frame; left out:
-        True.
+    in_view: (K,) whether the sensor saw where it is this frame: in its field of view at
+        the frame's end, or updated by one of the frame's clusters; left out: True.
     """
 
     ids: NDArray[np.int64]

@@ -199,6 +199,23 @@ def test_a_track_out_of_view_is_not_missed_and_lives_until_unseen_s() -> None:
     assert 1.0 - T - 1e-9 <= alive * T <= 1.0 + 1e-9  # coast_s, to a frame
 
 
+def test_a_track_a_cluster_of_the_frame_updated_is_in_view() -> None:
+    """The field of view is the one at the frame's end; a turret slewing through the
+    frame may have left behind a track whose returns came in earlier.  A cluster of the
+    frame updated it, so the sensor saw it: in view, whatever the end's field says."""
+    layer = _Layer()
+    p = np.array([[30.0, 5.0, 10.0]])
+    for k in range(3):
+        layer.step(k * T, p)
+    layer.step(3 * T, p, _nowhere)  # seen, the end's field holds nothing
+    snap = layer.tracks.snapshot()
+    assert snap.ids.tolist() == [1]
+    assert layer.tracks.updated[0]
+    assert snap.in_view[0]
+    layer.step(4 * T, np.empty((0, 3)), _nowhere)  # not seen, not in the field
+    assert not layer.tracks.snapshot().in_view[0]
+
+
 def test_a_track_that_lived_on_out_of_view_takes_no_cluster_far_from_its_prediction() -> None:
     """Unseen for 3 s (out of view), a track at rest takes a confirmed candidate's
     cluster within stale_gate_m + birth_sigma_v × 3 s = 5 + 5 × 3 = 20 m of its

@@ -224,7 +224,11 @@ class MultiTargetTracker:
         self.updates[rows] += 1
         self._note_hover(confirmed, of)
         # missed = (t − t_update) − away, away += Δt where out of view, 0 where updated
+        # in view: where the field of view at the frame's end holds it, or seen this frame
+        # (a cluster of the frame updated it: the turret may have slewed it out of the
+        # field since its returns came in)
         self.looked = np.ones(len(self), dtype=bool) if in_view is None else in_view(self.x[:, :3])
+        self.looked |= self.updated
         if self._t_step is not None:
             self.away += max(t_z - self._t_step, 0.0) * ~self.looked
         self._t_step = t_z
