@@ -7,7 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.config.run import apply_overrides, dump_scenario, load_scenario_file
+from dronetrack.config.run import (
+    RETURN_SHARE,
+    apply_overrides,
+    dump_scenario,
+    load_scenario_file,
+)
 from dronetrack.config.scenarios import SCENARIOS, get_scenario
 from dronetrack.errors import ScenarioError, SensorError
 from dronetrack.sim.build import build_world, resolve_scenario
@@ -66,6 +71,32 @@ def test_the_reach_follows_the_sensor_the_drone_and_the_air(tmp_path: Path) -> N
     assert get_scenario(str(path)).pipeline.evaluation.reach_m == 90.0
     path.write_text('base = "default"\nseed = 3\n')
     assert get_scenario(str(path)).pipeline.evaluation.reach_m == 130.0
+
+
+def test_the_drones_return_share_follows_the_sensor_the_drone_and_the_air(
+    tmp_path: Path,
+) -> None:
+    """The share of frames the drone returns a point by range is measured for the Avia
+    and a Phantom 4 in clear air; the Mid-360, another drone or fog leave it out, and a
+    file may set it."""
+    default = SCENARIOS["default"].pipeline.evaluation.return_share_m
+    assert default == RETURN_SHARE[("avia", "phantom4")]
+    for name in ("mid360-static", "field-foggy", "indoor-horizontal"):
+        assert SCENARIOS[name].pipeline.evaluation.return_share_m is None, name
+    for change in ({"visibility": 100.0}, {"drone": "f550"}, {"sensor": "mid360"}):
+        assert (
+            apply_overrides(SCENARIOS["default"], **change).pipeline.evaluation.return_share_m
+            is None
+        )
+    path = tmp_path / "f550.toml"
+    path.write_text(
+        'base = "default"\n[drone]\nmodel = "f550"\n'
+        "[pipeline.evaluation]\nreturn_share_m = [160.0, 9.0]\n"
+    )
+    assert get_scenario(str(path)).pipeline.evaluation.return_share_m == (160.0, 9.0)
+    path.write_text('base = "default"\n[pipeline.evaluation]\nreturn_share_m = [160.0, 0.0]\n')
+    with pytest.raises(ScenarioError, match="return_share_m"):
+        get_scenario(str(path))
 
 
 def test_resolved_scenario_reproduces_the_run(tmp_path: Path) -> None:

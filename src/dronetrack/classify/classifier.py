@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from dronetrack.classify.features import TrackLives
 from dronetrack.classify.observe import BackgroundTest, observe, view_floor
+from dronetrack.classify.return_share import return_share
 from dronetrack.classify.rules import ClassRules, classify, in_open_air
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.preprocess.ground import GroundGrid
@@ -30,7 +31,10 @@ class TrackClassifier:
     ``limit_m``: the range beyond which the drone model the site guards returns no
     point (None: not known, the feature is off); ``floor_z``: the crop box's floor [m]
     (what stands on the ground is cut there); ``hover_speed``, ``hover_frames``: v_hover
-    and K of the hover test; ``crowd_gap_m``: g_c of the crowded test (None: off).
+    and K of the hover test; ``crowd_gap_m``: g_c of the crowded test (None: off);
+    ``share``: (r₅₀, s) [m] of the share of frames the drone returns a point
+    (``return_share``; None: not known, the test of a track that returns too often is
+    off).
     """
 
     def __init__(
@@ -44,6 +48,7 @@ class TrackClassifier:
         ground_cell_m: float = 5.0,
         ground_every: int = 10,
         crowd_gap_m: float | None = None,
+        share: tuple[float, float] | None = None,
     ) -> None:
         self.rules = rules if rules is not None else ClassRules()
         self.limit_m = limit_m
@@ -52,6 +57,7 @@ class TrackClassifier:
         self.ground_cell_m = ground_cell_m
         self.ground_every = ground_every
         self.crowd_gap_m = crowd_gap_m
+        self.share = share
         self.reset()
 
     def reset(self) -> None:
@@ -103,7 +109,10 @@ class TrackClassifier:
             floor=view_floor(others[::FLOOR_STRIDE], sensor),
             below=np.concatenate([world[foreground], others]),
         )
-        life = self.lives.update(t, tracks, obs, resting, heirs)
+        share = None
+        if self.share is not None:
+            share = return_share(np.linalg.norm(tracks.positions - sensor, axis=1), *self.share)
+        life = self.lives.update(t, tracks, obs, resting, heirs, share)
         classes, p_drone = classify(life, self.rules)
         air = in_open_air(life, self.rules)
         return replace(tracks, classes=classes, p_drone=p_drone, open_air=air)

@@ -17,7 +17,10 @@ frames while a person stays on it, and whether it *hovered*: |v| < v_hover for
 no bird can (stall speed ≈ 5 m/s for the smallest), or its candidate hovered
 (``detect.tentative``) and a cluster of it that is neither grounded nor cut updated
 it; and whether it *hovered in free space*: the same in observations that are
-neither joined, propped nor crowded either (the world holds still too).
+neither joined, propped nor crowded either (the world holds still too).  Given the
+share of frames the drone returns a point at each track's range
+(``classify.return_share``), whether it returned *too often*: in more of the frames
+it was in view after its first observation than the drone could.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dronetrack.classify.observe import Observations
+from dronetrack.classify.return_share import more_often_than_drone
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Tracks
 
@@ -66,6 +70,9 @@ class LifeFeatures:
     hovered_free: NDArray[np.bool_]
     min_speed: FloatArray  # its lowest speed over its observed frames after the first [m/s]
     aloft: FloatArray  # its recent observations' share in the open air
+    # returned points in more of the frames it was in view after its birth than the
+    # drone could at its ranges (``classify.return_share``; False where not known)
+    too_often: NDArray[np.bool_]
 
 
 # the per-track counters of ``TrackLives``, each an int64 array from 0
@@ -80,6 +87,8 @@ _COUNTS = (
     "world_seen",
     "slow_run",
     "free_run",
+    "looked",  # frames in view after its first observation
+    "looked_hits",  # of those, the frames a cluster updated it
 )
 
 # the other per-track arrays of ``TrackLives``
@@ -95,6 +104,7 @@ _LIFE = (
     "hovered_free",
     "min_speed",
     "aloft",
+    "expected_hits",  # Σ P(r_i) over the frames ``looked``: the drone's expected hits
 )
 
 
@@ -127,6 +137,9 @@ class TrackLives:
         self.hovered_free = np.empty(n, dtype=bool)
         self.min_speed = np.empty(n)
         self.aloft = np.empty(n)
+        self.looked = np.empty(n, dtype=np.int64)
+        self.looked_hits = np.empty(n, dtype=np.int64)
+        self.expected_hits = np.empty(n)
 
     def __len__(self) -> int:
         return len(self._row)
@@ -138,11 +151,15 @@ class TrackLives:
         obs: Observations,
         resting: NDArray[np.int64] | None = None,
         heirs: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+        share: FloatArray | None = None,
     ) -> LifeFeatures:
         """Take the frame ending at ``t``: give each heir its life (``heirs``: the new
         identities and those whose lives they take), forget tracks that ended (but the
         identities ``resting``, an heir may come), start new ones, add each updated
-        track's observation; the features of ``tracks``."""
+        track's observation; the features of ``tracks``.  ``share`` (K,): the share of
+        frames the drone returns a point at each track's range (``return_share``; None:
+        not known), counted over the frames each track is in view after its first
+        observation."""
         if heirs is not None:
             self._inherit(*heirs)
         alive = set(tracks.ids.tolist())
@@ -151,6 +168,13 @@ class TrackLives:
         self._forget(alive)
         rows = np.array([self._row_of(int(i), t) for i in tracks.ids], dtype=np.intp)
         u = obs.updated
+        if share is not None:
+            # after its birth, in view: n += 1, k += [updated], μ += P(r)
+            looked = tracks.in_view & (self.observed[rows] > 0)
+            at = rows[looked]
+            self.looked[at] += 1
+            self.looked_hits[at] += u[looked]
+            self.expected_hits[at] += share[looked]
         r = rows[u]
         first = self.observed[r] == 0
         anchor = np.isnan(self.first_p[r, 0])  # its first cluster, or an heir's own first
@@ -208,6 +232,11 @@ class TrackLives:
             hovered_free=self.hovered_free[rows].copy(),
             min_speed=self.min_speed[rows].copy(),
             aloft=self.aloft[rows].copy(),
+            too_often=(
+                more_often_than_drone(self.looked_hits[rows], self.expected_hits[rows])
+                if share is not None
+                else np.zeros(len(rows), dtype=bool)
+            ),
         )
 
     def _row_of(self, ident: int, t: float) -> int:
@@ -229,6 +258,7 @@ class TrackLives:
         self.hovered_free = np.append(self.hovered_free, False)
         self.min_speed = np.append(self.min_speed, np.inf)
         self.aloft = np.append(self.aloft, 1.0)
+        self.expected_hits = np.append(self.expected_hits, 0.0)
         return row
 
     def _inherit(self, new: NDArray[np.int64], old: NDArray[np.int64]) -> None:

@@ -42,7 +42,12 @@ p_drone is a logistic of summed evidence (log-odds, from an even prior):
                                         their hover's evidence away: drones hovering
                                         within min(2ε, 1° × range) of each other are
                                         held unlikely)
-    beyond reach (≥ half)         −6    a drone returns nothing there
+    beyond reach (≥ half)         −6    a drone returns nothing there; so is a track
+                                        that returned in more of its frames in view
+                                        than the drone could at its ranges
+                                        (``too_often``, ``classify.return_share``):
+                                        larger or brighter than the drone, it counts
+                                        as beyond reach here and in the classes below
     larger than a drone           −4    extent > ``max_extent_m``
     moving, never hovered      −T / μ   a bird's flight: watched T seconds (``seen_s``)
                                         and never slower than a bird's stall speed, which
@@ -127,9 +132,10 @@ Classes, in this order:
   ``min_observed`` clusters;
 - **unknown**: the rest (a person walking, a drone in fast flight seen too briefly).
 
-The returns' intensity and their count are left out: in the simulator they tell a
-bird by its one reflectivity and its small size, which real birds do not share
-(``experiments.appearance``, docs/pipeline.md).
+The returns' intensity and their count in a frame are left out: in the simulator they
+tell a bird by its one reflectivity and its small size, which real birds do not share
+(``experiments.appearance``, docs/pipeline.md).  How often a track returns any, against
+its range, is ``too_often``.
 """
 
 from __future__ import annotations
@@ -258,7 +264,8 @@ def classify(
     propped = life.propped >= WORLD_SHARE
     crowded = life.crowded >= 0.5
     cut = life.cut >= 0.5
-    beyond = life.beyond_reach >= 0.5
+    # beyond the drone's reach, or returning more often than it could at its ranges
+    beyond = (life.beyond_reach >= 0.5) | life.too_often
     extent = np.nan_to_num(life.extent, nan=0.0)
     range_m = np.nan_to_num(life.range_m, nan=0.0)
     large = extent > rules.max_extent_m

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from dronetrack.geometry.field import FieldOfRegard
 
@@ -286,6 +286,19 @@ class EvaluationConfig(StrictModel):
     # there is larger or brighter than a drone (the classes' beyond-reach test).  Set
     # with reach_m for the pairs measured (config/run.py's RETURN_LIMIT_M).
     limit_m: float | None = Field(None, gt=0)
+    # (r₅₀, s) [m] of the share of frames the drone, on the sensor's axis, returns a
+    # point at range r: P(r) = 1 / (1 + exp((r − r₅₀) / s)) (the classes' test of a
+    # track that returns more often than the drone could, ``classify.return_share``).
+    # Set with reach_m for the pairs measured (config/run.py's RETURN_SHARE).
+    return_share_m: tuple[float, float] | None = None
+
+    @field_validator("return_share_m")
+    @classmethod
+    def _positive_share(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
+        if value is not None and not (value[0] > 0 and value[1] > 0):
+            raise ValueError(f"return_share_m needs r50 > 0 and s > 0, got {list(value)}")
+        return value
+
     # Seed 000's start of its Kalman-filter baselines: a tracker that can be started on a
     # position (the Kalman filters) is, once, on the centroid of the first frame whose
     # foreground holds only the drone's points (simulation only: it needs the truth).
