@@ -43,7 +43,8 @@ def test_the_classes_share_is_the_simulators() -> None:
     r₅₀ and 6 % of s)."""
     r50, s = RETURN_SHARE[("avia", "phantom4")]
     ranges = [125.0, 135.0, 140.0, 145.0, 155.0]
-    shares, frames = measure(ranges, [12], sensor="avia", drone="phantom4")
-    fit_r50, fit_s = fit_return_share(ranges, shares, frames)
+    shares, frames, distances = measure(ranges, [12], sensor="avia", drone="phantom4")
+    assert np.all(np.asarray(distances) > ranges)  # the drone is above the sensor
+    fit_r50, fit_s = fit_return_share(distances, shares, frames)
     assert fit_r50 == pytest.approx(r50, abs=2.0)
     assert fit_s == pytest.approx(s, rel=0.2)

@@ -2,10 +2,13 @@
 share of frames P(r) the classify stage's test of a track that returns too often
 weighs a track against (``classify.return_share``; ``config.run.RETURN_SHARE``).
 
-The drone hovers still at range r on the sensor's x axis, 20 m up, and the turret
-follows it (``turret_mode`` truth), so it stays where the scan pattern is densest;
-each range is flown for ``duration`` seconds per seed, over seeds other than the test
-scenarios' 0-9.  The logistic
+The drone hovers still on the sensor's x axis, r ahead of the turret and 20 m up, and
+the turret follows it (``turret_mode`` truth), so it stays where the scan pattern is
+densest; each range is flown for ``duration`` seconds per seed, over seeds other than
+the test scenarios' 0-9.  The classes weigh a track by its range from the sensor, so
+each share is put at the drone's mean range from the sensor over its frames (the
+ObjectsLog's, √(r² + Δz²) with Δz the drone's height above the sensor), not at r.
+The logistic
 
     P(r) = 1 / (1 + exp((r − r₅₀) / s))
 
@@ -41,9 +44,10 @@ DURATION_S = 40.0
 
 def frame_share(
     range_m: float, seed: int, *, sensor: str, drone: str, duration_s: float = DURATION_S
-) -> tuple[float, int]:
-    """The share of tracking frames in which the drone, hovering at ``range_m`` on the
-    sensor's axis, returned a point, and the frames counted."""
+) -> tuple[float, int, float]:
+    """The share of tracking frames in which the drone, hovering ``range_m`` ahead of
+    the turret on the sensor's axis, returned a point, the frames counted and the
+    drone's mean range from the sensor over them [m]."""
     from dronetrack.config.run import apply_overrides
     from dronetrack.config.scenarios import get_scenario
     from dronetrack.jobs.simulate import run_simulation
@@ -66,8 +70,9 @@ def frame_share(
         )
         run = run_simulation(cfg)
     objects = run.log.objects
-    returns = objects.returns[:, objects.drones()[0]]
-    return float(np.mean(returns > 0)), len(returns)
+    drone_index = objects.drones()[0]
+    returns = objects.returns[:, drone_index]
+    return float(np.mean(returns > 0)), len(returns), float(np.mean(objects.ranges[:, drone_index]))
 
 
 def fit_return_share(
@@ -97,15 +102,17 @@ def measure(
     sensor: str,
     drone: str,
     duration_s: float = DURATION_S,
-) -> tuple[list[float], list[int]]:
-    """Each range's share over the seeds (their frames pooled) and its frames."""
-    shares, frames = [], []
+) -> tuple[list[float], list[int], list[float]]:
+    """Each range's share over the seeds (their frames pooled), its frames and the
+    drone's mean range from the sensor over them [m] (the range to fit against)."""
+    shares, frames, distances = [], [], []
     for r in ranges_m:
         runs = [frame_share(r, s, sensor=sensor, drone=drone, duration_s=duration_s) for s in seeds]
-        n = sum(k for _, k in runs)
-        shares.append(sum(share * k for share, k in runs) / n)
+        n = sum(k for _, k, _ in runs)
+        shares.append(sum(share * k for share, k, _ in runs) / n)
         frames.append(n)
-    return shares, frames
+        distances.append(sum(d * k for _, k, d in runs) / n)
+    return shares, frames, distances
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -122,17 +129,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError:
         parser.error("--seeds and --ranges take comma-separated numbers")
     try:
-        shares, frames = measure(
+        shares, frames, distances = measure(
             ranges, seeds, sensor=args.sensor, drone=args.drone, duration_s=args.duration
         )
-        r50, s = fit_return_share(ranges, shares, frames)
+        r50, s = fit_return_share(distances, shares, frames)
     except DronetrackError as exc:
         print(f"error: {exc}")
         return 2
     print(f"{args.drone} on the {args.sensor}'s axis, seeds {args.seeds}")
-    print("range_m  share  frames  fit")
-    for r, p, n in zip(ranges, shares, frames, strict=True):
-        print(f"{r:7.0f}  {p:5.3f}  {n:6d}  {float(return_share(np.array(r), r50, s)):5.3f}")
+    print("ahead_m  range_m  share  frames  fit")
+    for r, d, p, n in zip(ranges, distances, shares, frames, strict=True):
+        fit = float(return_share(np.array(d), r50, s))
+        print(f"{r:7.0f}  {d:7.1f}  {p:5.3f}  {n:6d}  {fit:5.3f}")
     print(f"r50 = {r50:.1f} m, s = {s:.2f} m")
     return 0
 
