@@ -342,6 +342,12 @@ def test_a_bad_walker_or_vehicle_entry_is_one_error_line(
         ("choose", "hysteresis", "0.5", "pipeline.choose.hysteresis"),
         ("tracks", "coast_s", "-1", "pipeline.tracks.coast_s: Input should be greater than 0"),
         (
+            "tracks",
+            "probation_alpha",
+            "1",
+            "pipeline.tracks.probation_alpha: Input should be less than 1",
+        ),
+        (
             "background",
             "learn_s",
             "-1",

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dronetrack.config.pipeline import (
+    AcquisitionConfig,
     BackgroundConfig,
     ControllerConfig,
     ControllerMode,
@@ -17,6 +18,7 @@ from dronetrack.config.pipeline import (
     PipelineConfig,
     TrackerConfig,
     TrackerKind,
+    TracksConfig,
 )
 from dronetrack.config.rig import make_turret
 from dronetrack.control.controller import TurretController
@@ -35,9 +37,11 @@ from dronetrack.pipeline.factory import (
     build_pipeline,
     build_tracker,
     noise_parameters,
+    probation_s,
     resolve_tracker,
 )
 from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
+from dronetrack.track.multi import MultiTargetTracker
 from dronetrack.track.particle import ParticleTracker
 from dronetrack.track.resample import RESAMPLERS
 from dronetrack.track.sphere_kalman import CatalanoEKF, DogruEKF
@@ -80,6 +84,28 @@ def test_near_track_gives_the_scanning_pipeline_a_range_image() -> None:
     assert scanning.ranges is not None
     assert not scanning.ranges.ready
     np.testing.assert_allclose(scanning.ranges.origin, TURRET.mount.base)
+
+
+def test_a_track_never_updated_after_its_birth_is_on_probation_for_k_frames() -> None:
+    """2 of 4 and α = 0.01 give K = 15 frames (``track.probation``): 1.5 s at 10 Hz,
+    0.75 s at 20 Hz; 3 of 3 gives K = 5; at α = 0 the probation is coast_s."""
+    for period, expected in ((0.1, 1.5), (0.05, 0.75)):
+        cfg = PipelineConfig(acquisition=AcquisitionConfig(enabled=True))
+        acquisition = build_pipeline(
+            cfg,
+            period,
+            TURRET.mount,
+            (TURRET.pan.lower, TURRET.pan.upper),
+            (TURRET.tilt.lower, TURRET.tilt.upper),
+            np.random.default_rng(0),
+        ).acquisition
+        assert acquisition is not None
+        assert isinstance(acquisition.objects, MultiTargetTracker)
+        assert acquisition.objects.settings.probation_s == pytest.approx(expected)
+    strict = AcquisitionConfig(enabled=True, confirm_hits=3, confirm_frames=3)
+    assert probation_s(strict, TracksConfig(), 0.1) == pytest.approx(0.5)
+    assert probation_s(strict, TracksConfig(probation_alpha=0.0), 0.1) is None
+    assert probation_s(strict, TracksConfig(), None) is None
 
 
 def test_the_registries_hold_each_configurable_name_once() -> None:

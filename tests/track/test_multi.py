@@ -161,6 +161,50 @@ def test_a_track_is_born_on_a_confirmed_candidate_and_dies_after_coasting() -> N
     assert layer.tracks.ids.tolist() == [2]
 
 
+def _lives(layer: _Layer, frames: int) -> int:
+    """How many empty frames after ``frames`` frames of an object its track lives."""
+    p = np.array([[12.0, -3.0, 2.0]])
+    for k in range(frames):
+        layer.step(k * T, p)
+    assert layer.tracks.ids.tolist() == [1]
+    alive = 0
+    for k in range(frames, frames + 100):
+        layer.step(k * T, np.empty((0, 3)))
+        if len(layer.tracks) == 0:
+            break
+        alive += 1
+    return alive
+
+
+def test_a_track_never_updated_after_its_birth_lives_its_probation_only() -> None:
+    """Two returns in two frames confirm a candidate (2 of 4) and give a track with its
+    birth as its only update: it lives probation_s (1 s) missed, to a frame.  One
+    return more, an update after its birth, and it lives coast_s (3 s)."""
+    assert 1.0 - T - 1e-9 <= _lives(_Layer(coast_s=3.0, probation_s=1.0), 2) * T <= 1.0 + 1e-9
+    assert 3.0 - T - 1e-9 <= _lives(_Layer(coast_s=3.0, probation_s=1.0), 3) * T <= 3.0 + 1e-9
+    # without a probation, or a longer one than coast_s, coast_s bounds both
+    assert 3.0 - T - 1e-9 <= _lives(_Layer(coast_s=3.0), 2) * T <= 3.0 + 1e-9
+    assert 3.0 - T - 1e-9 <= _lives(_Layer(coast_s=3.0, probation_s=9.0), 2) * T <= 3.0 + 1e-9
+
+
+def test_a_track_on_probation_out_of_view_is_not_missed() -> None:
+    """The probation counts only the frames that saw where the track is, as coast_s."""
+    layer = _Layer(coast_s=3.0, probation_s=0.5, unseen_s=30.0)
+    p = np.array([[12.0, -3.0, 2.0]])
+    for k in range(2):
+        layer.step(k * T, p)
+    for k in range(2, 40):  # 3.8 s out of view
+        layer.step(k * T, np.empty((0, 3)), _nowhere)
+    assert layer.tracks.ids.tolist() == [1]
+    alive = 0
+    for k in range(40, 60):
+        layer.step(k * T, np.empty((0, 3)))
+        if len(layer.tracks) == 0:
+            break
+        alive += 1
+    assert 0.5 - T - 1e-9 <= alive * T <= 0.5 + 1e-9
+
+
 def _nowhere(p: np.ndarray) -> np.ndarray:
     return np.zeros(len(p), dtype=bool)
 
@@ -400,6 +444,8 @@ def test_bad_settings_are_refused() -> None:
         TrackSettings(merge_s=-1.0)
     with pytest.raises(ConfigError, match="unseen_s"):
         TrackSettings(coast_s=5.0, unseen_s=4.0)
+    with pytest.raises(ConfigError, match="probation_s"):
+        TrackSettings(probation_s=0.0)
 
 
 def test_empty_inputs_leave_no_track() -> None:

@@ -354,6 +354,12 @@ class TracksConfig(StrictModel):
     # ... and this long without an update, out of view too; default: coast_s, or with
     # [pipeline.choose] on, revisit_s + look_s + coast_s (``pipeline.factory.unseen_s``)
     unseen_s: float | None = Field(None, gt=0)
+    # a track no cluster has updated since its birth lives missed the least K frames
+    # that a real object confirmed on [pipeline.acquisition]'s confirm_hits of
+    # confirm_frames misses in a row with probability ≤ probation_alpha
+    # (``track.probation``: 15 frames at 2 of 4 and 0.01); 0: no such K, coast_s.  0.01
+    # is the usual significance level, not fitted to our scenarios
+    probation_alpha: float = Field(0.01, ge=0, lt=1)
     max_tracks: int = Field(64, ge=1)
     # two tracks this close that have taken one cluster in turn (never both updated in a
     # frame) for merge_s follow one object; 0: off.  Measured on seeds 0-9: identity

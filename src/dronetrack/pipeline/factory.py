@@ -57,6 +57,7 @@ from dronetrack.track.particle import (
     ParticleTracker,
     eq11_parameters,
 )
+from dronetrack.track.probation import probation_frames
 from dronetrack.track.sphere_kalman import CatalanoEKF, DogruEKF
 
 __all__ = [
@@ -72,6 +73,7 @@ __all__ = [
     "build_pipeline",
     "build_tracker",
     "noise_parameters",
+    "probation_s",
     "resolve_tracker",
     "scan_duration",
 ]
@@ -292,7 +294,12 @@ def build_pipeline(
         latency_s=cfg.latency.sensor_s + cfg.latency.processing_s,
         hull=HullCrop(cfg.crop.hull_m) if cfg.crop.hull_m is not None else None,
         acquisition=build_acquisition(
-            cfg.acquisition, cfg.tracker.v_max, cfg.tracks, cfg.tracker.a_max, cfg.choose
+            cfg.acquisition,
+            cfg.tracker.v_max,
+            cfg.tracks,
+            cfg.tracker.a_max,
+            cfg.choose,
+            period=period,
         ),
         field=field_of_regard(cfg, mount.base),
         ranges=RangeImage(np.asarray(mount.base)) if scanning and bg_cfg.near_track else None,
@@ -389,17 +396,30 @@ def unseen_s(tracks: TracksConfig, choose: ChooseConfig | None) -> float | None:
     return choose.revisit_s + choose.look_s + tracks.coast_s
 
 
+def probation_s(cfg: AcquisitionConfig, tracks: TracksConfig, period: float | None) -> float | None:
+    """How long a track never updated since its birth lives missed
+    (``TrackSettings.probation_s``): K frames of ``period`` (``track.probation``); None
+    (coast_s) at α = 0, where no K is unlikely enough, or without a period."""
+    if tracks.probation_alpha == 0 or period is None:
+        return None
+    k = probation_frames(cfg.confirm_hits, cfg.confirm_frames, tracks.probation_alpha)
+    return k * period
+
+
 def build_acquisition(
     cfg: AcquisitionConfig,
     v_max: float,
     tracks: TracksConfig | None = None,
     a_max: float = 15.0,
     choose: ChooseConfig | None = None,
+    period: float | None = None,
 ) -> Acquisition | None:
     """The detect stage's clustering and tentative tracks, and every object's track; None
     when acquisition is off.  A track out of the sensor's view lives ``unseen_s``: by
     default ``coast_s``, or, while the turret is shared (``choose``), until the look of
-    its revisit has ended and ``coast_s`` more, revisit_s + look_s + coast_s."""
+    its revisit has ended and ``coast_s`` more, revisit_s + look_s + coast_s.  A track
+    never updated since its birth lives ``probation_s`` missed: K frames of ``period``
+    seconds (``track.probation``; without a period, ``coast_s``)."""
     if not cfg.enabled:
         return None
     detector = CandidateDetector(
@@ -427,6 +447,7 @@ def build_acquisition(
         gate_m=cfg.gate_m,
         coast_s=tracks.coast_s,
         unseen_s=unseen_s(tracks, choose),
+        probation_s=probation_s(cfg, tracks, period),
         max_tracks=tracks.max_tracks,
         merge_m=cfg.eps_m,  # two objects closer than ε give one cluster
         share_m=tracks.share_m,

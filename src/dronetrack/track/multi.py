@@ -25,7 +25,14 @@ test is the distance ``merge_m`` (see below).
 A track **dies** once it has been missed for ``coast_s``: in the sensor's field of view
 without an update since its last one (without a field of view given, all the time
 since), or ``unseen_s`` after its last update wherever it was: a drone the turret has
-turned away from lives on, to be looked at again (``control.choose``).  It also dies
+turned away from lives on, to be looked at again (``control.choose``).  A track no
+cluster has updated since its birth dies once missed for ``probation_s``
+(``track.probation``: in a run 15 frames, 1.5 s at 10 Hz, the misses in a row that a
+real object confirmed on 2 returns of 4 frames gives with probability ≤ 0.01).  The
+sensor's own false returns now and then pass the detect stage's M-of-N by chance
+(``outdoor-two-drones`` seed 16: single-point clusters 3-20 m out), and the tracks
+born on them would otherwise live ``coast_s`` in view as unknown objects, possible
+drones to a C2.  It also dies
 when it has followed another track's object.  Two tracks whose positions have stayed
 within ``merge_m`` of each other for ``merge_s`` are one object, as the clustering
 joins any two returns closer than its ε (``merge_m`` = ε in a run), so two objects
@@ -178,7 +185,8 @@ class MultiTargetTracker:
     ) -> Tracks:
         """Predict every track to the clusters' time ``t_meas`` (default ``t``), update it
         with the cluster assigned to it, start tracks on the confirmed candidates no track
-        explains, end those missed for ``coast_s`` or unseen for ``unseen_s``, and predict
+        explains, end those missed for ``coast_s`` (never updated since their birth:
+        ``probation_s``) or unseen for ``unseen_s``, and predict
         them all to ``t``; the tracks after the step.  ``in_view`` tells which positions
         (K, 3) the sensor saw this frame (None: all); ``floor`` the ground's height under
         points (K, 2), which every predicted state is kept on or above (``on_or_above``;
@@ -234,7 +242,11 @@ class MultiTargetTracker:
         self._t_step = t_z
         self.away[self.updated] = 0.0
         unseen = s.coast_s if s.unseen_s is None else s.unseen_s
-        self._drop((self._missed_now() <= s.coast_s) & (t_z - self.t_update <= unseen))
+        missed = self._missed_now()
+        # a track no cluster has updated since its birth lives probation_s missed
+        probation = s.coast_s if s.probation_s is None else min(s.probation_s, s.coast_s)
+        coast = np.where(self.updates <= 1, probation, s.coast_s)
+        self._drop((missed <= coast) & (t_z - self.t_update <= unseen))
         self._drop(~self._duplicates(t_z))
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True

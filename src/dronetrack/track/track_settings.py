@@ -20,6 +20,8 @@ class TrackSettings:
     Mahalanobis gate; v_max, gate_m: the speed gate (as the detect stage's);
     coast_s: the longest a track lives missed (in view without an update);
     unseen_s: the longest it lives without an update, in view or not (None: coast_s);
+    probation_s: the longest a track no cluster has updated since its birth lives
+    missed (``track.probation``; None: coast_s);
     stale_s: after this long
     without one, only a confirmed candidate's cluster updates it; birth_sigma_v: the
     velocity's σ at birth; max_tracks: the most tracks kept (those the classes hold no
@@ -35,6 +37,7 @@ class TrackSettings:
     gate_m: float = 1.0
     coast_s: float = 5.0
     unseen_s: float | None = None
+    probation_s: float | None = None
     stale_s: float = 0.3
     stale_gate_m: float = 5.0
     birth_sigma_v: float = 5.0
@@ -59,6 +62,8 @@ class TrackSettings:
             raise ConfigError(
                 f"tracks: need unseen_s ≥ coast_s, got {self.unseen_s}, {self.coast_s}"
             )
+        if self.probation_s is not None and not self.probation_s > 0:
+            raise ConfigError(f"tracks: probation_s must be positive, got {self.probation_s}")
         if self.gate_m < 0 or self.max_tracks < 1:
             raise ConfigError(
                 f"tracks: need gate_m ≥ 0 and max_tracks ≥ 1, got {self.gate_m}, {self.max_tracks}"
