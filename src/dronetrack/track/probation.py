@@ -40,9 +40,7 @@ def miss_run_probability(hits: int, frames: int, misses: int) -> float:
     _check(hits, frames)
     if misses < 0:
         raise ConfigError(f"probation: misses must be ≥ 0, got {misses}")
-    # P(K) = B(M + 1, N − M + 1 + K) / B(M + 1, N − M + 1)
-    a, b = hits + 1, frames - hits + 1
-    return float(math.exp(betaln(a, b + misses) - betaln(a, b)))
+    return math.exp(_log_miss_run(hits, frames, misses))
 
 
 def probation_frames(hits: int, frames: int, alpha: float) -> int:
@@ -51,11 +49,10 @@ def probation_frames(hits: int, frames: int, alpha: float) -> int:
     _check(hits, frames)
     if not 0.0 < alpha < 1.0:
         raise ConfigError(f"probation: alpha must be in (0, 1), got {alpha}")
-    a, b = hits + 1, frames - hits + 1
     log_alpha = math.log(alpha)
 
     def above(k: int) -> bool:  # ln P(K) > ln α
-        return bool(betaln(a, b + k) - betaln(a, b) > log_alpha)
+        return _log_miss_run(hits, frames, k) > log_alpha
 
     hi = 1
     for _ in range(_MAX_DOUBLINGS):
@@ -72,6 +69,12 @@ def probation_frames(hits: int, frames: int, alpha: float) -> int:
         else:
             hi = mid
     return hi
+
+
+def _log_miss_run(hits: int, frames: int, misses: int) -> float:
+    """ln P(K) = ln B(M + 1, N − M + 1 + K) − ln B(M + 1, N − M + 1)."""
+    a, b = hits + 1, frames - hits + 1
+    return float(betaln(a, b + misses) - betaln(a, b))
 
 
 def _check(hits: int, frames: int) -> None:
