@@ -17,7 +17,7 @@ from dronetrack.experiments.compare.runner import RunMetrics, case_config, run_s
 from dronetrack.experiments.compare.suites import SUITES, Case, Suite, get_suite
 from dronetrack.experiments.compare.tables import TABLE_COLUMNS, aggregate
 from dronetrack.jobs.simulate import run_lockstep, run_simulation
-from dronetrack.pipeline.factory import TRACKER_NAMES
+from dronetrack.pipeline.trackers import TRACKER_NAMES
 
 _SUITE = Suite(
     name="toy",

@@ -28,7 +28,7 @@ from dronetrack.experiments.bench import (
     single_thread,
     thread_counts,
 )
-from dronetrack.pipeline.factory import TRACKER_NAMES
+from dronetrack.pipeline.trackers import TRACKER_NAMES
 
 
 def _positive(value: Any) -> bool:

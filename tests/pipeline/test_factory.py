@@ -27,17 +27,15 @@ from dronetrack.control.strategies import ScanStrategyController
 from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR
 from dronetrack.errors import ConfigError
 from dronetrack.pipeline import Pipeline
-from dronetrack.pipeline.factory import (
+from dronetrack.pipeline.factory import CONTROLLERS, build_pipeline, probation_s
+from dronetrack.pipeline.trackers import (
     CA_SIGMA_ACC,
-    CONTROLLERS,
     DEFAULT_S_DIAG,
     TRACKER_NAMES,
     TRACKERS,
-    _check_registry,
-    build_pipeline,
     build_tracker,
+    check_registry,
     noise_parameters,
-    probation_s,
     resolve_tracker,
 )
 from dronetrack.track.cluster_kalman import AdaptiveEKF, CentroidEKF, ConstantAccelerationKF
@@ -114,7 +112,7 @@ def test_the_registries_hold_each_configurable_name_once() -> None:
     # The import-time check refuses a registry with a name missing, extra or repeated.
     for keys in (TRACKER_NAMES[:-1], (*TRACKER_NAMES, "pf-new"), TRACKER_NAMES[::-1]):
         with pytest.raises(ConfigError, match="tracker registry"):
-            _check_registry("tracker", keys, TRACKER_NAMES)
+            check_registry("tracker", keys, TRACKER_NAMES)
 
 
 EXPECTED_TRACKERS = {

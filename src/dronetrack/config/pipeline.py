@@ -41,7 +41,7 @@ __all__ = [
 Vec3 = tuple[float, float, float]
 Pair = tuple[float, float]
 # The one list of tracker names: the command line's --tracker choices, [pipeline.tracker]
-# kind, and the keys of pipeline.factory.TRACKERS.
+# kind, and the keys of pipeline.trackers.TRACKERS.
 TrackerKind = Literal[
     "pf-delta",
     "pf-cv",

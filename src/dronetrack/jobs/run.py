@@ -26,8 +26,9 @@ from dronetrack.geometry.geodesy import SiteFrame
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.background import load_saved
 from dronetrack.pipeline import Pipeline
-from dronetrack.pipeline.factory import build_pipeline, noise_parameters, resolve_tracker
+from dronetrack.pipeline.factory import build_pipeline
 from dronetrack.pipeline.kernels import KernelWarmUp
+from dronetrack.pipeline.trackers import noise_parameters, resolve_tracker
 from dronetrack.sinks.run_folder import (
     FramesCsvWriter,
     TracksCsvWriter,

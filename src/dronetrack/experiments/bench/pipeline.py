@@ -32,7 +32,8 @@ import numpy as np
 from dronetrack.config.pipeline import BackgroundConfig, CropConfig, PipelineConfig, TrackerConfig
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.pipeline import Pipeline
-from dronetrack.pipeline.factory import build_pipeline, build_tracker
+from dronetrack.pipeline.factory import build_pipeline
+from dronetrack.pipeline.trackers import build_tracker
 from dronetrack.types import Frame
 
 if TYPE_CHECKING:

@@ -35,7 +35,7 @@ from dronetrack.experiments.bench.pipeline import (
 from dronetrack.experiments.bench.replay import MIN_REPLAY_S, REPLAY_FORMATS, replay_format
 from dronetrack.experiments.bench.sim import SENSORS, SIM_CASES, SIM_WARMUP, sim_frame_ms
 from dronetrack.geometry.transforms import FloatArray
-from dronetrack.pipeline.factory import TRACKER_NAMES
+from dronetrack.pipeline.trackers import TRACKER_NAMES
 
 __all__ = [
     "FULL",

@@ -31,7 +31,7 @@ from dronetrack.experiments.compare.suites import MULTI_METRICS, Case, Suite
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.run import RunResult, detection_area
 from dronetrack.jobs.simulate import run_lockstep, run_simulation
-from dronetrack.pipeline.factory import build_tracker
+from dronetrack.pipeline.trackers import build_tracker
 from dronetrack.sinks.strategy_logs import StrategyLogger
 from dronetrack.types import Sample, StepResult
 

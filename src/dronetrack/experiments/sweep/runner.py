@@ -85,7 +85,7 @@ def _execute(run: RunSpec) -> tuple[dict[str, Any], Any]:
 
 def _eq11(cfg: Any) -> dict[str, float]:
     """Seed 000's analytic σ values (eq. 11) for the run's drone and frame period."""
-    from dronetrack.pipeline.factory import DEFAULT_S_DIAG
+    from dronetrack.pipeline.trackers import DEFAULT_S_DIAG
     from dronetrack.track.particle import eq11_parameters
 
     t = cfg.pipeline.tracker
