@@ -122,6 +122,8 @@ class Detections:
     covariances: (K, 3, 3) population covariance (1/n) Σᵢ (pᵢ − p̄)(pᵢ − p̄)ᵀ [m²].
     planarity: (K,) (λ₂ − λ₃) / λ₁ of the covariance eigenvalues λ₁ ≥ λ₂ ≥ λ₃ (0 if λ₁ = 0).
     lows: (K,) the lowest point's height z of each [m]; left out: the centroid's.
+    oversized: (M, 3) the points of the frame's clusters that are no candidate, as they
+        are larger than a drone (``detect.candidates``) [m]; left out: none.
 
     Candidates are in the detector's order (DBSCAN's labels); the arrays are read-only.
     The detector does not choose among them: the tracker does, with ``largest()`` or its
@@ -134,11 +136,14 @@ class Detections:
     covariances: FloatArray
     planarity: FloatArray
     lows: FloatArray | None = None
+    oversized: FloatArray = field(default_factory=lambda: np.empty((0, 3)))
 
     def __post_init__(self) -> None:
         k = len(self.centroids)
         if self.lows is None:
             object.__setattr__(self, "lows", np.asarray(self.centroids)[:, 2])
+        big = self.oversized
+        object.__setattr__(self, "oversized", _frozen(big, np.float64, (len(big), 3)))
         for name, shape, dtype in (
             ("centroids", (k, 3), np.float64),
             ("counts", (k,), np.int64),
@@ -150,10 +155,17 @@ class Detections:
             object.__setattr__(self, name, _frozen(getattr(self, name), dtype, shape))
 
     @classmethod
-    def empty(cls) -> Detections:
-        """No candidates."""
+    def empty(cls, oversized: FloatArray | None = None) -> Detections:
+        """No candidates (but the points of ``oversized`` clusters, if given)."""
         counts = np.empty(0, dtype=np.int64)
-        return cls(np.empty((0, 3)), counts, np.empty((0, 3)), np.empty((0, 3, 3)), np.empty(0))
+        return cls(
+            np.empty((0, 3)),
+            counts,
+            np.empty((0, 3)),
+            np.empty((0, 3, 3)),
+            np.empty(0),
+            oversized=np.empty((0, 3)) if oversized is None else oversized,
+        )
 
     def __len__(self) -> int:
         return len(self.centroids)

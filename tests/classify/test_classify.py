@@ -707,3 +707,60 @@ def test_a_hover_counts_for_a_drone_only_where_the_world_showed_in_under_half_it
         fragment, grounded=np.array([0.2]), crowded=np.array([0.2]), world_seen=np.array([0.4])
     )
     assert classify(passing)[0][0] == DRONE
+
+
+def test_a_track_in_view_without_a_cluster_is_engulfed_where_an_oversized_cluster_holds_it() -> (
+    None
+):
+    """Three tracks no cluster updated: one within ε (0.5 m) of a point of a cluster too
+    large for a candidate, one 0.6 m from it, one on it but out of view; a fourth on it
+    that a cluster updated.  Only the first is engulfed; with the test off, none is."""
+    pos = [[100.0, 0, 3.2], [100.0, 0.0, 4.9], [100.0, 0, 3.0], [100.0, 0, 2.0]]
+    tracks = _tracks(pos, [[0, 0, 0]] * 4, [1, 2, 3, 4])
+    tracks = replace(
+        tracks,
+        updated=np.array([False, False, False, True]),
+        clusters=np.array([-1, -1, -1, 0]),
+        in_view=np.array([True, True, False, True]),
+    )
+    board = np.column_stack([np.full(15, 100.0), np.zeros(15), 1.5 + 0.2 * np.arange(15)])
+    found = replace(_found([pos[3]], [1.8]), oversized=board)  # the board's top: z = 4.3
+    obs = observe(tracks, found, np.zeros(3), np.zeros(4), engulf_m=0.5)
+    assert obs.engulfed.tolist() == [True, False, False, False]
+    off = observe(tracks, found, np.zeros(3), np.zeros(4))
+    assert not off.engulfed.any()
+
+
+def test_a_hover_in_free_space_engulfed_by_a_structure_is_the_structures_part() -> None:
+    """A sign board's fragment 100 m out, seen as a few points at the rosette's edge,
+    hovers in free space: a drone (p 0.98).  Once the turret centres it, the board and
+    its pole return as one cluster larger than a drone; each frame it holds the track
+    is an observation, a joined one.  One of nine is no share yet; two of ten are a
+    fifth, the world's: no drone, out of the open air, and static once it is a second
+    old."""
+    lives = TrackLives(hover_speed=4.0, hover_frames=3)
+    p = [100.0, 0.0, 3.5]
+    board = np.column_stack([np.full(15, 100.0), np.zeros(15), 1.0 + 0.2 * np.arange(15)])
+    for k in range(8):  # 0.7 s of a hover in free space
+        tracks = _tracks([p], [[0, 0, 0]], [5])
+        obs = observe(tracks, _found([p], [3.3]), np.zeros(3), np.zeros(1), floor_z=0.0)
+        life = lives.update(k * T, tracks, obs)
+    assert classify(life)[0][0] == DRONE
+    assert in_open_air(life)[0]
+    seen = []
+    for k in range(8, 11):
+        tracks = replace(
+            _tracks([p], [[0, 0, 0]], [5]), updated=np.zeros(1, dtype=bool), clusters=np.array([-1])
+        )
+        found = replace(Detections.empty(), oversized=board)
+        obs = observe(tracks, found, np.zeros(3), np.zeros(1), floor_z=0.0, engulf_m=0.5)
+        assert obs.engulfed[0]
+        life = lives.update(k * T, tracks, obs)
+        cls, p_drone = classify(life)
+        seen.append((TRACK_CLASSES[int(cls[0])], float(p_drone[0]), bool(in_open_air(life)[0])))
+    assert [int(life.observed[0]), float(life.joined[0])] == [11, pytest.approx(3 / 11)]
+    assert seen[0][0] == "drone"
+    assert seen[0][2]
+    assert seen[1][1] < 0.1
+    assert not seen[1][2]
+    assert seen[2][0] == "static"

@@ -8,8 +8,16 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
-from dronetrack.detect.candidates import SEED002_DETECTOR, SEED003_DETECTOR, CandidateDetector
+from dronetrack.detect.candidates import (
+    SEED002_DETECTOR,
+    SEED003_DETECTOR,
+    CandidateDetector,
+    engulfed,
+)
 from dronetrack.errors import ConfigError, InputError
 from dronetrack.types import Detections
 
@@ -108,3 +116,49 @@ def test_the_detect_stage_does_not_import_the_trackers() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_points_of_a_cluster_too_large_for_a_candidate_are_kept_as_oversized() -> None:
+    """A drone-sized blob is a candidate; a 3 m pole's column of returns (one DBSCAN
+    cluster at ε = 0.5 m, 0.2 m apart) is larger than ``max_extent`` (2 m): no
+    candidate, its points exactly ``oversized``; a lone return is neither."""
+    rng = np.random.default_rng(3)
+    blob = _blob(rng, (10.0, 0.0, 5.0), 12)
+    pole = np.column_stack([np.full(16, 30.0), np.zeros(16), np.arange(16) * 0.2])
+    lone = np.array([[50.0, 0.0, 5.0]])
+    found = NO_VOXELS(np.vstack([pole, blob, lone]))
+    assert len(found) == 1
+    np.testing.assert_allclose(found.centroids[0], blob.mean(axis=0), atol=1e-12)
+    np.testing.assert_array_equal(found.oversized, pole)
+    alone = NO_VOXELS(pole)  # no candidate at all: the pole's points still kept
+    assert len(alone) == 0
+    np.testing.assert_array_equal(alone.oversized, pole)
+    assert NO_VOXELS(blob).oversized.shape == (0, 3)
+    # with no size limit nothing is oversized
+    assert len(SEED003_DETECTOR(pole).oversized) == 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    points=hnp.arrays(
+        np.float64, st.tuples(st.integers(0, 30), st.just(3)), elements=st.floats(-5, 5)
+    ),
+    positions=hnp.arrays(
+        np.float64, st.tuples(st.integers(0, 6), st.just(3)), elements=st.floats(-6, 6)
+    ),
+    radius=st.floats(0.05, 3.0),
+)
+def test_a_place_is_engulfed_where_an_oversized_point_lies_within_the_radius(
+    points: np.ndarray, positions: np.ndarray, radius: float
+) -> None:
+    """``engulfed`` against the brute-force least distance (points exactly at the
+    radius are left out: the k-d tree and the norm may round either way)."""
+    found = Detections.empty(points)
+    got = engulfed(found, positions, radius)
+    assert got.shape == (len(positions),)
+    if len(points) == 0:
+        assert not got.any()
+        return
+    d = np.linalg.norm(positions[:, None, :] - points[None, :, :], axis=2).min(axis=1)
+    clear = np.abs(d - radius) > 1e-9
+    np.testing.assert_array_equal(got[clear], (d <= radius)[clear])

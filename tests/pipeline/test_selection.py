@@ -14,7 +14,12 @@ from numpy.typing import ArrayLike
 from dronetrack.control.choose import ChooseSettings, TargetChooser, not_static
 from dronetrack.detect.lock import LockBook
 from dronetrack.detect.tentative import ConfirmationSettings
-from dronetrack.pipeline.selection import STATIC_HOLD_S, TargetSelection, barred_time, rank
+from dronetrack.pipeline.selection import (
+    STATIC_HOLD_S,
+    TargetSelection,
+    barred_time,
+    rank,
+)
 from dronetrack.types import TRACK_CLASSES, Candidates, Detections, TrackEstimate, Tracks
 from track_helpers import hand_tracks
 
@@ -153,6 +158,31 @@ def test_a_lock_on_a_static_track_is_given_up_after_the_hold() -> None:
     assert tracker.resets == 1
     assert not lock.locked
     assert tracker.starts == []  # nothing else to start on
+
+
+def test_a_lock_on_an_oversized_cluster_that_no_track_holds_is_given_up_after_the_hold() -> None:
+    """The tracker holds a structure whose cluster is too large for a candidate: no
+    track within ``SAME_TARGET_M`` of its estimate, the structure's points 0.3 m from
+    it.  Given up after ``STATIC_HOLD_S``; without the oversized cluster, or with a track
+    of no class held there (the held track's own class decides), it is kept."""
+    pole = np.column_stack([np.full(15, 150.0), np.zeros(15), 0.2 * np.arange(15)])
+    far, offered, tracks = _frame([[60, 40, 10]], [UNKNOWN], [0.5])  # a track elsewhere
+    outcomes = []
+    for oversized, on_track in ((pole, False), (np.empty((0, 3)), False), (pole, True)):
+        found = replace(far, oversized=oversized)
+        held = tracks
+        if on_track:
+            found, _, held = _frame([[150, 0.3, 1.5]], [UNKNOWN], [0.5])
+            found = replace(found, oversized=oversized)
+        selection, tracker = TargetSelection(), _Tracker()
+        lock = _locked_on([150, 0.3, 1.5], t=2.0)
+        selection.step(2.0, found, held, offered, lock, tracker)
+        assert tracker.resets == 0
+        t = 2.0 + STATIC_HOLD_S
+        lock.update(TrackEstimate(t, np.array([150, 0.3, 1.5]), np.zeros(3), True, 0.3), None)
+        selection.step(t, found, held, offered, lock, tracker)
+        outcomes.append(tracker.resets)
+    assert outcomes == [1, 0, 0]
 
 
 def test_unlocked_it_starts_within_the_lost_targets_reach_the_likeliest_drone_first() -> None:

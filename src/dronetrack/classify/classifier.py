@@ -34,7 +34,7 @@ class TrackClassifier:
     and K of the hover test; ``crowd_gap_m``: g_c of the crowded test (None: off);
     ``share``: (r₅₀, s) [m] of the share of frames the drone returns a point
     (``return_share``; None: not known, the test of a track that returns too often is
-    off).
+    off); ``engulf_m``: ε of the engulfed test (the clustering's; None: off).
     """
 
     def __init__(
@@ -49,6 +49,7 @@ class TrackClassifier:
         ground_every: int = 10,
         crowd_gap_m: float | None = None,
         share: tuple[float, float] | None = None,
+        engulf_m: float | None = None,
     ) -> None:
         self.rules = rules if rules is not None else ClassRules()
         self.limit_m = limit_m
@@ -58,6 +59,7 @@ class TrackClassifier:
         self.ground_every = ground_every
         self.crowd_gap_m = crowd_gap_m
         self.share = share
+        self.engulf_m = engulf_m
         self.reset()
 
     def reset(self) -> None:
@@ -108,6 +110,7 @@ class TrackClassifier:
             crowd_gap_m=self.crowd_gap_m,
             floor=view_floor(others[::FLOOR_STRIDE], sensor),
             below=np.concatenate([world[foreground], others]),
+            engulf_m=self.engulf_m,
         )
         share = None
         if self.share is not None:

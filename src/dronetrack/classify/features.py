@@ -20,7 +20,10 @@ it; and whether it *hovered in free space*: the same in observations that are
 neither joined, propped nor crowded either (the world holds still too).  Given the
 share of frames the drone returns a point at each track's range
 (``classify.return_share``), whether it returned *too often*: in more of the frames
-it was in view after its first observation than the drone could.
+it was in view after its first observation than the drone could.  A frame in which
+its track was *engulfed* (no cluster updated it, but a cluster too large to be a
+candidate holds its place, ``classify.observe``) is an observation too, a joined one:
+its object showed as part of something larger than a drone.
 """
 
 from __future__ import annotations
@@ -51,7 +54,7 @@ class LifeFeatures:
 
     age: FloatArray  # since its first observation [s]
     seen_s: FloatArray  # how long it was watched: its updates' spacing, each ≤ SEEN_GAP_S [s]
-    observed: NDArray[np.int64]  # frames a cluster updated it
+    observed: NDArray[np.int64]  # frames a cluster updated it or it was engulfed
     moved: FloatArray  # d_max: the farthest it has been from its first position [m]
     range_m: FloatArray  # the farthest it was seen from the sensor [m]
     grounded: FloatArray  # share of its observations grounded
@@ -213,6 +216,12 @@ class TrackLives:
         self.free_run[r] = np.where(slow_free, self.free_run[r] + 1, 0)
         self.hovered_free[r] |= self.free_run[r] >= self.hover_frames
         self.hovered_free[rows] |= tracks.hovered & free
+        # engulfed: its object seen as part of something larger than a drone, an
+        # observation that shows the world beside it, as joined does (``observe``)
+        e = rows[obs.engulfed]
+        self.observed[e] += 1
+        self.joined[e] += 1
+        self.world_seen[e] += 1
         n = np.maximum(self.observed[rows], 1)
         return LifeFeatures(
             age=t - self.first_t[rows],

@@ -34,6 +34,17 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
   every return counts).  On ``outdoor-unscanned`` seed 0, the clusters on a lattice
   mast's top 12 m up and 125 m out, outside the map, had such returns in 29 % of their
   observations, the drone's in none of 369;
+- *engulfed* (a track no cluster updated, in the sensor's view): a point of a cluster
+  too large to be a candidate (``Detections.oversized``) lies within ε of its
+  predicted position p̂, min_i |p_i − p̂| ≤ ε: its object is part of something larger
+  than a drone.  A structure's fragment seen at the rosette's sparse edge is a few
+  points a frame, the size of a drone; once the turret centres it, its whole shape
+  returns and its cluster is dropped as too large, so its track, classed by its few
+  points, was updated no more and held the turret (``outdoor-unscanned`` seed 2: a
+  sign board on a thin pole 100 m out, 1.2 m wide, hovering in free space by its
+  evidence, p 0.98, returned 42-58 points a frame as one 2.5-3.0 m cluster while
+  the turret held it for 1.5 s, the drone in view).  It counts as *joined*
+  (``classify.features``);
 - *beyond reach*: r > r_lim, the range beyond which the drone model the site guards
   returns no point to the sensor (``[pipeline.evaluation] limit_m``, measured per
   sensor and drone: 195 m for an Avia and a Phantom 4, 1.5 × its reach, where a drone
@@ -55,6 +66,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from dronetrack.detect.candidates import engulfed as engulfed_test
 from dronetrack.detect.crowding import crowded as crowded_test
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Detections, Tracks
@@ -89,6 +101,9 @@ class Observations:
     crowded: NDArray[np.bool_]
     cut: NDArray[np.bool_]
     propped: NDArray[np.bool_]
+    # in view with no cluster, within ε of a cluster larger than a drone (False where
+    # updated)
+    engulfed: NDArray[np.bool_]
 
 
 def view_floor(points: FloatArray, sensor: FloatArray, sectors: int = VIEW_SECTORS) -> FloatArray:
@@ -128,13 +143,15 @@ def observe(
     crowd_gap_m: float | None = None,
     floor: FloatArray | None = None,
     below: FloatArray | None = None,
+    engulf_m: float | None = None,
 ) -> Observations:
     """This frame's observations of each track (see the module docstring); ``ground``
     (K,) is g under each track (NaN: unknown), ``sensor`` (3,) the sensor's position,
     ``crowd_gap_m`` g_c (None: the feature is off; the gap is min(g_c, θ_c r)),
     ``floor`` the view's floor (``view_floor`` of the frame's other returns; None: the
     cut test is off),
-    ``below`` (N, 3) the returns the propped test probes (None: it is off)."""
+    ``below`` (N, 3) the returns the propped test probes (None: it is off),
+    ``engulf_m`` ε of the engulfed test (None: it is off)."""
     k = len(tracks)
     j = tracks.clusters
     updated = tracks.updated & (j >= 0)
@@ -175,8 +192,23 @@ def observe(
     if below is not None and len(idx):
         propped[idx] = stands_on(c, low, rng[idx], lift, below)  # above g + h_g
     speed = np.linalg.norm(tracks.velocities, axis=1)
+    engulfed = np.zeros(k, dtype=bool)
+    if engulf_m is not None:
+        ask = np.flatnonzero(~updated & tracks.in_view)
+        engulfed[ask] = engulfed_test(found, tracks.positions[ask], engulf_m)
     return Observations(
-        updated, centroid, rng, speed, grounded, joined, beyond, extent, crowded, cut, propped
+        updated,
+        centroid,
+        rng,
+        speed,
+        grounded,
+        joined,
+        beyond,
+        extent,
+        crowded,
+        cut,
+        propped,
+        engulfed,
     )
 
 

@@ -13,6 +13,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from dronetrack.detect.clusters import (
     Cluster,
@@ -25,7 +27,7 @@ from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Detections
 
-__all__ = ["SEED002_DETECTOR", "SEED003_DETECTOR", "CandidateDetector", "detections"]
+__all__ = ["SEED002_DETECTOR", "SEED003_DETECTOR", "CandidateDetector", "detections", "engulfed"]
 
 
 def detections(clusters: list[Cluster]) -> Detections:
@@ -71,13 +73,17 @@ class CandidateDetector:
             )
 
     def __call__(self, points: FloatArray) -> Detections:
-        """The candidates in ``points`` (M, 3) [m], in DBSCAN's label order."""
+        """The candidates in ``points`` (M, 3) [m], in DBSCAN's label order, with the
+        points of the clusters larger than ``max_extent`` (``Detections.oversized``)."""
         pts = voxel_centroids(points, self.voxel_size) if self.voxel_size > 0 else points
         pts = pts[cylinder_mask(pts, self.roi_center_xy, self.roi_radius, self.z_min, self.z_max)]
-        st = cluster_statistics(pts, dbscan(pts, self.eps, self.min_points))
+        labels = dbscan(pts, self.eps, self.min_points)
+        st = cluster_statistics(pts, labels)
         ok = st.extents[:, 0] <= self.max_extent
+        # the points of the clusters too large to be a candidate (label j is cluster j)
+        oversized = pts[np.isin(labels, np.flatnonzero(~ok))]
         if not ok.any():
-            return Detections.empty()
+            return Detections.empty(oversized)
         return Detections(
             st.centroids[ok],
             st.counts[ok],
@@ -85,6 +91,7 @@ class CandidateDetector:
             st.covariances[ok],
             st.planarity[ok],
             st.lows[ok],
+            oversized,
         )
 
 
@@ -92,3 +99,16 @@ SEED002_DETECTOR = CandidateDetector()
 # Seed 003 gives no clustering parameters: ε = 0.5 m as seed 002, and single points
 # count, as its controller reacts to a single return; no voxels, ROI or size limit.
 SEED003_DETECTOR = CandidateDetector(voxel_size=0.0, min_points=1, max_extent=math.inf)
+
+
+def engulfed(found: Detections, positions: FloatArray, radius: float) -> NDArray[np.bool_]:
+    """(K,) whether a point of the frame's clusters too large to be a candidate
+    (``Detections.oversized``) lies within ``radius`` [m] of each of ``positions``
+    (K, 3): min_i |p_i − p_k| ≤ radius, the place is part of something larger than a
+    drone."""
+    big = found.oversized
+    if len(big) == 0 or len(positions) == 0:
+        return np.zeros(len(positions), dtype=bool)
+    d, _ = cKDTree(big).query(np.asarray(positions, dtype=np.float64), distance_upper_bound=radius)
+    out: NDArray[np.bool_] = np.isfinite(d)
+    return out

@@ -312,6 +312,7 @@ def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | N
         hover_frames=cfg.acquisition.hover_frames,
         crowd_gap_m=CROWD_PER_EPS * cfg.acquisition.eps_m,
         share=cfg.evaluation.return_share_m,
+        engulf_m=cfg.acquisition.eps_m,
     )
 
 

@@ -4,8 +4,9 @@ The tracker follows one target; the track layer follows every object and classes
 (``track.multi``, ``classify``).  Each frame, with the lock's history
 (``detect.lock``) and the chooser's turns (``control.choose``):
 
-1. a lock on a track classed static, or out of the open air, for a net
-   ``STATIC_HOLD_S`` (the time so, less the time not: ``barred_time``) is given up;
+1. a lock on a track classed static, or out of the open air, or on a cluster too
+   large for a candidate where no track is, for a net ``STATIC_HOLD_S`` (the time so,
+   less the time not: ``barred_time``) is given up;
 2. with the chooser on, it names the track to serve: while it serves one, the tracker
    takes only that track's candidates, and when it is not the one held the tracker
    lets go and the turret looks where the track is predicted (``look``) until it has;
@@ -57,6 +58,7 @@ from dronetrack.control.choose import (
     servable,
     worth_a_look,
 )
+from dronetrack.detect.candidates import engulfed
 from dronetrack.detect.lock import SAME_TARGET_M, LockBook
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Candidates, Detections, Tracks
@@ -82,6 +84,7 @@ TRIAL_MISSED_S = 0.3
 # A lock on a track classed static this long [s] is given up: the turret holds a static
 # object at most this long after its class, within the second the issue allows.
 STATIC_HOLD_S = 0.5
+NO_TRACK = -1  # the identity ``_held_static`` keeps for a lock that holds no track
 
 
 class Restartable(Protocol):
@@ -141,7 +144,7 @@ class TargetSelection:
     ) -> Candidates:
         """Apply the rules to the frame ending at ``t``, restarting ``tracker`` as they
         say; the candidates it may take (``offered``, those of a served track)."""
-        if self._held_static(t, tracks, lock):
+        if self._held_static(t, found, tracks, lock):
             log.info("frame ending %.3f s: the locked target is no drone's; lock given up", t)
             tracker.reset()
             lock.reset()
@@ -262,18 +265,34 @@ class TargetSelection:
             self.look = _at_track(tracks, k)
         return mine
 
-    def _held_static(self, t: float, tracks: Tracks | None, lock: LockBook) -> bool:
+    def _held_static(
+        self, t: float, found: Detections, tracks: Tracks | None, lock: LockBook
+    ) -> bool:
         """Whether the locked target's track has been classed static, or out of the open
         air (``control.choose.servable``), for a net ``STATIC_HOLD_S``: the time barred
         less the time not, since the lock has held it (``barred_time``).  A drone may be
         classed static for a frame or two as it lifts off or stops; a fragment of a
         structure whose class flips between drone and static from frame to frame (its
-        evidence near a feature's half-its-frames mark) is held static in most frames."""
+        evidence near a feature's half-its-frames mark) is held static in most frames.
+        A lock that holds no track but lies on a cluster too large to be a candidate
+        (``detect.candidates.engulfed``, within ``SAME_TARGET_M``) is barred too: the
+        particle filter weighs every foreground point, and once the turret centred a
+        structure whose track it held, the structure's whole shape returned, its cluster
+        was dropped as too large and its track left, but the filter stayed on it
+        (``outdoor-unscanned`` seed 9: a shed's corner 151 m out, held 1.2 s with the
+        drone in view)."""
         k = -1 if tracks is None else held(tracks, lock, SAME_TARGET_M)
-        if k < 0 or tracks is None:
+        if k >= 0 and tracks is not None:
+            ident, barred = int(tracks.ids[k]), not bool(servable(tracks)[k])
+        elif (
+            lock.locked
+            and lock.estimate is not None
+            and engulfed(found, lock.estimate.position[None, :], SAME_TARGET_M)[0]
+        ):
+            ident, barred = NO_TRACK, True
+        else:
             self._barred = None
             return False
-        ident, barred = int(tracks.ids[k]), not bool(servable(tracks)[k])
         net = 0.0
         if self._barred is not None and self._barred[0] == ident:
             _, net, was, t_prev = self._barred
