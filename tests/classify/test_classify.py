@@ -232,7 +232,9 @@ def test_a_fragment_that_wanders_over_a_mapped_crown_is_static_and_a_person_is_n
     """Fragments of a tree's crown 150 m out, beside the map's cells in every frame,
     land up to 3 m apart: more than the 1.5 m a still object may wander there, within
     2 θ_c r (5.2 m), and it hovered in the air beside the mapped world, so static.  A
-    drone that wanders as far in free air (no cell beside it) is not; nor is a person
+    drone that wanders as far in free air (no cell beside it), across (its heights keep
+    within its size: ``test_a_pole_sampled_at_random_heights_is_taller_than_a_drone``),
+    is not; nor is a person
     beside a mapped wall (grounded), who may stand and walk; nor a board carried at
     1 m/s along another wall 12 m out, in the air (2 m in 2 s, beyond 2 θ_c r)."""
     rng = np.random.default_rng(11)
@@ -247,10 +249,11 @@ def test_a_fragment_that_wanders_over_a_mapped_crown_is_static_and_a_person_is_n
         return near_crown | wall | (np.abs(points[:, 1] - 9.0) < 0.5) & (points[:, 0] < 20.0)
 
     for k in range(20):
-        # each frame's cluster somewhere on its object: ±1.5 m along x and z
+        # each frame's cluster somewhere on its object: ±1.5 m along x and z (the
+        # drone's along x only)
         jitter = rng.uniform(-1.5, 1.5, (3, 2))
         pos = np.array([crown, drone, person]) + np.column_stack(
-            [jitter[:, 0], np.zeros(3), jitter[:, 1] * [1.0, 1.0, 0.0]]
+            [jitter[:, 0], np.zeros(3), jitter[:, 1] * [1.0, 0.0, 0.0]]
         )
         pos = np.vstack([pos, board - [1.0 * k * T, 0.0, 0.0]])
         velocities = [[0, 0, 0]] * 3 + [[-1.0, 0, 0]]

@@ -34,7 +34,8 @@ class TrackClassifier:
     and K of the hover test; ``crowd_gap_m``: g_c of the crowded test (None: off);
     ``share``: (r₅₀, s) [m] of the share of frames the drone returns a point
     (``return_share``; None: not known, the test of a track that returns too often is
-    off); ``engulf_m``: ε of the engulfed test (the clustering's; None: off).
+    off); ``engulf_m``: ε of the engulfed test (the clustering's; None: off);
+    ``drone_size_m``: s of the height spread's test (the drone's diagonal).
     """
 
     def __init__(
@@ -50,6 +51,7 @@ class TrackClassifier:
         crowd_gap_m: float | None = None,
         share: tuple[float, float] | None = None,
         engulf_m: float | None = None,
+        drone_size_m: float = 0.4,
     ) -> None:
         self.rules = rules if rules is not None else ClassRules()
         self.limit_m = limit_m
@@ -60,12 +62,13 @@ class TrackClassifier:
         self.crowd_gap_m = crowd_gap_m
         self.share = share
         self.engulf_m = engulf_m
+        self.drone_size_m = drone_size_m
         self.reset()
 
     def reset(self) -> None:
         """Forget the ground and every track's life."""
         self.ground = GroundGrid(self.ground_cell_m)
-        self.lives = TrackLives(*self.hover)
+        self.lives = TrackLives(*self.hover, drone_size_m=self.drone_size_m)
         self._frames = 0
 
     def step(

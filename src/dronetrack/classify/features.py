@@ -20,7 +20,15 @@ it; and whether it *hovered in free space*: the same in observations that are
 neither joined, propped nor crowded either (the world holds still too).  Given the
 share of frames the drone returns a point at each track's range
 (``classify.return_share``), whether it returned *too often*: in more of the frames
-it was in view after its first observation than the drone could.  A frame in which
+it was in view after its first observation than the drone could.  Its *height spread*: the
+heights z of its clusters, each against the line through the two before it (updates
+at most ``SPREAD_GAP_S`` apart), deviate by d = z₀ − (1 + ρ) z₁ + ρ z₂ (ρ the ratio of
+the gaps; a climb at constant speed leaves none), of variance c σ² with c = 1 + (1 +
+ρ)² + ρ² where the heights scatter by σ.  A drone's few returns a frame land within its
+size s and the beam's vertical footprint θ_b r at range r, σ_d = (s + θ_b r)/√12,
+while a pole's or a person's land anywhere over their height; the life keeps
+Q = Σ d²/(c σ_d²) over its n triples (``classify.rules.taller_than_drone`` tests it)
+and √(Σ 12 d²/c / n), the height its returns land over.  A frame in which
 its track was *engulfed* (no cluster updated it, but a cluster too large to be a
 candidate holds its place, ``classify.observe``) is an observation too, a joined one:
 its object showed as part of something larger than a drone.
@@ -28,12 +36,13 @@ its object showed as part of something larger than a drone.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.classify.observe import Observations
+from dronetrack.classify.observe import PROP_BEAM_RAD, Observations
 from dronetrack.classify.return_share import more_often_than_drone
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Tracks
@@ -46,6 +55,10 @@ __all__ = [
 
 ALOFT_ALPHA = 0.3
 SEEN_GAP_S = 0.3  # the longest gap between two updates that counts as watched (``seen_s``)
+# The longest gap between updates of a triple the height spread takes: about a frame at
+# 10 Hz, over which a drone's vertical acceleration (|a_z| ≤ 5 m/s²) bends its path by
+# a g₀ (g₀ + g₁) / 2 ≤ 0.11 m, under σ_d (0.28 m at least: ``spread_scale``)
+SPREAD_GAP_S = 0.15
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,6 +89,12 @@ class LifeFeatures:
     # returned points in more of the frames it was in view after its birth than the
     # drone could at its ranges (``classify.return_share``; False where not known)
     too_often: NDArray[np.bool_]
+    # the height spread of its clusters (see the module docstring): Q = Σ d²/(c σ_d²)
+    # over n triples, and √(Σ 12 d²/c / n), the height its returns land over [m]
+    # (NaN: no triple)
+    spread_q: FloatArray
+    spread_n: NDArray[np.int64]
+    spread_m: FloatArray
 
 
 # the per-track counters of ``TrackLives``, each an int64 array from 0
@@ -92,6 +111,7 @@ _COUNTS = (
     "free_run",
     "looked",  # frames in view after its first observation
     "looked_hits",  # of those, the frames a cluster updated it
+    "spread_n",  # triples of updates the height spread took
 )
 
 # the other per-track arrays of ``TrackLives``
@@ -108,15 +128,22 @@ _LIFE = (
     "min_speed",
     "aloft",
     "expected_hits",  # Σ P(r_i) over the frames ``looked``: the drone's expected hits
+    "spread_q",  # Σ d²/(c σ_d²) of the height spread
+    "spread_u",  # Σ 12 d²/c [m²]
+    "last_z",  # (K, 2) the heights of its last two clusters, older first [m]
+    "last_zt",  # (K, 2) their times [s]
 )
 
 
 class TrackLives:
     """Every track's life, kept by its identity (``update`` once a frame)."""
 
-    def __init__(self, hover_speed: float = 4.0, hover_frames: int = 3) -> None:
+    def __init__(
+        self, hover_speed: float = 4.0, hover_frames: int = 3, drone_size_m: float = 0.4
+    ) -> None:
         self.hover_speed = hover_speed
         self.hover_frames = hover_frames
+        self.drone_size_m = drone_size_m
         self._row: dict[int, int] = {}
         n = 0
         self.first_t = np.empty(n)
@@ -143,6 +170,11 @@ class TrackLives:
         self.looked = np.empty(n, dtype=np.int64)
         self.looked_hits = np.empty(n, dtype=np.int64)
         self.expected_hits = np.empty(n)
+        self.spread_n = np.empty(n, dtype=np.int64)
+        self.spread_q = np.empty(n)
+        self.spread_u = np.empty(n)
+        self.last_z = np.empty((n, 2))
+        self.last_zt = np.empty((n, 2))
 
     def __len__(self) -> int:
         return len(self._row)
@@ -200,6 +232,7 @@ class TrackLives:
         self.propped[r] += obs.propped[u]
         world = obs.grounded | obs.joined | obs.propped | obs.crowded | obs.cut
         self.world_seen[r] += world[u]
+        self._spread(r, t, obs.centroid[u, 2], obs.range_m[u])
         self.extent[r] = np.fmax(self.extent[r], obs.extent[u])
         self.range_m[r] = np.fmax(self.range_m[r], obs.range_m[u])
         later = self.observed[r] > 1  # a track's first velocity is the birth's guess
@@ -246,7 +279,24 @@ class TrackLives:
                 if share is not None
                 else np.zeros(len(rows), dtype=bool)
             ),
+            spread_q=self.spread_q[rows].copy(),
+            spread_n=self.spread_n[rows].copy(),
+            spread_m=spread_height(self.spread_u[rows], self.spread_n[rows]),
         )
+
+    def _spread(self, r: NDArray[np.intp], t: float, z: FloatArray, rng: FloatArray) -> None:
+        """Add the update at ``t`` of rows ``r`` (heights ``z``, ranges ``rng``) to their
+        height spread, where their last two updates make a triple with it."""
+        (z2, z1), (t2, t1) = self.last_z[r].T, self.last_zt[r].T
+        g0, g1 = t - t1, t1 - t2
+        ok = (g1 > 0) & (g1 <= SPREAD_GAP_S + 1e-9) & (g0 <= SPREAD_GAP_S + 1e-9)  # NaN: no
+        d, c = spread_deviation(z[ok], z1[ok], z2[ok], g0[ok] / g1[ok])
+        at = r[ok]
+        self.spread_q[at] += d**2 / (c * spread_scale(self.drone_size_m, rng[ok]) ** 2)
+        self.spread_u[at] += 12.0 * d**2 / c
+        self.spread_n[at] += 1
+        self.last_z[r] = np.column_stack([z1, z])
+        self.last_zt[r] = np.column_stack([t1, np.full(len(r), t)])
 
     def _row_of(self, ident: int, t: float) -> int:
         row = self._row.get(ident)
@@ -268,6 +318,10 @@ class TrackLives:
         self.min_speed = np.append(self.min_speed, np.inf)
         self.aloft = np.append(self.aloft, 1.0)
         self.expected_hits = np.append(self.expected_hits, 0.0)
+        self.spread_q = np.append(self.spread_q, 0.0)
+        self.spread_u = np.append(self.spread_u, 0.0)
+        self.last_z = np.concatenate([self.last_z, np.full((1, 2), np.nan)])
+        self.last_zt = np.concatenate([self.last_zt, np.full((1, 2), np.nan)])
         return row
 
     def _inherit(self, new: NDArray[np.int64], old: NDArray[np.int64]) -> None:
@@ -291,9 +345,11 @@ class TrackLives:
             for name in (*_LIFE, *_COUNTS):
                 column = getattr(self, name)
                 setattr(self, name, np.concatenate([column, column[rows]]))
-            # d_max counts from the heir's own first cluster (see ``_inherit``)
+            # d_max counts from the heir's own first cluster (see ``_inherit``), and its
+            # height spread's next triple from its own clusters
             self.first_p[-len(rows) :] = np.nan
             self.moved[-len(rows) :] = 0.0
+            self.last_zt[-len(rows) :] = np.nan
 
     def _forget(self, alive: set[int]) -> None:
         """Drop the lives of tracks that ended (their rows are compacted)."""
@@ -305,3 +361,34 @@ class TrackLives:
         for name in (*_LIFE, *_COUNTS):
             setattr(self, name, getattr(self, name)[keep])
         self._row = {i: n for n, i in enumerate(keep_ids)}
+
+
+def spread_deviation(
+    z0: FloatArray, z1: FloatArray, z2: FloatArray, rho: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The deviation d of each height ``z0`` from the line through the two before it,
+    ``z2`` then ``z1``, with ρ = g₀ / g₁ the ratio of the gaps, and the factor c of its
+    variance for independent heights of variance σ²:
+
+        d = z₀ − (1 + ρ) z₁ + ρ z₂,   Var d = c σ²,   c = 1 + (1 + ρ)² + ρ²
+
+    A climb or descent at constant speed leaves d = 0."""
+    d: FloatArray = z0 - (1.0 + rho) * z1 + rho * z2
+    c: FloatArray = 1.0 + (1.0 + rho) ** 2 + rho**2
+    return d, c
+
+
+def spread_scale(size_m: float, range_m: FloatArray) -> FloatArray:
+    """σ_d: the spread of a drone's cluster heights at range r [m], as if its returns
+    landed anywhere over its size s and the beam's vertical footprint θ_b r
+    (``observe.PROP_BEAM_RAD``): σ_d = (s + θ_b r) / √12."""
+    out: FloatArray = (size_m + PROP_BEAM_RAD * range_m) / math.sqrt(12.0)
+    return out
+
+
+def spread_height(u: FloatArray, n: NDArray[np.int64]) -> FloatArray:
+    """√(Σ 12 d²/c / n) [m]: the height over which an object's returns land, uniformly
+    (NaN where n = 0)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out: FloatArray = np.sqrt(np.where(n > 0, u / n, np.nan))
+    return out

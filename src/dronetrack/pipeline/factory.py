@@ -313,6 +313,7 @@ def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | N
         crowd_gap_m=CROWD_PER_EPS * cfg.acquisition.eps_m,
         share=cfg.evaluation.return_share_m,
         engulf_m=cfg.acquisition.eps_m,
+        drone_size_m=s_diag,
     )
 
 
