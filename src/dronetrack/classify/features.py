@@ -20,18 +20,21 @@ it; and whether it *hovered in free space*: the same in observations that are
 neither joined, propped nor crowded either (the world holds still too).  Given the
 share of frames the drone returns a point at each track's range
 (``classify.return_share``), whether it returned *too often*: in more of the frames
-it was in view after its first observation than the drone could.  Its *height spread*: the
-heights z of its clusters, each against the line through the two before it (updates
-at most ``SPREAD_GAP_S`` apart), deviate by d = z₀ − (1 + ρ) z₁ + ρ z₂ (ρ the ratio of
-the gaps; a climb at constant speed leaves none), of variance c σ² with c = 1 + (1 +
-ρ)² + ρ² where the heights scatter by σ.  A drone's few returns a frame land within its
-size s and the beam's vertical footprint θ_b r at range r, σ_d = (s + θ_b r)/√12,
-while a pole's or a person's land anywhere over their height; the life keeps
-Q = Σ d²/(c σ_d²) over its n triples (``classify.rules.taller_than_drone`` tests it)
-and √(Σ 12 d²/c / n), the height its returns land over.  A frame in which
-its track was *engulfed* (no cluster updated it, but a cluster too large to be a
-candidate holds its place, ``classify.observe``) is an observation too, a joined one:
-its object showed as part of something larger than a drone.
+it was in view after its first observation than the drone could.
+
+Its *height spread*: the heights z of its clusters, each against the line through
+the two before it (updates at most ``SPREAD_GAP_S`` apart), deviate by
+d = z₀ − (1 + ρ) z₁ + ρ z₂ (ρ the ratio of the gaps; a climb at constant speed leaves
+none), of variance c σ² with c = 1 + (1 + ρ)² + ρ² where the heights scatter by σ.  A
+drone's few returns a frame land within its size s and the beam's vertical footprint
+θ_b r at range r, σ_d = (s + θ_b r)/√12, while a pole's or a person's land anywhere
+over their height.  The life keeps Q = Σ d²/(c σ_d²) over its n triples
+(``classify.rules.taller_than_drone`` tests it) and √(Σ 12 d²/c / n), the height its
+returns land over.
+
+A frame in which its track was *engulfed* (no cluster updated it, but a cluster too
+large to be a candidate holds its place, ``classify.observe``) is an observation too,
+a joined one: its object showed as part of something larger than a drone.
 """
 
 from __future__ import annotations
@@ -57,7 +60,8 @@ ALOFT_ALPHA = 0.3
 SEEN_GAP_S = 0.3  # the longest gap between two updates that counts as watched (``seen_s``)
 # The longest gap between updates of a triple the height spread takes: about a frame at
 # 10 Hz, over which a drone's vertical acceleration (|a_z| ≤ 5 m/s²) bends its path by
-# a g₀ (g₀ + g₁) / 2 ≤ 0.11 m, under σ_d (0.28 m at least: ``spread_scale``)
+# a g₀ (g₀ + g₁) / 2 ≤ 0.11 m, under the deviation's scale √c σ_d (≥ √6 s/√12, 0.28 m
+# for s = 0.4 m: ``spread_scale``)
 SPREAD_GAP_S = 0.15
 
 
