@@ -105,36 +105,41 @@ def test_the_test_rejects_at_its_level_on_heights_a_drone_would_give() -> None:
     assert taller_than_drone(np.array([edge * 1.001]), n)[0]
 
 
+def _frame(lives: TrackLives, t: float, ident: int, p: list[float], **kw: object) -> LifeFeatures:
+    """One frame of a still track ``ident`` whose cluster is a point at ``p``, over flat
+    ground (z = 0) and 195 m of the drone's reach."""
+    tracks = Tracks(
+        ids=np.array([ident]),
+        positions=np.array([p]),
+        velocities=np.zeros((1, 3)),
+        covariances=np.tile(0.01 * np.eye(6), (1, 1, 1)),
+        born=np.zeros(1),
+        updated=np.ones(1, dtype=bool),
+        hovered=np.zeros(1, dtype=bool),
+        locked=np.zeros(1, dtype=bool),
+        clusters=np.zeros(1, dtype=np.int64),
+    )
+    found = Detections(
+        np.array([p]),
+        np.ones(1, dtype=np.int64),
+        np.zeros((1, 3)),
+        np.zeros((1, 3, 3)),
+        np.zeros(1),
+        np.array([p[2]]),
+    )
+    obs = observe(tracks, found, np.zeros(3), np.zeros(1), floor_z=0.0, limit_m=195.0)
+    return lives.update(t, tracks, obs, **kw)  # type: ignore[arg-type]
+
+
 def _life(
     heights: np.ndarray, xy: tuple[float, float], gaps: np.ndarray | None = None
 ) -> LifeFeatures:
-    """A still track 1 m up or more, one cluster a frame at ``heights``, over flat ground."""
+    """A still track 1 m up or more, one cluster a frame at ``heights``."""
     lives = TrackLives(hover_speed=4.0, hover_frames=3, drone_size_m=0.4)
     t, life = 0.0, None
     for k, z in enumerate(heights):
         t += 0.0 if k == 0 else (T if gaps is None else float(gaps[k - 1]))
-        p = [xy[0], xy[1], float(z)]
-        tracks = Tracks(
-            ids=np.array([9]),
-            positions=np.array([p]),
-            velocities=np.zeros((1, 3)),
-            covariances=np.tile(0.01 * np.eye(6), (1, 1, 1)),
-            born=np.zeros(1),
-            updated=np.ones(1, dtype=bool),
-            hovered=np.zeros(1, dtype=bool),
-            locked=np.zeros(1, dtype=bool),
-            clusters=np.zeros(1, dtype=np.int64),
-        )
-        found = Detections(
-            np.array([p]),
-            np.ones(1, dtype=np.int64),
-            np.zeros((1, 3)),
-            np.zeros((1, 3, 3)),
-            np.zeros(1),
-            np.array([z]),
-        )
-        obs = observe(tracks, found, np.zeros(3), np.zeros(1), floor_z=0.0, limit_m=195.0)
-        life = lives.update(t, tracks, obs)
+        life = _frame(lives, t, 9, [xy[0], xy[1], float(z)])
     assert life is not None
     return life
 
@@ -171,28 +176,7 @@ def test_an_heir_keeps_the_spread_but_starts_its_triples_from_its_own_clusters()
     clusters to its own (an heir is its object by place, not by path)."""
 
     def frame(lives: TrackLives, t: float, ident: int, z: float, **kw: object) -> LifeFeatures:
-        p = [40.0, 5.0, z]
-        tracks = Tracks(
-            ids=np.array([ident]),
-            positions=np.array([p]),
-            velocities=np.zeros((1, 3)),
-            covariances=np.tile(0.01 * np.eye(6), (1, 1, 1)),
-            born=np.zeros(1),
-            updated=np.ones(1, dtype=bool),
-            hovered=np.zeros(1, dtype=bool),
-            locked=np.zeros(1, dtype=bool),
-            clusters=np.zeros(1, dtype=np.int64),
-        )
-        found = Detections(
-            np.array([p]),
-            np.ones(1, dtype=np.int64),
-            np.zeros((1, 3)),
-            np.zeros((1, 3, 3)),
-            np.zeros(1),
-            np.array([z]),
-        )
-        obs = observe(tracks, found, np.zeros(3), np.zeros(1), floor_z=0.0)
-        return lives.update(t, tracks, obs, **kw)  # type: ignore[arg-type]
+        return _frame(lives, t, ident, [40.0, 5.0, z], **kw)
 
     lives = TrackLives()
     for k, z in enumerate((5.0, 5.2, 5.1)):
