@@ -20,7 +20,7 @@ from dronetrack.classify.features import (
     spread_height,
     spread_scale,
 )
-from dronetrack.classify.observe import PROP_BEAM_RAD, observe
+from dronetrack.classify.observe import BEAM_RAD, observe
 from dronetrack.classify.rules import (
     DRONE,
     SPREAD_ALPHA,
@@ -80,9 +80,7 @@ def test_the_spread_height_of_returns_landing_anywhere_on_an_object_is_its_heigh
 def test_a_drones_scale_is_its_size_and_the_beams_footprint() -> None:
     """σ_d = (s + θ_b r)/√12: 0.4 m and 5 mrad give 0.24 m at 85 m."""
     got = spread_scale(0.4, np.array([0.0, 85.0]))
-    np.testing.assert_allclose(
-        got, [0.4 / math.sqrt(12), (0.4 + PROP_BEAM_RAD * 85) / math.sqrt(12)]
-    )
+    np.testing.assert_allclose(got, [0.4 / math.sqrt(12), (0.4 + BEAM_RAD * 85) / math.sqrt(12)])
     assert got[1] == pytest.approx(0.238, abs=1e-3)
 
 

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.classify.observe import PROP_BEAM_RAD, Observations
+from dronetrack.classify.observe import BEAM_RAD, Observations
 from dronetrack.classify.return_share import more_often_than_drone
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Tracks
@@ -385,8 +385,8 @@ def spread_deviation(
 def spread_scale(size_m: float, range_m: FloatArray) -> FloatArray:
     """σ_d: the spread of a drone's cluster heights at range r [m], as if its returns
     landed anywhere over its size s and the beam's vertical footprint θ_b r
-    (``observe.PROP_BEAM_RAD``): σ_d = (s + θ_b r) / √12."""
-    out: FloatArray = (size_m + PROP_BEAM_RAD * range_m) / math.sqrt(12.0)
+    (``observe.BEAM_RAD``): σ_d = (s + θ_b r) / √12."""
+    out: FloatArray = (size_m + BEAM_RAD * range_m) / math.sqrt(12.0)
     return out
 
 

@@ -82,7 +82,7 @@ VIEW_SECTORS = 72  # azimuth sectors of the view's floor, 5° each
 CUT_MARGIN_RAD = math.radians(1.0)  # δ of the cut test
 PROP_DEPTH_M = 1.5  # d_p of the propped test
 PROP_RADIUS_M = 0.5  # r_min
-PROP_BEAM_RAD = 0.005  # θ_b
+BEAM_RAD = 0.005  # θ_b: the Avia's vertical beam divergence (the propped test, the height spread)
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,7 +223,7 @@ def stands_on(
     """
     if len(points) == 0 or len(c) == 0:
         return np.zeros(len(c), dtype=bool)
-    radius = np.maximum(PROP_RADIUS_M, PROP_BEAM_RAD * r)
+    radius = np.maximum(PROP_RADIUS_M, BEAM_RAD * r)
     bottom = np.maximum(low - PROP_DEPTH_M, lift)
     z = points[:, 2]  # the returns within some column's height band
     p = np.ascontiguousarray(points[(z >= bottom.min()) & (z < low.max())], dtype=np.float64)

@@ -40,7 +40,7 @@ from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
 from dronetrack.pipeline.core import Acquisition, OutlierSettings, Pipeline
-from dronetrack.pipeline.trackers import build_tracker, check_registry
+from dronetrack.pipeline.trackers import DEFAULT_S_DIAG, build_tracker, check_registry
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop
 from dronetrack.preprocess.learning import LearningBackground, LearningSettings
@@ -303,7 +303,7 @@ def build_classifier(cfg: PipelineConfig, floor_z: float) -> TrackClassifier | N
     # still_m: a drone-sized object's centroid wanders about its size; 2.5 s_diag is the
     # 1 m bound outdoors (s_diag 0.4 m) and 0.3 m indoors (a Crazyflie, 0.12 m), where
     # a slow drone moves less than 1 m in its first seconds
-    s_diag = cfg.tracker.s_diag if cfg.tracker.s_diag is not None else 0.4
+    s_diag = cfg.tracker.s_diag if cfg.tracker.s_diag is not None else DEFAULT_S_DIAG
     return TrackClassifier(
         ClassRules(still_m=STILL_PER_SIZE * s_diag),
         limit_m=cfg.evaluation.limit_m,
