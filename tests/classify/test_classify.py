@@ -424,19 +424,29 @@ def test_a_still_object_beyond_the_drones_reach_is_static() -> None:
 def test_beyond_reach_three_clusters_tell_a_still_object_static() -> None:
     """A far structure's few returns update its track in one frame of three or four:
     watched 1.5 s in three clusters 220 m out, beyond reach, it held still and is
-    static; in two it is not yet (one displacement is no still test), nor is a track
-    as sparse within reach (150 m), which needs ``min_observed`` (5)."""
+    static; in two it is not yet (one displacement is no still test).  Within reach
+    (150 m) so is a track as sparse whose every observation showed the world (here
+    the ground); one that showed free air in one of its three needs ``min_observed``
+    (5)."""
     rules = ClassRules()
     assert rules.min_observed > FAR_OBSERVED
-    for x, clusters, static in (
-        (220.0, FAR_OBSERVED, True),
-        (220.0, FAR_OBSERVED - 1, False),
-        (150.0, FAR_OBSERVED, False),
-        (150.0, rules.min_observed, True),
+    for x, clusters, world, static in (
+        (220.0, FAR_OBSERVED, 2 / 3, True),
+        (220.0, FAR_OBSERVED - 1, 1.0, False),
+        (150.0, FAR_OBSERVED, 1.0, True),
+        (150.0, FAR_OBSERVED - 1, 1.0, False),
+        (150.0, FAR_OBSERVED, 2 / 3, False),
+        (150.0, rules.min_observed, 2 / 3, True),
     ):
         life = _life(1.5, np.array([x, 0.0, 1.5]), np.zeros(3), 0.6)  # on the ground
-        sparse = replace(life, observed=np.array([clusters]))
-        assert bool(classify(sparse, rules)[0][0] == STATIC) is static, (x, clusters)
+        assert life.grounded[0] == 1.0
+        sparse = replace(
+            life,
+            observed=np.array([clusters]),
+            grounded=np.array([world]),
+            world_seen=np.array([world]),
+        )
+        assert bool(classify(sparse, rules)[0][0] == STATIC) is static, (x, clusters, world)
 
 
 def test_what_holds_still_beyond_the_drones_reach_is_static_however_its_returns_wander() -> None:

@@ -314,6 +314,31 @@ def test_a_drone_classed_static_one_frame_in_three_is_kept() -> None:
     assert _held_with_classes([DRONE, DRONE, STATIC] * 20) == -1
 
 
+def test_the_time_barred_is_the_locks_over_fragments_and_lapses_of_the_lock() -> None:
+    """The filter on a structure's static fragments 2.5 m apart: its estimate lies on
+    one's track two frames, on the other's the third, and the fourth the tracker has
+    lost its lock (it takes it again on its own the next).  Counted over the lock
+    (+0.1 s in each frame after a barred one, −0.1 s after the lapse: +0.2 s each
+    cycle of four), the net 0.5 s is reached in the tenth frame; a count restarted
+    with each held track, or with each lapse, never reaches it.  On two drone-class
+    tracks the same lock is kept."""
+    a, b = [105.0, 0.0, 8.0], [105.0, 2.5, 8.0]
+    outcomes = []
+    for cls, p in ((STATIC, 0.01), (DRONE, 0.98)):
+        selection, tracker = TargetSelection(), _Tracker()
+        given_up = -1
+        for n, on in enumerate([a, a, b, None] * 6):
+            t = 2.0 + 0.1 * n
+            found, offered, tracks = _frame([a, b], [cls, cls], [p, p])
+            lock = _locked_on(on, t=t) if on is not None else LockBook(ConfirmationSettings())
+            selection.step(t, found, tracks, not_static(offered, found, tracks), lock, tracker)
+            if tracker.resets:
+                given_up = n
+                break
+        outcomes.append(given_up)
+    assert outcomes == [9, -1]
+
+
 @given(
     st.lists(st.booleans(), min_size=1, max_size=60),
     st.floats(min_value=0.01, max_value=0.5),

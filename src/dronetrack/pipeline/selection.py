@@ -84,7 +84,6 @@ TRIAL_MISSED_S = 0.3
 # A lock on a track classed static this long [s] is given up: the turret holds a static
 # object at most this long after its class, within the second the issue allows.
 STATIC_HOLD_S = 0.5
-NO_TRACK = -1  # the identity ``_held_static`` keeps for a lock that holds no track
 
 
 class Restartable(Protocol):
@@ -126,8 +125,14 @@ class TargetSelection:
         # locked (None: rule 5 did not run this frame)
         self.aim: Candidates | None = None
         self.trial = StartTrial(self.settings)
-        # (held track, its net time barred [s], barred in the last frame, that frame's t)
-        self._barred: tuple[int, float, bool, float] | None = None
+        # (the lock's net time barred [s], barred in the last frame, that frame's t)
+        self._barred: tuple[float, bool, float] | None = None
+
+    def _let_go(self, tracker: Restartable, lock: LockBook) -> None:
+        """Reset the tracker and the lock, and the lock's time barred with them."""
+        tracker.reset()
+        lock.reset()
+        self._barred = None
 
     @property
     def settings(self) -> ChooseSettings:
@@ -146,14 +151,12 @@ class TargetSelection:
         say; the candidates it may take (``offered``, those of a served track)."""
         if self._held_static(t, found, tracks, lock):
             log.info("frame ending %.3f s: the locked target is no drone's; lock given up", t)
-            tracker.reset()
-            lock.reset()
+            self._let_go(tracker, lock)
         offered = self._serve(t, found, tracks, offered, lock, tracker)
         other = lock.switch(offered)
         if other is not None:
             log.info("frame ending %.3f s: lock moved to a target that hovered", t)
-            tracker.reset()
-            lock.reset()
+            self._let_go(tracker, lock)
             tracker.acquire(other)
             return offered
         if not lock.locked:
@@ -163,8 +166,7 @@ class TargetSelection:
         drone = self.drone_instead(found, tracks, offered, lock) if self.look is None else None
         if drone is not None:
             log.info("frame ending %.3f s: lock moved to a drone's track", t)
-            tracker.reset()
-            lock.reset()
+            self._let_go(tracker, lock)
             tracker.acquire(drone)
         return offered
 
@@ -259,8 +261,7 @@ class TargetSelection:
             return mine  # the served track is where the tracker already is
         if lock.locked:
             log.info("frame ending %.3f s: the turret turns to track %d", t, served)
-            tracker.reset()
-            lock.reset()
+            self._let_go(tracker, lock)
         if len(mine) == 0:
             self.look = _at_track(tracks, k)
         return mine
@@ -268,36 +269,42 @@ class TargetSelection:
     def _held_static(
         self, t: float, found: Detections, tracks: Tracks | None, lock: LockBook
     ) -> bool:
-        """Whether the locked target's track has been classed static, or out of the open
-        air (``control.choose.servable``), for a net ``STATIC_HOLD_S``: the time barred
-        less the time not, since the lock has held it (``barred_time``).  A drone may be
-        classed static for a frame or two as it lifts off or stops; a fragment of a
-        structure whose class flips between drone and static from frame to frame (its
-        evidence near a feature's half-its-frames mark) is held static in most frames.
+        """Whether the lock has held a track classed static, or out of the open air
+        (``control.choose.servable``), for a net ``STATIC_HOLD_S``: the time barred less
+        the time not (``barred_time``).  A drone may be classed
+        static for a frame or two as it lifts off or stops; a fragment of a structure
+        whose class flips between drone and static from frame to frame (its evidence
+        near a feature's half-its-frames mark) is held static in most frames.
         A lock that holds no track but lies on a cluster too large to be a candidate
         (``detect.candidates.engulfed``, within ``SAME_TARGET_M``) is barred too: the
         particle filter weighs every foreground point, and once the turret centred a
         structure whose track it held, the structure's whole shape returned, its cluster
         was dropped as too large and its track left, but the filter stayed on it
         (``outdoor-unscanned`` seed 9: a shed's corner 151 m out, held 1.2 s with the
-        drone in view)."""
-        k = -1 if tracks is None else held(tracks, lock, SAME_TARGET_M)
-        if k >= 0 and tracks is not None:
-            ident, barred = int(tracks.ids[k]), not bool(servable(tracks)[k])
-        elif (
-            lock.locked
-            and lock.estimate is not None
-            and engulfed(found, lock.estimate.position[None, :], SAME_TARGET_M)[0]
-        ):
-            ident, barred = NO_TRACK, True
-        else:
-            self._barred = None
-            return False
+        drone in view).
+
+        The count is the lock's, whichever track it holds: on a structure the map
+        lacks, the filter's estimate lies now on one fragment's track, now on another's
+        2-3 m away, now on none, and a count restarted with each held track never
+        reached the hold (``outdoor-unscanned`` seed 22: a lock on a structure's static
+        fragments 105 m out for 2.9 s).  Nor does the count restart when the tracker
+        loses its lock and takes it again on its own: there the filter, drifting over
+        the structure, lost and retook it every four or five frames.  A frame on no
+        track or without a lock counts as not barred; only letting go of the lock here
+        (``_let_go``) restarts the count."""
+        barred = False
+        if lock.locked and lock.estimate is not None:
+            k = -1 if tracks is None else held(tracks, lock, SAME_TARGET_M)
+            if k >= 0 and tracks is not None:
+                barred = not bool(servable(tracks)[k])
+            else:
+                position = lock.estimate.position[None, :]
+                barred = bool(engulfed(found, position, SAME_TARGET_M)[0])
         net = 0.0
-        if self._barred is not None and self._barred[0] == ident:
-            _, net, was, t_prev = self._barred
+        if self._barred is not None:
+            net, was, t_prev = self._barred
             net = barred_time(net, was, t - t_prev)
-        self._barred = (ident, net, barred, t)
+        self._barred = (net, barred, t)
         return barred and net >= STATIC_HOLD_S - 1e-9
 
 
