@@ -269,6 +269,21 @@ def test_a_trial_gives_way_at_once_to_a_drone_class_track() -> None:
     assert tracker.resets == 1
 
 
+def test_a_trial_that_gave_way_to_a_drone_class_track_was_not_tried() -> None:
+    """Track 1's trial gives way to track 2 once 2 is classed drone; when 2 is then
+    classed static, 1 (the likelier of 1 and 3) is tried again at once: it was
+    pre-empted, not tried and found wanting."""
+    a, b, c = [100.0, 0.0, 10.0], [120.0, 30.0, 10.0], [90.0, -20.0, 10.0]
+    selection, tracker, lock, _, _ = _trying(a, b)
+    found, offered, tracks = _frame([a, b], [UNKNOWN, DRONE], [0.5, 0.98])
+    selection.step(1.1, found, tracks, offered, lock, tracker)
+    assert selection.trial.ident == 2
+    found, offered, tracks = _frame([a, b, c], [UNKNOWN, STATIC, UNKNOWN], [0.5, 0.01, 0.45])
+    selection.step(1.2, found, tracks, not_static(offered, found, tracks), lock, tracker)
+    assert selection.trial.ident == 1
+    assert tracker.starts[-1].positions[0].tolist() == a
+
+
 def test_while_the_tried_track_has_no_candidate_nothing_starts_and_the_turret_aims_at_it() -> None:
     a, b = [100.0, 0.0, 10.0], [120.0, 30.0, 10.0]
     selection, tracker, lock, offered, tracks = _trying(a, b)
