@@ -5,6 +5,7 @@ and the classes of a pole sampled at random heights and of a drone."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -159,6 +160,25 @@ def test_a_pole_sampled_at_random_heights_is_taller_than_a_drone() -> None:
         assert not taller_than_drone(drone.spread_q, drone.spread_n)[0]
         assert classify(drone)[0][0] == DRONE
     assert int(hover.spread_n[0]) == 598
+
+
+def test_taller_than_a_drone_its_height_is_no_motion_but_its_way_across_is() -> None:
+    """The pole's first cluster at its top and the later ones lower: its clusters
+    moved 0.8 m more than the height they spread over (``outdoor-unscanned`` seed 12:
+    3.0 m against 2.2 m, 85 m out), but 0.3 m across: still, and static.  Had it
+    moved as far across, it would not be; nor is a drone that came down 3 m where it
+    hovers (its height spread a drone's)."""
+    rng = np.random.default_rng(4)
+    pole = _life(rng.uniform(1.5, 4.5, 21), (26.0, -81.0))
+    down = float(pole.spread_m[0]) + 0.8
+    assert down > 1.0  # past the 1 m any still object may wander
+    top_first = replace(pole, moved=np.array([down]), moved_xy=np.array([0.3]))
+    assert classify(top_first)[0][0] == STATIC
+    across = replace(top_first, moved_xy=np.array([down]))
+    assert classify(across)[0][0] != STATIC
+    hover = _life(10.0 + rng.uniform(0.0, 0.3, 21), (26.0, -81.0))
+    came_down = replace(hover, moved=np.array([3.0]), moved_xy=np.array([0.3]))
+    assert classify(came_down)[0][0] != STATIC
 
 
 def test_only_close_triples_count() -> None:

@@ -7,7 +7,8 @@ crowded, cut, propped, beyond reach, its speed |v| and its clusters' centroids) 
 its age, how long it was watched (the spacing of its updates, each counted up to
 ``SEEN_GAP_S``, so not the time it was out of view or missed), how far it ever moved
 from its first position (d_max; an heir's from its own first,
-``TrackLives._inherit``), the shares of its observations grounded, joined, crowded,
+``TrackLives._inherit``) and how far across (the same in the horizontal plane), the
+shares of its observations grounded, joined, crowded,
 cut, propped or beyond reach, its largest extent, *aloft*: the share of its
 recent observations not grounded (an exponential average over about the last three,
 a ← (1 − α) a + α [not grounded], α = ``ALOFT_ALPHA``, from a = 1: off the ground
@@ -73,6 +74,7 @@ class LifeFeatures:
     seen_s: FloatArray  # how long it was watched: its updates' spacing, each ≤ SEEN_GAP_S [s]
     observed: NDArray[np.int64]  # frames a cluster updated it or it was engulfed
     moved: FloatArray  # d_max: the farthest it has been from its first position [m]
+    moved_xy: FloatArray  # the same across, in the horizontal plane [m]
     range_m: FloatArray  # the farthest it was seen from the sensor [m]
     grounded: FloatArray  # share of its observations grounded
     joined: FloatArray
@@ -125,6 +127,7 @@ _LIFE = (
     "seen_s",
     "first_p",
     "moved",
+    "moved_xy",
     "extent",
     "range_m",
     "hovered",
@@ -155,6 +158,7 @@ class TrackLives:
         self.seen_s = np.empty(n)
         self.first_p = np.empty((n, 3))
         self.moved = np.empty(n)
+        self.moved_xy = np.empty(n)
         self.observed = np.empty(n, dtype=np.int64)
         self.grounded = np.empty(n, dtype=np.int64)
         self.joined = np.empty(n, dtype=np.int64)
@@ -223,9 +227,9 @@ class TrackLives:
         self.seen_s[r] += np.where(first, 0.0, np.minimum(t - self.last_t[r], SEEN_GAP_S))
         self.last_t[r] = t
         self.observed[r] += 1
-        self.moved[r] = np.maximum(
-            self.moved[r], np.linalg.norm(obs.centroid[u] - self.first_p[r], axis=1)
-        )
+        away = obs.centroid[u] - self.first_p[r]
+        self.moved[r] = np.maximum(self.moved[r], np.linalg.norm(away, axis=1))
+        self.moved_xy[r] = np.maximum(self.moved_xy[r], np.hypot(away[:, 0], away[:, 1]))
         self.grounded[r] += obs.grounded[u]
         air = ~obs.grounded[u]
         self.aloft[r] = (1.0 - ALOFT_ALPHA) * self.aloft[r] + ALOFT_ALPHA * air
@@ -265,6 +269,7 @@ class TrackLives:
             seen_s=self.seen_s[rows].copy(),
             observed=self.observed[rows].copy(),
             moved=self.moved[rows].copy(),
+            moved_xy=self.moved_xy[rows].copy(),
             range_m=self.range_m[rows].copy(),
             grounded=self.grounded[rows] / n,
             joined=self.joined[rows] / n,
@@ -313,6 +318,7 @@ class TrackLives:
         self.seen_s = np.append(self.seen_s, 0.0)
         self.first_p = np.concatenate([self.first_p, np.full((1, 3), np.nan)])
         self.moved = np.append(self.moved, 0.0)
+        self.moved_xy = np.append(self.moved_xy, 0.0)
         for name in _COUNTS:
             setattr(self, name, np.append(getattr(self, name), 0))
         self.extent = np.append(self.extent, np.nan)
@@ -353,6 +359,7 @@ class TrackLives:
             # height spread's next triple from its own clusters
             self.first_p[-len(rows) :] = np.nan
             self.moved[-len(rows) :] = 0.0
+            self.moved_xy[-len(rows) :] = 0.0
             self.last_zt[-len(rows) :] = np.nan
 
     def _forget(self, alive: set[int]) -> None:

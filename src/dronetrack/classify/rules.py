@@ -95,7 +95,9 @@ to 214 a run; the drone's frames classed drone went from 99.3 to 98.6 %.
 Classes, in this order:
 
 - **static**: its clusters have not moved more than max(``still_m``, its extent, the
-  height its clusters spread over, ``still_rad`` × its range) from the first, over
+  height its clusters spread over, ``still_rad`` × its range) from the first (taller
+  than a drone by its height spread, not more than max(``still_m``, its extent,
+  ``still_rad`` × its range) across: its height is no motion), over
   ``static_after_s`` and ``min_observed`` clusters, and something says it is not in
   the open air (grounded, joined, propped, beyond reach or too large).  A small object
   holding still in the open air is a hovering drone, not a static one.  Beyond reach,
@@ -314,13 +316,14 @@ def classify(
     beyond = (life.beyond_reach >= 0.5) | life.too_often
     extent = np.nan_to_num(life.extent, nan=0.0)
     range_m = np.nan_to_num(life.range_m, nan=0.0)
-    large = (extent > rules.max_extent_m) | taller_than_drone(life.spread_q, life.spread_n)
+    taller = taller_than_drone(life.spread_q, life.spread_n)
+    large = (extent > rules.max_extent_m) | taller
     # d_max ≤ max(still_m, extent, h, θ_still r): a far object's few returns land
     # anywhere on it (its clusters' extent, or the height they spread over) and its
-    # beam footprint
+    # beam footprint; taller than a drone, across: its height is no motion
     spread = np.nan_to_num(life.spread_m, nan=0.0)
-    wander = np.maximum(np.maximum(extent, spread), rules.still_rad * range_m)
-    still = life.moved <= np.maximum(rules.still_m, wander)
+    footprint = np.maximum(rules.still_m, np.maximum(extent, rules.still_rad * range_m))
+    still = (life.moved <= np.maximum(footprint, spread)) | (taller & (life.moved_xy <= footprint))
     seen = life.observed >= rules.min_observed
     flying = ~still & ~life.hovered & seen
     # the world's evidence in most of its observations, whichever kind each showed
