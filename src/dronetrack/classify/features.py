@@ -8,12 +8,12 @@ its age, how long it was watched (the spacing of its updates, each counted up to
 ``SEEN_GAP_S``, so not the time it was out of view or missed), how far it ever moved
 from its first position (d_max; an heir's from its own first,
 ``TrackLives._inherit``) and how far across (the same in the horizontal plane), the
-shares of its observations grounded, joined, crowded,
-cut, propped or beyond reach, its largest extent, *aloft*: the share of its
-recent observations not grounded (an exponential average over about the last three,
-a ← (1 − α) a + α [not grounded], α = ``ALOFT_ALPHA``, from a = 1: off the ground
-until seen on it), so a drone that lifted off is off the ground again within a few
-frames while a person stays on it, and whether it *hovered*: |v| < v_hover for
+shares of its observations grounded, joined, crowded, cut, propped or beyond reach,
+its largest extent, *aloft*: the share of its recent observations not grounded (an
+exponential average over about the last three, a ← (1 − α) a + α [not grounded],
+α = ``ALOFT_ALPHA``, from a = 1: off the ground until seen on it), so a drone that
+lifted off is off the ground again within a few frames while a person stays on it,
+and whether it *hovered*: |v| < v_hover for
 ``hover_frames`` updates in a row while in the air (neither grounded nor cut), which
 no bird can (stall speed ≈ 5 m/s for the smallest), or its candidate hovered
 (``detect.tentative``) and a cluster of it that is neither grounded nor cut updated

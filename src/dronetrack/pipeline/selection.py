@@ -271,17 +271,17 @@ class TargetSelection:
     ) -> bool:
         """Whether the lock has held a track classed static, or out of the open air
         (``control.choose.servable``), for a net ``STATIC_HOLD_S``: the time barred less
-        the time not (``barred_time``).  A drone may be classed
-        static for a frame or two as it lifts off or stops; a fragment of a structure
-        whose class flips between drone and static from frame to frame (its evidence
-        near a feature's half-its-frames mark) is held static in most frames.
-        A lock that holds no track but lies on a cluster too large to be a candidate
+        the time not (``barred_time``).  A drone may be classed static for a frame or
+        two as it lifts off or stops; a fragment of a structure whose class flips
+        between drone and static from frame to frame (its evidence near a feature's
+        half-its-frames mark) is held static in most frames.  A lock that holds no
+        track but lies on a cluster too large to be a candidate
         (``detect.candidates.engulfed``, within ``SAME_TARGET_M``) is barred too: the
         particle filter weighs every foreground point, and once the turret centred a
-        structure whose track it held, the structure's whole shape returned, its cluster
-        was dropped as too large and its track left, but the filter stayed on it
-        (``outdoor-unscanned`` seed 9: a shed's corner 151 m out, held 1.2 s with the
-        drone in view).
+        structure whose track it held, the structure's whole shape returned, its
+        cluster was dropped as too large and its track left, but the filter stayed on
+        it (``outdoor-unscanned`` seed 9: a shed's corner 151 m out, held 1.2 s with
+        the drone in view).
 
         The count is the lock's, whichever track it holds: on a structure the map
         lacks, the filter's estimate lies now on one fragment's track, now on another's
