@@ -285,7 +285,7 @@ class TargetSelection:
 
         The count is the lock's, whichever track it holds: on a structure the map
         lacks, the filter's estimate lies now on one fragment's track, now on another's
-        2-3 m away, now on none, and a count restarted with each held track never
+        2-4 m away, now on none, and a count restarted with each held track never
         reached the hold (``outdoor-unscanned`` seed 22: a lock on a structure's static
         fragments 105 m out for 2.9 s).  Nor does the count restart when the tracker
         loses its lock and takes it again on its own: there the filter, drifting over
