@@ -10,18 +10,17 @@ from its first position (d_max; an heir's from its own first,
 ``TrackLives._inherit``) and how far across (the same in the horizontal plane), the
 shares of its observations grounded, joined, crowded, cut, propped or beyond reach,
 its largest extent, *aloft*: the share of its recent observations not grounded (an
-exponential average over about the last three, a ← (1 − α) a + α [not grounded],
-α = ``ALOFT_ALPHA``, from a = 1: off the ground until seen on it), so a drone that
+exponential average over about the last three, a ← (1 − α) a + α [not grounded], α =
+``ALOFT_ALPHA``, from a = 1: off the ground until seen on it), so a drone that
 lifted off is off the ground again within a few frames while a person stays on it,
-and whether it *hovered*: |v| < v_hover for
-``hover_frames`` updates in a row while in the air (neither grounded nor cut), which
-no bird can (stall speed ≈ 5 m/s for the smallest), or its candidate hovered
-(``detect.tentative``) and a cluster of it that is neither grounded nor cut updated
-it; and whether it *hovered in free space*: the same in observations that are
-neither joined, propped nor crowded either (the world holds still too).  Given the
-share of frames the drone returns a point at each track's range
-(``classify.return_share``), whether it returned *too often*: in more of the frames
-it was in view after its first observation than the drone could.
+and whether it *hovered*: |v| < v_hover for ``hover_frames`` updates in a row while
+in the air (neither grounded nor cut), which no bird can (stall speed ≈ 5 m/s for
+the smallest), or its candidate hovered (``detect.tentative``) and a cluster of it
+that is neither grounded nor cut updated it; and whether it *hovered in free space*:
+the same in observations that are neither joined, propped nor crowded either (the
+world holds still too).  Given the share of frames the drone returns a point at each
+track's range (``classify.return_share``), whether it returned *too often*: in more
+of the frames it was in view after its first observation than the drone could.
 
 Its *height spread*: the heights z of its clusters, each against the line through
 the two before it (updates at most ``SPREAD_GAP_S`` apart), deviate by
