@@ -15,6 +15,7 @@ from dronetrack.eval.classes import (
     NONE,
     class_figures,
     followed_objects,
+    static_figures,
     track_ages,
 )
 from dronetrack.eval.objects import ObjectsLog
@@ -130,6 +131,16 @@ def test_a_still_track_never_classed_static_is_late_once_it_lived_3_s() -> None:
     assert lived_5_s["static_late"] == 1
     assert lived_5_s["static_to_class_max_s"] is None
     assert class_figures(*_lone_track(21), radius=4.0)["static_late"] == 0  # 2.5 s
+
+
+def test_classed_static_at_3_s_from_stamps_a_tenth_apart_is_within_3_s() -> None:
+    """Stamps k × 0.1 s are not exact in binary: a track born at frame 134 and
+    classed at frame 164 took 3.0000000000000018 s, which is 3 s, not late; one
+    classed a frame later is late."""
+    on_time = 164 * 0.1 - 134 * 0.1
+    assert on_time > 3.0  # the rounding the figure must see past
+    figures = static_figures(np.array([on_time, 165 * 0.1 - 134 * 0.1]), np.full(2, 5.0), 3.0)
+    assert figures["static_late"] == 1
 
 
 def test_a_track_that_moved_or_followed_an_object_is_no_static_track() -> None:

@@ -49,6 +49,8 @@ __all__ = [
 NONE = "none"  # what a track-frame follows when no truth object is within the radius
 CONFUSION_KINDS: tuple[str, ...] = (*OBJECT_KINDS, NONE)
 _STATIC = TRACK_CLASSES.index("static")
+# the rounding of a difference of two time stamps [s], far below any frame period
+TIME_TOL_S = 1e-6
 _DRONE = TRACK_CLASSES.index("drone")
 
 
@@ -145,7 +147,8 @@ def static_lives(
     classed = np.full(n, np.inf)
     static = classes == _STATIC
     np.minimum.at(classed, inverse[static], t[static])
-    still = ~elsewhere & (farthest <= still_m) & (last_seen - first_seen >= seen_s)
+    watched = last_seen - first_seen >= seen_s - TIME_TOL_S
+    still = ~elsewhere & (farthest <= still_m) & watched
     to_class = np.where(np.isfinite(classed), classed - born, np.nan)
     return StaticLives(still, to_class, last - born, inverse.astype(np.intp))
 
@@ -198,7 +201,10 @@ def static_figures(to_class: FloatArray, life: FloatArray, within_s: float) -> d
     those classed (None without any), and ``static_late``: those not classed static
     within ``within_s`` of their birth although they lived that long."""
     known = to_class[np.isfinite(to_class)]
-    late = np.where(np.isfinite(to_class), to_class > within_s, life >= within_s)
+    # to_class ≤ within_s, both differences of stamps (18.7 − 15.7 = 3.0000000000000018 s)
+    late = np.where(
+        np.isfinite(to_class), to_class > within_s + TIME_TOL_S, life >= within_s - TIME_TOL_S
+    )
     return {
         "static_tracks": len(to_class),
         "static_classed": len(known),
