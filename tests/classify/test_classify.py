@@ -449,6 +449,34 @@ def test_beyond_reach_three_clusters_tell_a_still_object_static() -> None:
         assert bool(classify(sparse, rules)[0][0] == STATIC) is static, (x, clusters, world)
 
 
+def test_observations_made_before_the_ground_was_known_are_judged_once_it_is() -> None:
+    """Without a clean scan, the ground under a far object may not be known at its
+    first observation: its bottom 0.2 m up is then not grounded.  Once an observation
+    knows the ground there (g = 0), the earlier one counts as grounded and as showing
+    the world, so three clusters on the ground tell it static (``FAR_OBSERVED``).  A
+    drone whose bottom is 7.8 m up stays in the air; an object whose next cluster
+    moved 3 m across, past half a 5 m ground cell, is not judged by another cell's
+    ground."""
+    rules = ClassRules()
+    ends = {}
+    for name, low, step_y in (("object", 0.2, 0.0), ("drone", 7.8, 0.0), ("moving", 0.2, 3.0)):
+        lives = TrackLives(ground_cell_m=5.0)
+        for k, g in enumerate((np.nan, 0.0, 0.0)):
+            p = [150.0, step_y * k, low + 1.0]
+            tracks = _tracks([p], [[0.0, 0.0, 0.0]], [7])
+            obs = observe(tracks, _found([p], [low]), np.zeros(3), np.array([g]))
+            assert np.isnan(obs.lift[0]) == np.isnan(g) and obs.low[0] == low
+            life = lives.update(0.6 * k, tracks, obs)
+            if k == 0:
+                assert life.grounded[0] == 0.0 and life.world_seen[0] == 0.0
+        ends[name] = life
+    assert ends["object"].grounded[0] == 1.0 and ends["object"].world_seen[0] == 1.0
+    assert classify(ends["object"], rules)[0][0] == STATIC
+    assert ends["drone"].grounded[0] == 0.0 and ends["drone"].world_seen[0] == 0.0
+    assert ends["moving"].grounded[0] == pytest.approx(2 / 3)
+    assert classify(ends["moving"], rules)[0][0] != STATIC
+
+
 def test_what_holds_still_beyond_the_drones_reach_is_static_however_its_returns_wander() -> None:
     # a far structure's few returns land anywhere on it: its track creeps at 1 m/s, 3 m
     # in 3 s, more than the still bound (2.2 m at 220 m), but it hovered

@@ -68,7 +68,9 @@ class TrackClassifier:
     def reset(self) -> None:
         """Forget the ground and every track's life."""
         self.ground = GroundGrid(self.ground_cell_m)
-        self.lives = TrackLives(*self.hover, drone_size_m=self.drone_size_m)
+        self.lives = TrackLives(
+            *self.hover, drone_size_m=self.drone_size_m, ground_cell_m=self.ground_cell_m
+        )
         self._frames = 0
 
     def step(

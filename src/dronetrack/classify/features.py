@@ -32,6 +32,15 @@ over their height.  The life keeps Q = Σ d²/(c σ_d²) over its n triples
 (``classify.rules.taller_than_drone`` tests it) and √(Σ 12 d²/c / n), the height its
 returns land over.
 
+An observation made where the ground was not known yet (a far cell, early in a run
+without a clean scan: ``preprocess.ground`` learns it from the returns) could not be
+grounded.  It is kept aside, with the highest bottom z_lo among such, and judged by
+the first later observation that knows the ground there, while the track's clusters
+stayed within half a ground cell across (the same ground): grounded, and showing the
+world, if max z_lo ≤ g + h_g, in the air otherwise (``site-busy`` seed 1: a
+structure 146 m out, first seen 1.9 s into the run, grounded in each of its later
+observations, waited for ``min_observed`` clusters for the one that knew no ground).
+
 A frame in which its track was *engulfed* (no cluster updated it, but a cluster too
 large to be a candidate holds its place, ``classify.observe``) is an observation too,
 a joined one: its object showed as part of something larger than a drone.
@@ -117,6 +126,8 @@ _COUNTS = (
     "looked",  # frames in view after its first observation
     "looked_hits",  # of those, the frames a cluster updated it
     "spread_n",  # triples of updates the height spread took
+    "unjudged",  # observations not grounded where the ground was not known yet
+    "unjudged_free",  # of those, the ones that showed no other sign of the world
 )
 
 # the other per-track arrays of ``TrackLives``
@@ -138,6 +149,7 @@ _LIFE = (
     "spread_u",  # Σ 12 d²/c [m²]
     "last_z",  # (K, 2) the heights of its last two clusters, older first [m]
     "last_zt",  # (K, 2) their times [s]
+    "unjudged_low",  # the highest bottom z_lo of the ``unjudged`` observations [m]
 )
 
 
@@ -145,11 +157,16 @@ class TrackLives:
     """Every track's life, kept by its identity (``update`` once a frame)."""
 
     def __init__(
-        self, hover_speed: float = 4.0, hover_frames: int = 3, drone_size_m: float = 0.4
+        self,
+        hover_speed: float = 4.0,
+        hover_frames: int = 3,
+        drone_size_m: float = 0.4,
+        ground_cell_m: float = 5.0,
     ) -> None:
         self.hover_speed = hover_speed
         self.hover_frames = hover_frames
         self.drone_size_m = drone_size_m
+        self.ground_cell_m = ground_cell_m
         self._row: dict[int, int] = {}
         n = 0
         self.first_t = np.empty(n)
@@ -182,6 +199,9 @@ class TrackLives:
         self.spread_u = np.empty(n)
         self.last_z = np.empty((n, 2))
         self.last_zt = np.empty((n, 2))
+        self.unjudged = np.empty(n, dtype=np.int64)
+        self.unjudged_free = np.empty(n, dtype=np.int64)
+        self.unjudged_low = np.empty(n)
 
     def __len__(self) -> int:
         return len(self._row)
@@ -239,6 +259,7 @@ class TrackLives:
         self.propped[r] += obs.propped[u]
         world = obs.grounded | obs.joined | obs.propped | obs.crowded | obs.cut
         self.world_seen[r] += world[u]
+        self._judge(r, obs.grounded[u], world[u], obs.low[u], obs.lift[u])
         self._spread(r, t, obs.centroid[u, 2], obs.range_m[u])
         self.extent[r] = np.fmax(self.extent[r], obs.extent[u])
         self.range_m[r] = np.fmax(self.range_m[r], obs.range_m[u])
@@ -292,6 +313,35 @@ class TrackLives:
             spread_m=spread_height(self.spread_u[rows], self.spread_n[rows]),
         )
 
+    def _judge(
+        self,
+        r: NDArray[np.intp],
+        grounded: NDArray[np.bool_],
+        world: NDArray[np.bool_],
+        low: FloatArray,
+        lift: FloatArray,
+    ) -> None:
+        """Judge the observations of rows ``r`` made before the ground under them was
+        known, once it is: each not grounded then (``grounded``) is kept aside, with the
+        highest of their bottoms ``low``; when an observation of the row knows the
+        ground, g + h_g = ``lift``, while its clusters stayed within half a ground
+        cell across (d_max,xy ≤ cell/2: the same ground), they count as grounded, and
+        as showing the world, if max z_lo ≤ g + h_g, and as in the air otherwise."""
+        unknown = ~grounded & np.isnan(lift)
+        at = r[unknown]
+        self.unjudged[at] += 1
+        self.unjudged_free[at] += ~world[unknown]
+        self.unjudged_low[at] = np.fmax(self.unjudged_low[at], low[unknown])
+        known = np.isfinite(lift) & (self.unjudged[r] > 0)
+        known &= self.moved_xy[r] <= 0.5 * self.ground_cell_m
+        on = known & (self.unjudged_low[r] <= lift)  # max z_lo ≤ g + h_g
+        self.grounded[r[on]] += self.unjudged[r[on]]
+        self.world_seen[r[on]] += self.unjudged_free[r[on]]
+        done = r[known]
+        self.unjudged[done] = 0
+        self.unjudged_free[done] = 0
+        self.unjudged_low[done] = np.nan
+
     def _spread(self, r: NDArray[np.intp], t: float, z: FloatArray, rng: FloatArray) -> None:
         """Add the update at ``t`` of rows ``r`` (heights ``z``, ranges ``rng``) to their
         height spread, where their last two updates make a triple with it."""
@@ -331,6 +381,7 @@ class TrackLives:
         self.spread_u = np.append(self.spread_u, 0.0)
         self.last_z = np.concatenate([self.last_z, np.full((1, 2), np.nan)])
         self.last_zt = np.concatenate([self.last_zt, np.full((1, 2), np.nan)])
+        self.unjudged_low = np.append(self.unjudged_low, np.nan)
         return row
 
     def _inherit(self, new: NDArray[np.int64], old: NDArray[np.int64]) -> None:

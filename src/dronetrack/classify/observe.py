@@ -7,7 +7,8 @@ centroid, z_lo its lowest point, e its largest extent and r its range from the s
 - *grounded*: its bottom lies on the ground, or on the crop box's floor, which cuts
   off what stands on the ground:  z_lo ≤ max(g(c) + h_g, z_floor + h_f)
   (g from ``preprocess.ground``; h_g 0.5 m: a person's or a car's bottom is the
-  ground, a drone in flight is metres above it);
+  ground, a drone in flight is metres above it; where g is not known yet, the
+  observation is judged once it is, ``classify.features``);
 - *joined*: the background map holds a cell just beside the cluster (probes at
   c ± (e/2 + m) along x and y): a tree's crown or a building's edge that the map lacks
   part of, rather than something in the open air;
@@ -104,6 +105,8 @@ class Observations:
     # in view with no cluster, within ε of a cluster larger than a drone (False where
     # updated)
     engulfed: NDArray[np.bool_]
+    low: FloatArray  # the cluster's bottom z_lo [m]
+    lift: FloatArray  # g + h_g under it [m] (NaN: the ground there is not known yet)
 
 
 def view_floor(points: FloatArray, sensor: FloatArray, sectors: int = VIEW_SECTORS) -> FloatArray:
@@ -164,16 +167,14 @@ def observe(
     # z_lo ≤ max(g + h_g, z_floor + h_f)
     lift = np.where(np.isfinite(ground[idx]), ground[idx] + ground_margin, -np.inf)
     grounded[idx] = low <= np.maximum(lift, floor_z + floor_margin)
-    rng = np.full(k, np.nan)
-    rng[idx] = np.linalg.norm(c - sensor, axis=1)
+    rng = _scatter(k, idx, np.linalg.norm(c - sensor, axis=1))
     beyond = np.zeros(k, dtype=bool)
     if limit_m is not None:
         beyond[idx] = rng[idx] > limit_m
     joined = np.zeros(k, dtype=bool)
     if is_background is not None and len(idx):
         joined[idx] = _touches_background(c, low, ext, probe_margin, is_background)
-    extent = np.full(k, np.nan)
-    extent[idx] = ext
+    extent = _scatter(k, idx, ext)
     centroid = np.full((k, 3), np.nan)
     centroid[idx] = c
     crowded = np.zeros(k, dtype=bool)
@@ -209,7 +210,16 @@ def observe(
         cut,
         propped,
         engulfed,
+        _scatter(k, idx, low),
+        _scatter(k, idx, np.where(np.isfinite(lift), lift, np.nan)),
     )
+
+
+def _scatter(k: int, idx: NDArray[np.intp], values: FloatArray) -> FloatArray:
+    """(k,) ``values`` at rows ``idx``, NaN elsewhere."""
+    out = np.full(k, np.nan)
+    out[idx] = values
+    return out
 
 
 def stands_on(
