@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
 from dronetrack.track.multi import MultiTargetTracker, TrackSettings
-from dronetrack.track.rest import Resting, match_rested
+from dronetrack.track.rest import Resting, keep_at_cap, match_rested
 from dronetrack.types import Detections
 
 T = 0.1  # frame period [s]
@@ -39,6 +39,21 @@ def test_matches_are_within_the_radius_and_one_to_one(seed: int, radius: float) 
     free_b = np.setdiff1d(np.arange(6), rows)
     free_r = np.setdiff1d(np.arange(5), cols)
     assert not np.any(d[np.ix_(free_b, free_r)] <= radius)
+
+
+def test_at_the_cap_the_held_lives_and_the_unlikely_then_the_longest_unseen_die() -> None:
+    """Five tracks, room for three: the held one lives although it is unlikely and
+    the longest unseen; the other unlikely one dies before any; of the rest, the one
+    last updated longest ago dies, and of two updated at once the fewer updates."""
+    ids = np.array([1, 2, 3, 4, 5])
+    updates = np.array([9, 9, 3, 8, 9])
+    t_update = np.array([0.0, 5.0, 5.0, 5.0, 1.0])
+    unlikely = np.array([True, True, False, False, False])
+    held = np.array([True, False, False, False, False])
+    kept = [keep_at_cap(ids, updates, t_update, unlikely, held, cap).tolist() for cap in (4, 3, 2)]
+    assert kept[0] == [True, False, True, True, True]
+    assert kept[1] == [True, False, True, True, False]
+    assert kept[2] == [True, False, False, True, False]
 
 
 def test_a_rested_track_is_forgotten_keep_s_after_it_ended() -> None:

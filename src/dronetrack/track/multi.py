@@ -33,18 +33,8 @@ sensor's own false returns now and then pass the detect stage's M-of-N by chance
 (``outdoor-two-drones`` seed 16: single-point clusters 3-20 m out), and the tracks
 born on them would otherwise live ``coast_s`` in view as unknown objects, possible
 drones to a C2.  It also dies
-when it has followed another track's object.  Two tracks whose positions have stayed
-within ``merge_m`` of each other for ``merge_s`` are one object, as the clustering
-joins any two returns closer than its ε (``merge_m`` = ε in a run), so two objects
-that close give one cluster, never two.  Two tracks within ``share_m`` (3 m) for
-``merge_s`` that were never both updated in one frame meanwhile are one object too:
-they have taken its one cluster in turn (a track lagging a drone in fast flight, and
-the one born on its cluster beside it), where two objects would give two clusters.
-Of the two, the one with fewer updates ends (of equals, the younger), and the object
-keeps the identity it had longest.  (On ``outdoor-clutter`` a drone 60 m out, its
-cluster now and then split or missed, kept two tracks 0.5-0.9 m apart for 20 s,
-which took its cluster in turn.)  ``merge_s`` (1 s) keeps apart two objects that
-cross: at 2 m/s between them they are within 1 m of each other for 1 s at most.
+when it has followed another track's object: two tracks that have stayed one object's
+by their places for ``merge_s`` are one (``track.same_object``).
 Identities are consecutive integers from 1, never reused in a run.
 
 **At the cap** (``max_tracks``) the tracks the classes hold no drone end first (see
@@ -92,8 +82,8 @@ from dronetrack.track.cv_bank import (
     measurement_noise,
     on_or_above,
 )
-from dronetrack.track.rest import Resting, match_rested
-from dronetrack.track.same_object import close_pairs, one_object
+from dronetrack.track.rest import Resting, keep_at_cap, match_rested
+from dronetrack.track.same_object import PairClocks, one_object
 from dronetrack.track.track_settings import TrackSettings
 from dronetrack.types import Candidates, Detections, TrackEstimate, Tracks
 
@@ -131,8 +121,6 @@ class MultiTargetTracker:
         self.settings = settings if settings is not None else TrackSettings()
         self._gate = self.settings.gate
         self._next_id = 1
-        self._together: dict[tuple[int, int], float] = {}  # (id, id) → close since [s]
-        self._sharing: dict[tuple[int, int], float] = {}  # (id, id) → one cluster since [s]
         self._lock: LockNote | None = None
         self._unlikely: NDArray[np.int64] = np.empty(0, dtype=np.int64)
         self.reset()
@@ -153,8 +141,7 @@ class MultiTargetTracker:
         self.away = np.empty(0)  # time out of view since the last update [s]
         self.looked = np.empty(0, dtype=bool)  # in the sensor's view at the last step
         self._t_step: float | None = None  # the clusters' time of the last step [s]
-        self._together = {}
-        self._sharing = {}
+        self._pairs = PairClocks()
         self._lock = None
         self._rest = Resting()
         self._heirs = _NO_HEIRS
@@ -247,7 +234,10 @@ class MultiTargetTracker:
         probation = s.coast_s if s.probation_s is None else min(s.probation_s, s.coast_s)
         coast = np.where(self.updates <= 1, probation, s.coast_s)
         self._drop((missed <= coast) & (t_z - self.t_update <= unseen))
-        self._drop(~self._duplicates(t_z))
+        merge = (s.merge_m, s.share_m, s.merge_s)
+        self._drop(
+            ~self._pairs.ending(t_z, self.ids, self.x[:, :3], self.updated, self.updates, merge)
+        )
         taken = np.zeros(len(found), dtype=bool)
         taken[cols] = True
         self._rest.expire(t_z, s.coast_s)
@@ -310,38 +300,6 @@ class MultiTargetTracker:
         self.away[k] = 0.0
         taken[i] = True
         return taken
-
-    def _duplicates(self, t: float) -> NDArray[np.bool_]:
-        """(K,) the tracks that end as duplicates at ``t``: of each pair within ``merge_m``
-        since ``merge_s`` ago (``close_pairs``), or within ``share_m`` since ``merge_s``
-        ago without a frame in which both were updated (one cluster, taken in turn), the
-        one with fewer updates, of equals the younger; the pairs' clocks are kept from
-        frame to frame."""
-        s = self.settings
-        out = np.zeros(len(self), dtype=bool)
-        ids = self.ids
-        p = self.x[:, :3]
-        close = close_pairs(p, s.merge_m) if len(self) > 1 else np.empty((0, 2), np.intp)
-        near = close_pairs(p, s.share_m) if len(self) > 1 and s.share_m > 0 else close[:0]
-        now = {(int(ids[i]), int(ids[j])) for i, j in close}
-        self._together = {key: self._together.get(key, t) for key in now}
-        # a frame that updated both is evidence of two objects: the clock starts again
-        both = {(int(ids[i]), int(ids[j])) for i, j in near if self.updated[i] and self.updated[j]}
-        shared = {(int(ids[i]), int(ids[j])) for i, j in near} - both
-        self._sharing = {key: self._sharing.get(key, t) for key in shared}
-        if not now and not shared:
-            return out
-        row = {int(k): n for n, k in enumerate(ids)}
-        clocks = {**self._sharing, **self._together}
-        for (a, b), since in sorted(clocks.items()):
-            if t - since < s.merge_s:
-                continue
-            i, j = row[a], row[b]
-            if out[i] or out[j]:
-                continue
-            # a < b: on equal updates the younger, b, ends
-            out[j if self.updates[i] >= self.updates[j] else i] = True
-        return out
 
     def _predict(self, t: float, floor: Floor | None = None) -> None:
         """Every track's state at ``t`` (none goes back in time), on or above the
@@ -422,17 +380,10 @@ class MultiTargetTracker:
         self.away = np.concatenate([self.away, np.zeros(k)])
         self.looked = np.concatenate([self.looked, np.ones(k, dtype=bool)])
         excess = len(self) - s.max_tracks
-        if excess > 0:  # the held track lives; those the classes hold no drone die
-            # first (``note_unlikely``); then the longest unseen; of equals, the least
-            # updated, then the younger: an established track outlives the births of a
-            # cluttered frame.  Ended under the lock, a track on a lamp post that the
-            # classes were about to call static left the tracker locked on what no track
-            # followed, which nothing gives up (``outdoor-unscanned`` seed 1: 1.1 s)
+        if excess > 0:  # at the cap: those the classes hold no drone die first
             unlikely = np.isin(self.ids, self._unlikely)
             held = self.ids == (self._lock[0] if self._lock is not None else -1)
-            order = np.lexsort((self.ids, -self.updates, -self.t_update, unlikely, ~held))
-            keep = np.zeros(len(self), dtype=bool)
-            keep[order[: s.max_tracks]] = True
+            keep = keep_at_cap(self.ids, self.updates, self.t_update, unlikely, held, s.max_tracks)
             # their objects are still there: those held no drone rest (``track.rest``)
             rest = ~keep & unlikely
             self._rest.add(t, self.ids[rest], self.p_update[rest])

@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.track.cv_bank import INFEASIBLE, associate
 
-__all__ = ["Resting", "match_rested"]
+__all__ = ["Resting", "keep_at_cap", "match_rested"]
 
 
 def match_rested(
@@ -48,6 +48,27 @@ def match_rested(
     d = np.linalg.norm(births[:, None, :] - rested[None, :, :], axis=2)
     cost = np.where(np.isfinite(d) & (d <= radius), d, INFEASIBLE)
     return associate(cost)
+
+
+def keep_at_cap(
+    ids: NDArray[np.int64],
+    updates: NDArray[np.int64],
+    t_update: FloatArray,
+    unlikely: NDArray[np.bool_],
+    held: NDArray[np.bool_],
+    cap: int,
+) -> NDArray[np.bool_]:
+    """(K,) the tracks that live when there are more than ``cap``: the held track
+    lives; those the classes hold no drone (``unlikely``) die first; then the longest
+    unseen (the earliest last update ``t_update``); of equals, the least updated, then
+    the younger (the greater identity): an established track outlives the births of a
+    cluttered frame.  Ended under the lock, a track on a lamp post that the classes
+    were about to call static left the tracker locked on what no track followed, which
+    nothing gives up (``outdoor-unscanned`` seed 1: 1.1 s)."""
+    order = np.lexsort((ids, -updates, -t_update, unlikely, ~held))
+    keep = np.zeros(len(ids), dtype=bool)
+    keep[order[:cap]] = True
+    return keep
 
 
 @dataclass
