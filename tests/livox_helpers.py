@@ -11,7 +11,7 @@ import socket
 import struct
 import time
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -146,6 +146,16 @@ def collect(client: Reader, count: int, limit_s: float = 4.0) -> PointBatch:
         np.concatenate([p.reflectivity for p in parts]),
         np.concatenate([p.line for p in parts]),
     )
+
+
+def settled(count: Callable[[], int], target: int, limit_s: float = 1.0) -> int:
+    """``count()`` once it equals ``target``, or after ``limit_s``: a device's thread
+    counts a packet just after it sends it, so a client may hold the last packet a
+    moment before the device has counted it."""
+    t0 = time.monotonic()
+    while count() != target and time.monotonic() - t0 < limit_s:
+        time.sleep(0.005)
+    return count()
 
 
 def read_for(client: Reader, seconds: float) -> None:
