@@ -162,6 +162,26 @@ def _dronetrack(*args: str) -> subprocess.Popen[str]:
     )
 
 
+def test_a_ctrl_c_once_the_command_is_done_exits_at_once_with_its_code() -> None:
+    """While the interpreter shuts down after a command (its threads joined, its DDS
+    participants closed), a Ctrl-C exits at once with the command's code, the output
+    flushed, rather than raising KeyboardInterrupt there and dying of the signal."""
+    script = (
+        "import os, signal, sys, time\n"
+        "from dronetrack.interrupt import exit_on_sigint\n"
+        "exit_on_sigint(3)\n"
+        "print('done', end='')\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(30)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 3, done.stderr
+    assert done.stdout == "done"
+    assert "Traceback" not in done.stderr
+
+
 @pytest.mark.slow
 def test_ctrl_c_from_a_terminal_stops_simulate(tmp_path: Path) -> None:
     out = tmp_path / "run"

@@ -8,6 +8,11 @@ cut off in the middle of a step, so no numba kernel or half-written row sees the
 interrupt.  A second Ctrl-C, or one outside a ``stoppable()`` block (loading,
 compiling, writing plots), raises ``KeyboardInterrupt`` at once.
 
+After the command, while the interpreter shuts down (threads joined, devices and DDS
+participants closed), a Ctrl-C exits at once with the command's code
+(``exit_on_sigint``): the work is done and written, and Python's default handling
+would raise ``KeyboardInterrupt`` in the middle of the shutdown and die of the signal.
+
 ``handling_sigterm`` makes SIGTERM (a service manager's stop, ``kill``) do what
 Ctrl-C does, for a command that must stop a device cleanly (``dronetrack live``).
 
@@ -17,14 +22,17 @@ Library code never installs the handlers: without them Ctrl-C raises
 
 from __future__ import annotations
 
+import contextlib
+import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from types import FrameType
 
-__all__ = ["handling_sigint", "handling_sigterm", "stop_requested", "stoppable"]
+__all__ = ["exit_on_sigint", "handling_sigint", "handling_sigterm", "stop_requested", "stoppable"]
 
 
 @dataclass
@@ -91,3 +99,18 @@ def stoppable() -> Iterator[None]:
 def stop_requested() -> bool:
     """Whether Ctrl-C asked the running loop to stop."""
     return _state.requested
+
+
+def exit_on_sigint(code: int) -> None:
+    """From now on a Ctrl-C flushes the standard streams and exits the process at once
+    with ``code`` (see the module docstring; main thread only, elsewhere nothing)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def now(signum: int, frame: FrameType | None) -> None:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):  # closed, or its reader gone
+                stream.flush()
+        os._exit(code)
+
+    signal.signal(signal.SIGINT, now)

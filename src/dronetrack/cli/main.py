@@ -86,6 +86,9 @@ def _caused_by_interrupt(err: BaseException) -> bool:
 def main() -> None:
     """Console-script entry point."""
     from dronetrack.allocator import tune_allocator
+    from dronetrack.interrupt import exit_on_sigint
 
     tune_allocator()
-    sys.exit(run(sys.argv[1:]))
+    code = run(sys.argv[1:])
+    exit_on_sigint(code)  # a Ctrl-C while the interpreter shuts down ends it at once
+    sys.exit(code)
