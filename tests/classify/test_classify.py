@@ -465,14 +465,18 @@ def test_observations_made_before_the_ground_was_known_are_judged_once_it_is() -
             p = [150.0, step_y * k, low + 1.0]
             tracks = _tracks([p], [[0.0, 0.0, 0.0]], [7])
             obs = observe(tracks, _found([p], [low]), np.zeros(3), np.array([g]))
-            assert np.isnan(obs.lift[0]) == np.isnan(g) and obs.low[0] == low
+            assert np.isnan(obs.lift[0]) == np.isnan(g)
+            assert obs.low[0] == low
             life = lives.update(0.6 * k, tracks, obs)
             if k == 0:
-                assert life.grounded[0] == 0.0 and life.world_seen[0] == 0.0
+                assert life.grounded[0] == 0.0
+                assert life.world_seen[0] == 0.0
         ends[name] = life
-    assert ends["object"].grounded[0] == 1.0 and ends["object"].world_seen[0] == 1.0
+    assert ends["object"].grounded[0] == 1.0
+    assert ends["object"].world_seen[0] == 1.0
     assert classify(ends["object"], rules)[0][0] == STATIC
-    assert ends["drone"].grounded[0] == 0.0 and ends["drone"].world_seen[0] == 0.0
+    assert ends["drone"].grounded[0] == 0.0
+    assert ends["drone"].world_seen[0] == 0.0
     assert ends["moving"].grounded[0] == pytest.approx(2 / 3)
     assert classify(ends["moving"], rules)[0][0] != STATIC
 
