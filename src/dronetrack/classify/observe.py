@@ -211,7 +211,7 @@ def observe(
         propped,
         engulfed,
         _scatter(k, idx, low),
-        _scatter(k, idx, np.where(np.isfinite(lift), lift, np.nan)),
+        _scatter(k, idx, ground[idx] + ground_margin),  # g + h_g: NaN where g is not known
     )
 
 

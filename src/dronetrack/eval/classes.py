@@ -49,9 +49,9 @@ __all__ = [
 NONE = "none"  # what a track-frame follows when no truth object is within the radius
 CONFUSION_KINDS: tuple[str, ...] = (*OBJECT_KINDS, NONE)
 _STATIC = TRACK_CLASSES.index("static")
+_DRONE = TRACK_CLASSES.index("drone")
 # the rounding of a difference of two time stamps [s], far below any frame period
 TIME_TOL_S = 1e-6
-_DRONE = TRACK_CLASSES.index("drone")
 
 
 def followed_objects(
