@@ -1,6 +1,6 @@
-"""The height spread of a track's clusters (``classify.features``) and its test against a
-drone (``classify.rules.taller_than_drone``): known answers, the statistic's moments,
-and the classes of a pole sampled at random heights and of a drone."""
+"""The height spread of a track's clusters and its test against a drone
+(``classify.spread``): known answers, the statistic's moments, and the classes of a
+pole sampled at random heights and of a drone."""
 
 from __future__ import annotations
 
@@ -13,21 +13,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import chi2
 
-from dronetrack.classify.features import (
+from dronetrack.classify.features import LifeFeatures, TrackLives
+from dronetrack.classify.observe import BEAM_RAD, observe
+from dronetrack.classify.rules import DRONE, STATIC, classify
+from dronetrack.classify.spread import (
+    SPREAD_ALPHA,
     SPREAD_GAP_S,
-    LifeFeatures,
-    TrackLives,
+    SPREAD_KAPPA,
     spread_deviation,
     spread_height,
     spread_scale,
-)
-from dronetrack.classify.observe import BEAM_RAD, observe
-from dronetrack.classify.rules import (
-    DRONE,
-    SPREAD_ALPHA,
-    SPREAD_KAPPA,
-    STATIC,
-    classify,
     taller_than_drone,
 )
 from dronetrack.types import Detections, Tracks

@@ -22,14 +22,8 @@ world holds still too).  Given the share of frames the drone returns a point at 
 track's range (``classify.return_share``), whether it returned *too often*: in more
 of the frames it was in view after its first observation than the drone could.
 
-Its *height spread*: the heights z of its clusters, each against the line through
-the two before it (updates at most ``SPREAD_GAP_S`` apart), deviate by
-d = z₀ − (1 + ρ) z₁ + ρ z₂ (ρ the ratio of the gaps; a climb at constant speed leaves
-none), of variance c σ² with c = 1 + (1 + ρ)² + ρ² where the heights scatter by σ.  A
-drone's few returns a frame land within its size s and the beam's vertical footprint
-θ_b r at range r, σ_d = (s + θ_b r)/√12, while a pole's or a person's land anywhere
-over their height.  The life keeps Q = Σ d²/(c σ_d²) over its n triples
-(``classify.rules.taller_than_drone`` tests it) and √(Σ 12 d²/c / n), the height its
+Its *height spread* (``classify.spread``): the heights of its clusters against the
+line through the two before each, summed as Q over its triples, and the height its
 returns land over.
 
 An observation made where the ground was not known yet (a far cell, early in a run
@@ -48,14 +42,19 @@ a joined one: its object showed as part of something larger than a drone.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from dronetrack.classify.observe import BEAM_RAD, Observations
+from dronetrack.classify.observe import Observations
 from dronetrack.classify.return_share import more_often_than_drone
+from dronetrack.classify.spread import (
+    SPREAD_GAP_S,
+    spread_deviation,
+    spread_height,
+    spread_scale,
+)
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.types import Tracks
 
@@ -67,11 +66,6 @@ __all__ = [
 
 ALOFT_ALPHA = 0.3
 SEEN_GAP_S = 0.3  # the longest gap between two updates that counts as watched (``seen_s``)
-# The longest gap between updates of a triple the height spread takes: about a frame at
-# 10 Hz, over which a drone's vertical acceleration (|a_z| ≤ 5 m/s²) bends its path by
-# a g₀ (g₀ + g₁) / 2 ≤ 0.11 m, under the deviation's scale √c σ_d (≥ √6 s/√12, 0.28 m
-# for s = 0.4 m: ``spread_scale``)
-SPREAD_GAP_S = 0.15
 
 
 @dataclass(frozen=True, slots=True)
@@ -422,34 +416,3 @@ class TrackLives:
         for name in (*_LIFE, *_COUNTS):
             setattr(self, name, getattr(self, name)[keep])
         self._row = {i: n for n, i in enumerate(keep_ids)}
-
-
-def spread_deviation(
-    z0: FloatArray, z1: FloatArray, z2: FloatArray, rho: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """The deviation d of each height ``z0`` from the line through the two before it,
-    ``z2`` then ``z1``, with ρ = g₀ / g₁ the ratio of the gaps, and the factor c of its
-    variance for independent heights of variance σ²:
-
-        d = z₀ − (1 + ρ) z₁ + ρ z₂,   Var d = c σ²,   c = 1 + (1 + ρ)² + ρ²
-
-    A climb or descent at constant speed leaves d = 0."""
-    d: FloatArray = z0 - (1.0 + rho) * z1 + rho * z2
-    c: FloatArray = 1.0 + (1.0 + rho) ** 2 + rho**2
-    return d, c
-
-
-def spread_scale(size_m: float, range_m: FloatArray) -> FloatArray:
-    """σ_d: the spread of a drone's cluster heights at range r [m], as if its returns
-    landed anywhere over its size s and the beam's vertical footprint θ_b r
-    (``observe.BEAM_RAD``): σ_d = (s + θ_b r) / √12."""
-    out: FloatArray = (size_m + BEAM_RAD * range_m) / math.sqrt(12.0)
-    return out
-
-
-def spread_height(u: FloatArray, n: NDArray[np.int64]) -> FloatArray:
-    """√(Σ 12 d²/c / n) [m]: the height over which an object's returns land, uniformly
-    (NaN where n = 0)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out: FloatArray = np.sqrt(np.where(n > 0, u / n, np.nan))
-    return out

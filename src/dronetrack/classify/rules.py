@@ -168,9 +168,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 from dronetrack.classify.features import LifeFeatures
+from dronetrack.classify.spread import taller_than_drone
 from dronetrack.detect.crowding import CROWD_RAD
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.transforms import FloatArray
@@ -182,7 +182,6 @@ __all__ = [
     "ClassRules",
     "classify",
     "in_open_air",
-    "taller_than_drone",
 ]
 
 UNKNOWN, DRONE, BIRD, STATIC = (
@@ -203,12 +202,6 @@ WORLD_SHARE = 0.2  # s*: the share of observations joined or propped that counts
 # (two displacements; see the module docstring)
 FAR_OBSERVED = 3
 BESIDE_SPACINGS = 2.0  # a fragment beside the map wanders over this many θ_c
-# The height spread's test (``taller_than_drone``): its significance level, and κ of the
-# Satterthwaite approximation κ Q ~ χ²(κ n) for overlapping deviations.  With equal
-# gaps, d_i and d_{i+1} correlate by −2/3 and d_i and d_{i+2} by 1/6, so
-# Var Σ (d_i/σ_d)²/c = 2 n (1 + 2 (2/3)² + 2 (1/6)²) = 2 n · 35/18, and κ = 18/35
-SPREAD_ALPHA = 0.01
-SPREAD_KAPPA = 18.0 / 35.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -254,17 +247,6 @@ def _fragment_spread(life: LifeFeatures) -> FloatArray:
     range: 2 θ_c r [m] (``BESIDE_SPACINGS`` of the fragments' angular spacing θ_c; 0
     where the range is not known)."""
     out: FloatArray = BESIDE_SPACINGS * CROWD_RAD * np.nan_to_num(life.range_m, nan=0.0)
-    return out
-
-
-def taller_than_drone(q: FloatArray, n: NDArray[np.int64]) -> NDArray[np.bool_]:
-    """(K,) whether the height spread Q over n triples (``classify.features``) rejects
-    a drone at ``SPREAD_ALPHA``: κ Q > χ²₁₋α(κ n), its returns landing over more height
-    than a drone and the beam's footprint at its range hold."""
-    k = SPREAD_KAPPA
-    with np.errstate(invalid="ignore"):
-        bound = chi2.ppf(1.0 - SPREAD_ALPHA, k * np.maximum(n, 1))
-    out: NDArray[np.bool_] = (n > 0) & (k * q > bound)
     return out
 
 
