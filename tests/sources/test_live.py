@@ -364,7 +364,7 @@ def test_a_truth_file_is_read_as_it_grows(tmp_path: object) -> None:
     from pathlib import Path
 
     from dronetrack.errors import InputError
-    from dronetrack.sources.live import TruthFile
+    from dronetrack.sources.truth_csv import TruthFile
 
     path = Path(str(tmp_path)) / "truth.csv"
     path.write_text("t,x,y,z\n")
@@ -411,7 +411,7 @@ def test_a_bad_truth_file_says_what_is_wrong(tmp_path: object, text: str, messag
     from pathlib import Path
 
     from dronetrack.errors import InputError
-    from dronetrack.sources.live import TruthFile
+    from dronetrack.sources.truth_csv import TruthFile
 
     path = Path(str(tmp_path)) / "truth.csv"
     path.write_text(text)
@@ -426,7 +426,7 @@ def test_truth_file_keeps_every_row_as_it_grows_past_its_buffer(tmp_path: object
     kept in order, and a truth given out earlier does not change as rows are added."""
     from pathlib import Path
 
-    from dronetrack.sources.live import TruthFile
+    from dronetrack.sources.truth_csv import TruthFile
 
     path = Path(str(tmp_path)) / "truth.csv"
     path.write_text("t,x,y,z\n")

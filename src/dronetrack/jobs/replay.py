@@ -86,8 +86,8 @@ def open_replay(
     from dronetrack.config.run import load_scenario_file
     from dronetrack.config.scenarios import SCENARIOS
     from dronetrack.jobs.site import site_frame
-    from dronetrack.sources.live import read_truth_csv
     from dronetrack.sources.recordings.opener import open_recording
+    from dronetrack.sources.truth_csv import read_truth_csv
 
     base = load_scenario_file(config, SCENARIOS) if config is not None else None
     if base is not None and base.site is not None and options.gt_origin is None:

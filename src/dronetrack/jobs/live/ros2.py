@@ -15,9 +15,10 @@ from typing import Any
 from dronetrack.errors import ConfigError
 from dronetrack.formats.ros.names import parse_ros2_uri
 from dronetrack.geometry.mount import MountGeometry
-from dronetrack.sources.live import TruthFile, TurretReader
+from dronetrack.sources.live import TurretReader
 from dronetrack.sources.ros2.dds import DdsDomain
 from dronetrack.sources.ros2.topic import POINT_TYPES, Ros2Source, point_type
+from dronetrack.sources.truth_csv import TruthFile
 
 __all__ = ["Ros2Link", "probe_ros2"]
 

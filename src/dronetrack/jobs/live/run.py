@@ -58,9 +58,10 @@ from dronetrack.pipeline.kernels import CompileProgress, warm_up
 from dronetrack.realtime import frozen_heap
 from dronetrack.seams import Sink, Source
 from dronetrack.sinks.track_log import TrackLogSink
-from dronetrack.sources.live import Assembler, LiveSource, PointStream, TruthFile
+from dronetrack.sources.live import Assembler, LiveSource, PointStream
 from dronetrack.sources.paced import FILE_SCHEME, PacedSource
 from dronetrack.sources.recordings.kernels import REPLAY_WARM_UPS
+from dronetrack.sources.truth_csv import TruthFile
 from dronetrack.types import Sample
 
 if TYPE_CHECKING:

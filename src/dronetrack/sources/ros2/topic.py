@@ -56,10 +56,11 @@ from dronetrack.geometry.mount import MountGeometry
 from dronetrack.interrupt import stop_requested
 from dronetrack.sources.frame_queue import POLL_S, FrameQueue
 from dronetrack.sources.frames import fixed_pose_frame
-from dronetrack.sources.live import RunTruth, TruthFile, TurretPoses, TurretReader
+from dronetrack.sources.live import TurretPoses, TurretReader
 from dronetrack.sources.ros2.dds import DdsDomain, ReaderSet
 from dronetrack.sources.ros2.tf import TransformBuffer
 from dronetrack.sources.truth import GroundTruth, RecordedTruth
+from dronetrack.sources.truth_csv import RunTruth, TruthFile
 from dronetrack.types import Frame, Sample, TurretState
 
 __all__ = ["CUSTOM_MSG", "POINT_TYPES", "Ros2Source", "point_type"]
