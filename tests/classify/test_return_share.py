@@ -15,7 +15,7 @@ from dronetrack.classify.features import LifeFeatures, TrackLives
 from dronetrack.classify.observe import observe
 from dronetrack.classify.return_share import ALPHA, more_often_than_drone, return_share
 from dronetrack.classify.rules import ClassRules, classify
-from dronetrack.config.run import RETURN_SHARE
+from dronetrack.config.reach import RETURN_SHARE
 from dronetrack.types import TRACK_CLASSES, Detections, Tracks
 
 R50, S = RETURN_SHARE[("avia", "phantom4")]

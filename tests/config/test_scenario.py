@@ -7,12 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronetrack.config.run import (
-    RETURN_SHARE,
-    apply_overrides,
-    dump_scenario,
-    load_scenario_file,
-)
+from dronetrack.config.reach import RETURN_SHARE
+from dronetrack.config.run import apply_overrides, dump_scenario, load_scenario_file
 from dronetrack.config.scenarios import SCENARIOS, get_scenario
 from dronetrack.errors import ScenarioError, SensorError
 from dronetrack.sim.build import build_world, resolve_scenario

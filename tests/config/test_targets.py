@@ -25,7 +25,7 @@ from dronetrack.jobs.simulate import flight_config
 from dronetrack.sim.build import build_world, resolve_scenario
 from sim_helpers import assert_same_frames
 
-REACH_M = 130.0  # the Avia's for a Phantom 4 in clear air (config.run.REACH_M)
+REACH_M = 130.0  # the Avia's for a Phantom 4 in clear air (config.reach.REACH_M)
 
 
 def _csv(path: Path, t: np.ndarray, xyz: np.ndarray) -> Path:

@@ -1,6 +1,6 @@
 """The drone's share of frames with a return by range, measured on the simulator
 (``experiments.return_share``), and the figures the classes use
-(``config.run.RETURN_SHARE``)."""
+(``config.reach.RETURN_SHARE``)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dronetrack.classify.return_share import return_share
-from dronetrack.config.run import RETURN_SHARE
+from dronetrack.config.reach import RETURN_SHARE
 from dronetrack.errors import InputError
 from dronetrack.experiments.return_share import fit_return_share, main, measure
 

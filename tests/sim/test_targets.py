@@ -101,7 +101,7 @@ def test_two_drones_in_view_each_return_from_where_that_drone_is() -> None:
             assert np.all(np.linalg.norm(world_points[mine] - p, axis=1) <= reach)
         np.testing.assert_array_equal(truth.hit_target, objects.object_index == 0)
     # A Phantom 4 30-40 m out near the Avia's axis returns points in nearly every frame
-    # (on the axis at 120 m still in 93 %, config.run.REACH_M).
+    # (on the axis at 120 m still in 93 %, config.reach.REACH_M).
     assert frames_seen.min() >= 9
 
 

@@ -8,7 +8,7 @@ least one point in a share P(r) of the frames at range r, which falls from nearl
     P(r) = 1 / (1 + exp((r − r₅₀) / s))
 
 with r₅₀ the range of one frame in two and s the fall's width [m], both measured for
-a sensor and drone pair (``experiments.return_share``; ``config.run.RETURN_SHARE``).
+a sensor and drone pair (``experiments.return_share``; ``config.reach.RETURN_SHARE``).
 Off the axis the pattern is sparser, so P(r) bounds the share anywhere in the field.
 
 A track seen in k of the n frames it was in view after its birth, at ranges r_i, has

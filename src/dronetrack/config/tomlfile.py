@@ -20,11 +20,11 @@ import tomllib
 from pathlib import Path
 from typing import Any, TypeVar
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 
 from dronetrack.errors import ConfigError
 
-__all__ = ["read_toml", "tidy_float", "tidy_model"]
+__all__ = ["format_validation_error", "read_toml", "tidy_float", "tidy_model"]
 
 DIGITS = 12  # significant digits of the short form a noisy value is replaced by
 NOISE_ULPS = 4  # how far from it, in units in the last place, counts as noise
@@ -82,3 +82,18 @@ def read_toml(path: Path, what: str, error: type[ConfigError] = ConfigError) -> 
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise error(f"{path}: invalid TOML: {err}") from None
+
+
+def format_validation_error(err: ValidationError, source: str) -> str:
+    """One line naming the first bad key and why."""
+    first = err.errors()[0]
+    key = ".".join(str(p) for p in first["loc"]) or "(top level)"
+    if first["type"] == "extra_forbidden":
+        msg = f"{source}: unknown key '{key}'"
+    elif not first["loc"] and first["type"] == "value_error":
+        # A check across sections names its keys itself.
+        msg = f"{source}: {first['msg'].removeprefix('Value error, ')}"
+    else:
+        msg = f"{source}: {key}: {first['msg'].removeprefix('Value error, ')}"
+    more = len(err.errors()) - 1
+    return msg + (f" (and {more} more problem{'s' if more > 1 else ''})" if more else "")

@@ -1,6 +1,6 @@
 """How often a drone hovering on the sensor's axis returns a point, by range: the
 share of frames P(r) the classify stage's test of a track that returns too often
-weighs a track against (``classify.return_share``; ``config.run.RETURN_SHARE``).
+weighs a track against (``classify.return_share``; ``config.reach.RETURN_SHARE``).
 
 The drone hovers still on the sensor's x axis, r ahead of the turret and 20 m up, and
 the turret follows it (``turret_mode`` truth), so it stays where the scan pattern is

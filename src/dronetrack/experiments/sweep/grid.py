@@ -32,10 +32,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from dronetrack.config.run import (
     ScenarioConfig,
     apply_overrides,
-    format_validation_error,
     validate_scenario,
 )
-from dronetrack.config.tomlfile import read_toml
+from dronetrack.config.tomlfile import format_validation_error, read_toml
 from dronetrack.errors import ConfigError
 
 __all__ = [
