@@ -1,24 +1,21 @@
 """What a sensor sees of a drone model in clear air, measured on the simulator: its
 reach (``REACH_M``), the range beyond which the drone returns nothing
 (``RETURN_LIMIT_M``) and the share of frames it returns a point against the range
-(``RETURN_SHARE``), per (sensor, drone) pair; ``with_rig_reach`` puts them in a
-scenario's ``[pipeline.evaluation]``."""
+(``RETURN_SHARE``), per (sensor, drone) pair; ``rig_evaluation`` gives them as a
+scenario's ``[pipeline.evaluation]`` takes them (``config.run.with_rig_reach``)."""
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from dronetrack.config.run import ScenarioConfig
+from typing import Any
 
 __all__ = [
     "REACH_M",
     "RETURN_LIMIT_M",
     "RETURN_SHARE",
     "changes_rig",
+    "rig_evaluation",
     "sensor_reach",
-    "with_rig_reach",
 ]
 
 # The sensor's reach for a drone in clear air [m] (``[pipeline.evaluation] reach_m``,
@@ -52,19 +49,17 @@ def sensor_reach(sensor: str, drone: str, visibility_m: float) -> float | None:
     return REACH_M.get((sensor, drone)) if math.isinf(visibility_m) else None
 
 
-def with_rig_reach(cfg: ScenarioConfig) -> ScenarioConfig:
-    """``cfg`` with the reach of its sensor for its drone in its air (``sensor_reach``):
-    a scenario that changes any of the three no longer has its base's reach."""
-    reach = sensor_reach(cfg.sensor.model, cfg.drone.model, cfg.weather.visibility_m)
-    pair = (cfg.sensor.model, cfg.drone.model)
-    clear = math.isinf(cfg.weather.visibility_m)
-    limit = RETURN_LIMIT_M.get(pair) if clear else None
-    share = RETURN_SHARE.get(pair) if clear else None
-    evaluation = cfg.pipeline.evaluation.model_copy(
-        update={"reach_m": reach, "limit_m": limit, "return_share_m": share}
-    )
-    pipeline = cfg.pipeline.model_copy(update={"evaluation": evaluation})
-    return cfg.model_copy(update={"pipeline": pipeline})
+def rig_evaluation(sensor: str, drone: str, visibility_m: float) -> dict[str, Any]:
+    """``[pipeline.evaluation]``'s ``reach_m``, ``limit_m`` and ``return_share_m`` for
+    ``sensor`` and ``drone`` in air of ``visibility_m`` [m]: the tables' figures in
+    clear air, None where a pair has none or in any fog."""
+    clear = math.isinf(visibility_m)
+    pair = (sensor, drone)
+    return {
+        "reach_m": sensor_reach(sensor, drone, visibility_m),
+        "limit_m": RETURN_LIMIT_M.get(pair) if clear else None,
+        "return_share_m": RETURN_SHARE.get(pair) if clear else None,
+    }
 
 
 def changes_rig(own: dict[str, Any]) -> bool:

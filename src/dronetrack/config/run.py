@@ -32,8 +32,8 @@ from dronetrack.config.reach import (
     RETURN_LIMIT_M,
     RETURN_SHARE,
     changes_rig,
+    rig_evaluation,
     sensor_reach,
-    with_rig_reach,
 )
 from dronetrack.config.site import SapientConfig, SiteConfig, ZoneConfig
 from dronetrack.config.tomlfile import format_validation_error, read_toml
@@ -295,6 +295,16 @@ def _merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
         else:
             out[key] = value
     return out
+
+
+def with_rig_reach(cfg: ScenarioConfig) -> ScenarioConfig:
+    """``cfg`` with the reach of its sensor for its drone in its air
+    (``config.reach.rig_evaluation``): a scenario that changes any of the three no
+    longer has its base's reach."""
+    update = rig_evaluation(cfg.sensor.model, cfg.drone.model, cfg.weather.visibility_m)
+    evaluation = cfg.pipeline.evaluation.model_copy(update=update)
+    pipeline = cfg.pipeline.model_copy(update={"evaluation": evaluation})
+    return cfg.model_copy(update={"pipeline": pipeline})
 
 
 def validate_scenario(data: dict[str, Any], source: str) -> ScenarioConfig:

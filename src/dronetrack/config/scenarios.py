@@ -28,7 +28,6 @@ from dronetrack.config.presets import (
     RELATIVE_BASE_HEIGHT_M,
     WIDOWX_MOUNT,
 )
-from dronetrack.config.reach import with_rig_reach
 from dronetrack.config.run import (
     ClutterConfig,
     DroneConfig,
@@ -41,6 +40,7 @@ from dronetrack.config.run import (
     TurretConfig,
     WeatherConfig,
     load_scenario_file,
+    with_rig_reach,
 )
 from dronetrack.errors import ScenarioError
 

@@ -38,8 +38,7 @@ from __future__ import annotations
 import tomllib
 from dataclasses import dataclass
 
-from dronetrack.config.reach import with_rig_reach
-from dronetrack.config.run import ScenarioConfig, SensorConfig, validate_scenario
+from dronetrack.config.run import ScenarioConfig, SensorConfig, validate_scenario, with_rig_reach
 from dronetrack.config.spinning import SPINNING
 from dronetrack.errors import ConfigError
 from dronetrack.formats.livox.lvx import DEVICE_NAMES

@@ -9,57 +9,14 @@ themselves, so each strategy gets its own world (same seed, same flight).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import get_args
 
 from dronetrack.config.pipeline import TrackerKind
 from dronetrack.errors import ConfigError
+from dronetrack.experiments.compare.multi_suite import MULTI_METRICS, MULTI_SUITE
+from dronetrack.experiments.compare.suite import Case, MetricGroup, Suite
 
 __all__ = ["MULTI_METRICS", "SUITES", "Case", "MetricGroup", "Suite", "get_suite"]
-
-
-@dataclass(frozen=True, slots=True)
-class Case:
-    """One column group of a paper's table: a scenario under the suite's settings."""
-
-    label: str  # as the paper names it
-    scenario: str  # a named scenario
-    # controller mode: truth, fixed, or a seed 003 scan strategy; None: the scenario's own
-    turret: str | None
-
-
-@dataclass(frozen=True, slots=True)
-class MetricGroup:
-    """Metrics that table.md shows together, one row per case (and method)."""
-
-    title: str
-    metrics: tuple[str, ...]
-    note: str = ""  # what the columns mean
-
-
-@dataclass(frozen=True, slots=True)
-class Suite:
-    name: str
-    title: str
-    methods: tuple[str, ...]  # tracker names; for seed003, the scan strategies
-    cases: tuple[Case, ...]
-    metrics: tuple[str, ...]
-    # (case label, method, metric) -> the seed's published figure
-    paper: dict[tuple[str, str, str], float] = field(default_factory=dict)
-    tracker: str | None = None  # seed003: the one tracker all strategies feed
-    lockstep: bool = True  # methods share one world
-    init_on_clean_view: bool = False  # Kalman filters start on the drone alone in view
-    min_consecutive: int = 0  # a run counts only after this many correct frames in a row
-    # The seeds' tables run their methods as published: started by their own start
-    # region (or on a clean view), without dronetrack's detection-driven acquisition.
-    acquisition: bool = False
-    note: str = ""  # definitions of the metrics and of the set-up
-    # How our set-up differs from the seed's and what that acts on.  It explains, it
-    # does not rank: table.md writes every ranking from the numbers.
-    setup_note: str = ""
-    # table.md's layout: none, one table per case with a row per method; else one table
-    # per group with a row per case (and method), for suites of many metrics
-    groups: tuple[MetricGroup, ...] = ()
 
 
 def _grid(
@@ -358,103 +315,7 @@ _LIST.append(
     )
 )
 
-# The multi suite's figures, from metrics.json's drones, mot and classes (eval/).
-_MULTI_GROUPS = (
-    MetricGroup(
-        "Every drone",
-        (
-            "coverage_min_pct",
-            "coverage_mean_pct",
-            "acquire_max_s",
-            "acquire_mean_s",
-            "acquire_in_reach_max_s",
-            "never_acquired",
-            "track_acquire_max_s",
-            "track_acquire_in_reach_max_s",
-            "lock_on_visible_min_pct",
-            "lock_on_visible_mean_pct",
-            "own_track_min_pct",
-            "own_track_mean_pct",
-            "id_switches_max",
-            "revisit_max_s",
-        ),
-        "Each drone's figures of metrics.json's drones, per run the minimum (_min), the "
-        "maximum (_max) or the mean (_mean) over the drones: coverage against the "
-        "turret's estimate; acquire_s from its first visible frame to its first locked-on "
-        "one (over the drones acquired; never_acquired counts the drones visible but "
-        "never locked on); track_acquire_s from its first visible frame to the first "
-        "one a track matched it, whether or not the turret serves it (motmetrics; over "
-        "the drones matched); _in_reach: from its first visible frame within the "
-        "sensor's reach (130 m for the Avia and a Phantom 4; not known for the other "
-        "pairs), as the targets count: a drone flying in from beyond reach draws single "
-        "returns out there; lock_on_visible: its locked-on frames over its visible "
-        "frames; own_track: the share of its visible frames in which a track matched it "
-        "(motmetrics); id_switches: its identity switches; revisit_max_s: the longest "
-        "time a drone in the field and within reach waited for the turret between two "
-        "locked-on frames (or after the last), from its first lock, the largest over the "
-        "drones (the shared turret's revisit_s is 10 s).",
-    ),
-    MetricGroup(
-        "Multi-object figures (motmetrics, over the drones)",
-        ("mota", "motp_m", "idf1", "id_switches"),
-        "Each frame the drones that return points are the truth and the tracks in view "
-        "that the tracker holds possible drones the hypotheses (classed drone, or not "
-        "classed static or bird with p_drone ≥ 0.2), matched within the 4 m correct "
-        "radius (metrics.json's mot).",
-    ),
-    MetricGroup(
-        "Classes",
-        (
-            "drone_as_drone_pct",
-            "bird_as_drone_pct",
-            "none_as_drone_pct",
-            "static_tracks",
-            "static_to_class_median_s",
-            "static_to_class_max_s",
-            "static_late",
-            "static_held_s",
-        ),
-        "metrics.json's classes.  A track-frame follows the truth object nearest within "
-        "the correct radius, none if there is none (the static scene, clutter, or a "
-        "track coasting away from what it followed); counted from 2 s of track life.  "
-        "<kind>_as_drone_pct: that kind's track-frames classed drone.  static_tracks: "
-        "tracks that only ever follow none (or a static object) and never move more "
-        "than the radius from their birth; static_to_class: their time from birth to "
-        "their first static class, over those classed; static_late: those not "
-        "classed static within 3 s although they lived that long; static_held_s: how "
-        "long the turret's lock was on one of them.  confusion.md has each case's matrix.",
-    ),
-)
-MULTI_METRICS = tuple(m for g in _MULTI_GROUPS for m in g.metrics)
-# One line a case: the case is named after its scenario.
-_MULTI_SCENARIOS = (
-    "outdoor-two-drones",
-    "outdoor-swarm",
-    "outdoor-clutter",
-    "default",
-    "outdoor-unscanned",
-    "site-busy",
-    "mid360-static",
-)
-_LIST.append(
-    Suite(
-        name="multi",
-        title="Several objects: every drone, the multi-object figures and the classes",
-        methods=("pf-delta",),
-        cases=tuple(Case(name, name, None) for name in _MULTI_SCENARIOS),
-        metrics=MULTI_METRICS,
-        lockstep=False,
-        acquisition=True,
-        groups=_MULTI_GROUPS,
-        note=(
-            "Each scenario as it is named, with its own turret mode (tracking; the "
-            "static Mid-360 of mid360-static held still) and acquisition on, the "
-            "turret shared among the drones where the scenario turns [pipeline.choose] "
-            "on (outdoor-two-drones, outdoor-swarm).  A run where a figure does not "
-            "exist (no drone acquired, no static track) leaves it out of the mean."
-        ),
-    )
-)
+_LIST.append(MULTI_SUITE)
 SUITES: dict[str, Suite] = {s.name: s for s in _LIST}
 
 
