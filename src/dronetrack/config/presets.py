@@ -1,7 +1,8 @@
 """Pipeline presets of the named scenarios, after the reference implementation's
 configurations and the seeds' rigs: ``OUTDOOR`` and ``INDOOR`` (seed 000's Avia
 outside and in a room), ``AGGRESSIVE`` (a fast drone close in), ``RELATIVE`` (seed
-002's Mid-360 riding on a drone) and ``FIELD`` (seed 003's VLP-16 on a PTU)."""
+002's Mid-360 riding on a drone), ``FIELD`` (seed 003's VLP-16 on a PTU) and
+``STATIC_MID360`` (a Mid-360 standing still, set up as a site file would)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ __all__ = [
     "OUTDOOR",
     "RELATIVE",
     "RELATIVE_BASE_HEIGHT_M",
+    "STATIC_MID360",
     "WIDOWX_MOUNT",
 ]
 
@@ -97,4 +99,25 @@ FIELD = PipelineConfig(
     background=BackgroundConfig(enabled=False),
     tracker=TrackerConfig(kind="ekf-cv", v_max=4.0, a_max=2.0, s_diag=0.85),
     controller=ControllerConfig(mode="sweep", home_m=(20.0, 0.0, 10.0)),
+)
+
+# mid360-static's: a Mid-360 on a WidowX that never moves (the fixed mode at home, level,
+# the scan held there), set up as a site file would set up a real static Mid-360: crop
+# ±60 m about the sensor, 0.5 m voxels, a 1 s scan.
+_STATIC_SENSOR_Z = 1.0 + WIDOWX_MOUNT.pan_to_tilt[2] + WIDOWX_MOUNT.tilt_to_sensor[2]
+STATIC_MID360 = PipelineConfig(
+    crop=CropConfig(min_m=(-60.0, -60.0, -60.0), max_m=(60.0, 60.0, 60.0)),
+    background=BackgroundConfig(
+        resolution_m=0.5, scan_s=1.0, scan_pan_deg=(0.0, 0.0), scan_tilt_deg=(0.0, 0.0)
+    ),
+    tracker=TrackerConfig(
+        v_max=5.0,
+        a_max=5.0,
+        cylinder_center_m=(0.0, 0.0, 0.0),
+        cylinder_radius_m=15.0,
+        cylinder_height_m=10.0,
+    ),
+    controller=ControllerConfig(mode="fixed", home_m=(10.0, 0.0, _STATIC_SENSOR_Z)),
+    # the drone is 2-3 m from people and the sensor: score within 1 m
+    evaluation=EvaluationConfig(correct_radius_m=1.0),
 )

@@ -12,12 +12,8 @@ from dronetrack.config.movers import VehicleConfig, WalkerConfig
 from dronetrack.config.pipeline import (
     BackgroundConfig,
     ChooseConfig,
-    ControllerConfig,
-    CropConfig,
-    EvaluationConfig,
     FieldOfRegardConfig,
     PipelineConfig,
-    TrackerConfig,
 )
 from dronetrack.config.presets import (
     AGGRESSIVE,
@@ -26,7 +22,7 @@ from dronetrack.config.presets import (
     OUTDOOR,
     RELATIVE,
     RELATIVE_BASE_HEIGHT_M,
-    WIDOWX_MOUNT,
+    STATIC_MID360,
 )
 from dronetrack.config.run import (
     ClutterConfig,
@@ -270,27 +266,9 @@ SITE_BUSY = _SITE_BUSY.model_copy(
     update={"walkers": SITE_BUSY_WALKERS, "vehicles": SITE_BUSY_VEHICLES}
 )
 
-# mid360-static: a Mid-360 on a WidowX that never moves (the fixed mode at home, level,
-# the scan held there), set up as a site file would set up a real static Mid-360: crop
-# ±60 m about the sensor, 0.5 m voxels, a 1 s scan.  The drone hovers 2.0-2.9 m from it
+# mid360-static: a Mid-360 on a WidowX that never moves, set up as a site file would set
+# up a real static Mid-360 (``STATIC_MID360``).  The drone hovers 2.0-2.9 m from it
 # from the start; three people walk 3-14 m out, two in front of it and one behind.
-_STATIC_SENSOR_Z = 1.0 + WIDOWX_MOUNT.pan_to_tilt[2] + WIDOWX_MOUNT.tilt_to_sensor[2]
-STATIC_MID360 = PipelineConfig(
-    crop=CropConfig(min_m=(-60.0, -60.0, -60.0), max_m=(60.0, 60.0, 60.0)),
-    background=BackgroundConfig(
-        resolution_m=0.5, scan_s=1.0, scan_pan_deg=(0.0, 0.0), scan_tilt_deg=(0.0, 0.0)
-    ),
-    tracker=TrackerConfig(
-        v_max=5.0,
-        a_max=5.0,
-        cylinder_center_m=(0.0, 0.0, 0.0),
-        cylinder_radius_m=15.0,
-        cylinder_height_m=10.0,
-    ),
-    controller=ControllerConfig(mode="fixed", home_m=(10.0, 0.0, _STATIC_SENSOR_Z)),
-    # the drone is 2-3 m from people and the sensor: score within 1 m
-    evaluation=EvaluationConfig(correct_radius_m=1.0),
-)
 MID360_STATIC_WALKERS = (
     WalkerConfig(count=2, area_m=(3.0, -8.0, 12.0, 8.0)),
     WalkerConfig(count=1, area_m=(-12.0, -8.0, -3.0, 8.0)),
