@@ -247,6 +247,31 @@ def test_a_trial_tried_again_on_the_same_track_starts_the_tracker_afresh() -> No
     assert tracker.resets == 1
 
 
+@pytest.mark.parametrize(("held_class", "resets"), [(STATIC, 1), (UNKNOWN, 0)])
+def test_a_first_trial_after_losing_a_lock_on_no_drone_starts_the_tracker_afresh(
+    held_class: int, resets: int
+) -> None:
+    """The lock holds a track (at (50, 0, 5)) in one frame, then loses it by itself.
+    The first trial after the loss, on another track within reach, keeps the cloud
+    where the lost target was when that could be a drone (unknown), and resets it when
+    the lock held what it may not (classed static): no drone reappears there."""
+    held, other = [50.0, 0.0, 5.0], [56.0, 2.0, 10.0]
+    found, offered, tracks = _frame([held], [held_class], [0.05 if held_class == STATIC else 0.5])
+    selection, tracker = TargetSelection(), _Tracker()
+    lock = _locked_on(held, t=2.0)
+    selection.step(2.0, found, tracks, offered, lock, tracker)
+    assert lock.locked
+    assert tracker.resets == 0  # held for less than STATIC_HOLD_S
+    lock.update(TrackEstimate(2.1, np.array(held), np.zeros(3), False, 5.0), None)
+    assert not lock.locked
+    p = [0.05 if held_class == STATIC else 0.3, 0.5]
+    found, offered, tracks = _frame([held, other], [held_class, UNKNOWN], p)
+    offered = not_static(offered, found, tracks)  # as the pipeline offers them
+    selection.step(3.0, found, tracks, offered, lock, tracker)  # other within reach
+    assert [s.positions[0].tolist() for s in tracker.starts] == [other]
+    assert tracker.resets == resets
+
+
 def _trying(
     a: list[float], b: list[float]
 ) -> tuple[TargetSelection, _Tracker, LockBook, Candidates, Tracks]:
