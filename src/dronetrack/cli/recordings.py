@@ -12,7 +12,6 @@ from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -51,7 +50,22 @@ from dronetrack.cli.output import (
     print_metrics,
     progress_bar,
 )
-from dronetrack.errors import ConfigError
+from dronetrack.cli.replay_options import (
+    BackgroundFromOption,
+    BackgroundOption,
+    GtHeadingOption,
+    GtOriginOption,
+    GtTopicOption,
+    LidarTopicOption,
+    PeriodOption,
+    PoseFrameOption,
+    RecordingArgument,
+    RecordingConfigOption,
+    SensorPoseOption,
+    TimestampsOption,
+    TruthOption,
+    replay_options,
+)
 from dronetrack.sources.recordings.opener import recording_info
 from dronetrack.sources.recordings.recording import RecordingInfo, TopicInfo
 
@@ -69,147 +83,23 @@ def _warn(text: str) -> None:
     err_console.print(f"warning: {text}", markup=False, highlight=False, soft_wrap=True)
 
 
-def _floats(text: str | None, n: int, option: str) -> tuple[float, ...] | None:
-    """``n`` comma-separated numbers, or None."""
-    if text is None:
-        return None
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != n or not all(np.isfinite(values)):
-        raise ConfigError(f"{option} takes {n} comma-separated numbers, got {text!r}")
-    return values
-
-
-def _sensor_pose(text: str | None) -> np.ndarray | None:
-    """world_T_sensor from "x,y,z,roll,pitch,yaw" (metres, degrees; R = Rz Ry Rx)."""
-    from dronetrack.geometry.transforms import make_pose, rot_x, rot_y, rot_z
-
-    values = _floats(text, 6, "--sensor-pose")
-    if values is None:
-        return None
-    x, y, z, roll, pitch, yaw = values
-    R = rot_z(np.radians(yaw)) @ rot_y(np.radians(pitch)) @ rot_x(np.radians(roll))
-    pose: np.ndarray = make_pose(R, (x, y, z))
-    return pose
-
-
-def _replay_options(
-    lidar_topic: str | None,
-    gt_topic: str | None,
-    pose_frame: str | None,
-    sensor_pose: str | None,
-    gt_origin: str | None,
-    gt_heading: float,
-    period: float | None,
-    timestamps: Path | None,
-) -> ReplayOptions:
-    """How ``track`` reads its recording, from the command line's text."""
-    from dronetrack.sources.recordings.recording import ReplayOptions
-
-    origin = _floats(gt_origin, 3, "--gt-origin")
-    return ReplayOptions(
-        lidar_topic=lidar_topic,
-        gt_topic=gt_topic,
-        pose_frame=pose_frame,
-        sensor_pose=_sensor_pose(sensor_pose),
-        gt_origin=(origin[0], origin[1], origin[2]) if origin else None,
-        gt_heading_deg=gt_heading,
-        period_s=period,
-        timestamps=timestamps,
-    )
-
-
-_Recording = Annotated[
-    Path,
-    typer.Argument(
-        help="A ROS 1 bag, a ROS 2 bag folder, an MCAP or .db3 file, a PCD file or a folder "
-        "of them, a LAS/LAZ file, a Livox Viewer .lvx or .lvx2 file, or a folder of seed "
-        "003's CSV logs; files are recognised by their content, whatever their name."
-    ),
-]
-_LidarTopic = Annotated[
-    str | None,
-    typer.Option("--lidar-topic", help="Point topic or LVX LiDAR.", show_default="the only one"),
-]
-_GtTopic = Annotated[
-    str | None,
-    typer.Option(
-        "--gt-topic", help="NavSatFix or PoseStamped ground truth.", show_default="the only one"
-    ),
-]
-_PoseFrame = Annotated[
-    str | None,
-    typer.Option("--pose-frame", help="The /tf frame to track in.", show_default="the tree's root"),
-]
-_Background = Annotated[
-    Path | None, typer.Option("--background", help="Load this background model (.npz).")
-]
-_BackgroundFrom = Annotated[
-    float | None,
-    typer.Option(
-        "--background-from", min=0.0, help="Build the background from the first S seconds."
-    ),
-]
-_Config = Annotated[
-    Path | None,
-    typer.Option(
-        "--config", help="A scenario/config .toml.", show_default="the recording's own, if any"
-    ),
-]
-_SensorPose = Annotated[
-    str | None,
-    typer.Option(
-        "--sensor-pose", help="Fixed sensor pose x,y,z,roll,pitch,yaw (m, deg) without /tf."
-    ),
-]
-_GtOrigin = Annotated[
-    str | None,
-    typer.Option("--gt-origin", help="NavSatFix ENU origin lat,lon,alt (deg, deg, m)."),
-]
-_GtHeading = Annotated[
-    float, typer.Option("--gt-heading", help="Yaw of the world x axis from east (deg).")
-]
-_Period = Annotated[
-    float | None,
-    typer.Option(
-        "--period",
-        min=1e-4,
-        help="Frame period in s; a bag's points are re-cut by their times to it.",
-        show_default="from the stamps",
-    ),
-]
-_Timestamps = Annotated[
-    Path | None, typer.Option("--timestamps", help="A .pcd folder's timestamps file.")
-]
-_Truth = Annotated[
-    Path | None,
-    typer.Option(
-        "--truth",
-        help="Ground truth from a CSV with columns t,x,y,z (t in s from the recording's "
-        "start, x, y, z in m in the world frame), instead of the recording's own.",
-    ),
-]
-
-
 @app.command()
 def track(
-    recording: _Recording,
-    lidar_topic: _LidarTopic = None,
-    gt_topic: _GtTopic = None,
-    pose_frame: _PoseFrame = None,
-    background: _Background = None,
-    background_from: _BackgroundFrom = None,
+    recording: RecordingArgument,
+    lidar_topic: LidarTopicOption = None,
+    gt_topic: GtTopicOption = None,
+    pose_frame: PoseFrameOption = None,
+    background: BackgroundOption = None,
+    background_from: BackgroundFromOption = None,
     tracker: TrackerOption = None,
-    config: _Config = None,
+    config: RecordingConfigOption = None,
     out: RunDirOption = None,
-    sensor_pose: _SensorPose = None,
-    gt_origin: _GtOrigin = None,
-    gt_heading: _GtHeading = 0.0,
-    period: _Period = None,
-    timestamps: _Timestamps = None,
-    truth: _Truth = None,
+    sensor_pose: SensorPoseOption = None,
+    gt_origin: GtOriginOption = None,
+    gt_heading: GtHeadingOption = 0.0,
+    period: PeriodOption = None,
+    timestamps: TimestampsOption = None,
+    truth: TruthOption = None,
     foxglove: FoxgloveOption = None,
     rerun: RerunOption = None,
     publish: PublishOption = None,
@@ -227,7 +117,7 @@ def track(
     from dronetrack.sinks.run_folder import default_run_dir
 
     folder = RunFolder(out if out is not None else default_run_dir())
-    options = _replay_options(
+    options = replay_options(
         lidar_topic, gt_topic, pose_frame, sensor_pose, gt_origin, gt_heading, period, timestamps
     )
     source, cfg = _open_replay(
