@@ -14,7 +14,8 @@ from dronetrack.cli.main import run
 from dronetrack.config.run import SensorConfig, apply_overrides
 from dronetrack.config.scenarios import get_scenario
 from dronetrack.errors import ConfigError, DeviceError
-from dronetrack.jobs.live.run import LiveSetup, live_config, open_point_stream, run_live
+from dronetrack.jobs.live.run import LiveSetup, live_config, run_live
+from dronetrack.jobs.live.streams import open_point_stream
 from dronetrack.jobs.live.velodyne import velodyne_frames
 from dronetrack.sim.emulate.livox_stream import PointChunk
 from dronetrack.sim.emulate.velodyne import EmulatedVelodyne

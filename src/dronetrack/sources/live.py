@@ -71,6 +71,7 @@ from dronetrack.types import Sample, TurretState
 
 __all__ = [
     "LEAD_S",
+    "OPEN_TIMEOUT_S",
     "Assembler",
     "LiveSource",
     "PointStream",
@@ -82,6 +83,7 @@ __all__ = [
     "read_truth_csv",
 ]
 
+OPEN_TIMEOUT_S = 5.0  # how long a LiDAR has to answer the connection and start sampling
 POSE_WAIT_S = 1.0  # longest a frame waits for a fresh turret reading
 LEAD_S = 0.05  # how far the newest reading's rates carry the pose beyond it [s]
 # A frame ending this close before the duration ends the run: a revolution ends where

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from dronetrack.jobs.live.run import OPEN_TIMEOUT_S, open_point_stream
+from dronetrack.jobs.live.streams import OPEN_TIMEOUT_S, open_point_stream
 from dronetrack.sources.stream_sample import sample_stream
 
 if TYPE_CHECKING:

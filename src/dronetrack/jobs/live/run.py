@@ -34,13 +34,13 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dronetrack.actuators.turrets import FixedSensor, LimitGuard, check_turret_uri, open_turret
 from dronetrack.config.rig import resolve_turret, target_spec, turret_spec
-from dronetrack.config.run import ScenarioConfig, SensorConfig
+from dronetrack.config.run import ScenarioConfig
 from dronetrack.errors import ConfigError, DeviceError
 from dronetrack.eval.log import TrackLog
 from dronetrack.formats.ros.names import ROS2_SCHEME
@@ -51,6 +51,7 @@ from dronetrack.jobs.lidar_model import (
     livox_lidar,
     recording_lidar,
 )
+from dronetrack.jobs.live.streams import OPEN_TIMEOUT_S, OpenStream, open_point_stream
 from dronetrack.jobs.replay import TARGET_MARGIN_M, recording_config
 from dronetrack.jobs.run import RunResult, resolve_pipeline, run_seeds, turret_pipeline
 from dronetrack.pipeline import run
@@ -58,7 +59,7 @@ from dronetrack.pipeline.kernels import CompileProgress, warm_up
 from dronetrack.realtime import frozen_heap
 from dronetrack.seams import Sink, Source
 from dronetrack.sinks.track_log import TrackLogSink
-from dronetrack.sources.live import Assembler, LiveSource, PointStream
+from dronetrack.sources.live import Assembler, LiveSource
 from dronetrack.sources.paced import FILE_SCHEME, PacedSource
 from dronetrack.sources.recordings.kernels import REPLAY_WARM_UPS
 from dronetrack.sources.truth_csv import TruthFile
@@ -74,7 +75,6 @@ __all__ = [
     "LiveSetup",
     "base_config",
     "live_config",
-    "open_point_stream",
     "run_live",
 ]
 
@@ -82,53 +82,6 @@ Progress = Callable[[int, int], None]
 LogSink = Callable[[TrackLog], None]
 Warn = Callable[[str], None]
 LIDAR_SCHEMES = ("livox://", "livox2://", "velodyne://", FILE_SCHEME, ROS2_SCHEME)
-OPEN_TIMEOUT_S = 5.0  # how long a LiDAR has to answer the connection and start sampling
-
-
-class OpenStream(PointStream, Protocol):
-    """A point stream that is opened (connected and sampling) before it is read."""
-
-    def open(self, timeout_s: float = 3.0) -> None: ...
-
-
-def _with_host(uri: str, host_ip: str | None) -> str:
-    """``uri`` with ``host=host_ip`` added (``--host-ip``); ConfigError if the URI
-    already names another host."""
-    if host_ip is None:
-        return uri
-    from urllib.parse import parse_qsl, urlsplit
-
-    given = dict(parse_qsl(urlsplit(uri).query, keep_blank_values=True)).get("host")
-    if given is not None:
-        if given != host_ip:
-            raise ConfigError(f"--host-ip {host_ip} and the LiDAR URI's host={given} disagree")
-        return uri
-    return f"{uri}{'&' if '?' in uri else '?'}host={host_ip}"
-
-
-def open_point_stream(
-    uri: str, host_ip: str | None = None, sensor: SensorConfig | None = None
-) -> OpenStream:
-    """The (not yet opened) client of a ``livox://``, ``livox2://`` or ``velodyne://``
-    LiDAR (a VLP-16's points in the frame of ``sensor``'s mount); ConfigError for a bad
-    URI or ``--host-ip``."""
-    if uri.startswith("livox://"):
-        from dronetrack.sources.livox.sdk1 import LivoxClient
-
-        return LivoxClient(_with_host(uri, host_ip))
-    if uri.startswith("livox2://"):
-        from dronetrack.sources.livox.sdk2 import Livox2Client
-
-        return Livox2Client(_with_host(uri, host_ip))
-    if uri.startswith("velodyne://"):
-        from dronetrack.jobs.live.velodyne import velodyne_client
-
-        return velodyne_client(_with_host(uri, host_ip), sensor)
-    raise ConfigError(
-        f"--lidar {uri!r}: give livox://IP (Avia, Mid-40/70, Horizon, Tele), livox2://IP "
-        "(Mid-360), velodyne://[IP:]PORT (VLP-16), ros2:///TOPIC (a ROS 2 point topic) or "
-        "file://RECORDING"
-    )
 
 
 def _recording_path(uri: str) -> Path:

@@ -7,14 +7,12 @@ from __future__ import annotations
 from dronetrack.config.run import SensorConfig
 from dronetrack.config.spinning import head_rotation, revolution_frames, spin_rpm
 from dronetrack.formats import velodyne as fv
-from dronetrack.sources.live import Assembler
+from dronetrack.sources.live import OPEN_TIMEOUT_S, Assembler
 from dronetrack.sources.revolutions import RevolutionAssembler
 from dronetrack.sources.stream_sample import sample_stream
 from dronetrack.sources.velodyne.client import VelodyneClient
 
 __all__ = ["probe_velodyne", "velodyne_client", "velodyne_frames"]
-
-OPEN_TIMEOUT_S = 5.0
 
 
 def velodyne_client(uri: str, sensor: SensorConfig | None = None) -> VelodyneClient:
