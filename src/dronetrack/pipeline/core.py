@@ -29,7 +29,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -38,12 +38,12 @@ from numpy.typing import NDArray
 from dronetrack.classify.classifier import TrackClassifier
 from dronetrack.control.choose import TargetChooser, not_static, worth_a_look
 from dronetrack.control.controller import Controller
-from dronetrack.detect.candidates import CandidateDetector
-from dronetrack.detect.lock import SAME_TARGET_M, LockBook
-from dronetrack.detect.tentative import TentativeTracks, reach
+from dronetrack.detect.lock import SAME_TARGET_M
+from dronetrack.detect.tentative import reach
 from dronetrack.errors import InputError
 from dronetrack.geometry.field import FieldOfRegard, in_field_of_view
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.pipeline.acquisition import Acquisition
 from dronetrack.pipeline.protect import protected_balls
 from dronetrack.pipeline.selection import TargetSelection, rank
 from dronetrack.preprocess.background import VoxelBackground
@@ -52,7 +52,7 @@ from dronetrack.preprocess.foreground import Foreground, extract_foreground
 from dronetrack.preprocess.learning import LearningBackground
 from dronetrack.preprocess.outliers import radius_outlier_mask, statistical_outlier_mask
 from dronetrack.preprocess.range_image import RangeImage
-from dronetrack.track.base import CandidateStart, ObjectTracker, Tracker
+from dronetrack.track.base import CandidateStart, Tracker
 from dronetrack.track.clock import FilterClock
 from dronetrack.types import (
     Candidates,
@@ -78,35 +78,6 @@ class OutlierSettings:
     min_neighbors: int = 3
     mean_k: int | None = None  # statistical filter off when None
     std_mul: float = 1.0
-
-
-@dataclass(frozen=True, slots=True)
-class Acquisition:
-    """The detect stage of every tracking frame: clustering, then tentative tracks, the
-    history of the tracker's lock on them (``detect.lock``), and every confirmed
-    object's track (``track.multi``)."""
-
-    detector: CandidateDetector
-    tracks: TentativeTracks
-    objects: ObjectTracker | None = None
-    lock: LockBook = field(init=False)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "lock", LockBook(self.tracks.settings))
-
-    def step(
-        self, t: float, points: FloatArray, sensor: FloatArray | None = None
-    ) -> tuple[Detections, Candidates]:
-        """The clusters of the foreground ``points`` at ``t``, seen from ``sensor`` (3,),
-        and the confirmed candidates."""
-        found = self.detector(points)
-        return found, self.tracks.update(t, found, sensor)
-
-    def reset(self) -> None:
-        self.tracks.reset()
-        self.lock.reset()
-        if self.objects is not None:
-            self.objects.reset()
 
 
 class Pipeline:
