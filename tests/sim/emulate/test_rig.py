@@ -11,7 +11,8 @@ from dronetrack.sim.emulate.lidars import DEVICES, default_velodyne_dest, host_u
 from dronetrack.sim.emulate.livox import EmulatedLivox
 from dronetrack.sim.emulate.livox2 import EmulatedLivox2
 from dronetrack.sim.emulate.livox_stream import GridSource
-from dronetrack.sim.emulate.rig import TurretTimeline, livox_device
+from dronetrack.sim.emulate.rig import livox_device
+from dronetrack.sim.emulate.timeline import TurretTimeline
 from dronetrack.sim.emulate.velodyne import EmulatedVelodyne
 
 
