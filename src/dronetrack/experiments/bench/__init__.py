@@ -45,7 +45,8 @@ pins numba's and OpenBLAS's thread pools for the caller.
 
 from __future__ import annotations
 
-from dronetrack.experiments.bench.live import (
+from dronetrack.experiments.bench.live import live_bench, live_latency, live_soak
+from dronetrack.experiments.bench.live_settings import (
     LATENCY_P99_TARGET_MS,
     LIVE_FULL,
     LIVE_QUICK,
@@ -54,12 +55,7 @@ from dronetrack.experiments.bench.live import (
     LiveRequest,
     LiveSettings,
     check_mode,
-    live_bench,
-    live_latency,
     live_request,
-    live_soak,
-    resident_mb,
-    rss_growth_pct,
 )
 from dronetrack.experiments.bench.machine import (
     cpu_model,
@@ -67,6 +63,7 @@ from dronetrack.experiments.bench.machine import (
     single_thread,
     thread_counts,
 )
+from dronetrack.experiments.bench.memory import resident_mb, rss_growth_pct
 from dronetrack.experiments.bench.pipeline import (
     PF_PARTICLES,
     AviaFrames,

@@ -50,51 +50,26 @@ from dronetrack.errors import ConfigError
 from dronetrack.experiments.bench.c2 import BenchC2
 from dronetrack.experiments.bench.emulator import (
     TURRETS,
-    EmulatorProcess,
     emulator_process,
     scenario_with_turret,
 )
 from dronetrack.experiments.bench.live_settings import (
     LATENCY_P99_TARGET_MS,
     LIVE_FULL,
-    LIVE_QUICK,
     LIVE_TARGETS,
     RSS_GROWTH_TARGET_PCT,
-    SAPIENT_FIRST_REPORT_MS,
-    SAPIENT_P99_GROWTH_MS,
     SAPIENT_PAIRS,
-    SAPIENT_RECONNECT_S,
-    LiveRequest,
     LiveSettings,
-    check_mode,
-    live_request,
 )
 from dronetrack.experiments.bench.machine import machine_info
-from dronetrack.experiments.bench.memory import RssSampler, resident_mb, rss_growth_pct
+from dronetrack.experiments.bench.memory import RssSampler, rss_growth_pct
 from dronetrack.experiments.bench.suite import evaluate_targets
 
 __all__ = [
-    "LATENCY_P99_TARGET_MS",
-    "LIVE_FULL",
-    "LIVE_QUICK",
-    "LIVE_TARGETS",
-    "RSS_GROWTH_TARGET_PCT",
-    "SAPIENT_FIRST_REPORT_MS",
-    "SAPIENT_P99_GROWTH_MS",
-    "SAPIENT_RECONNECT_S",
-    "TURRETS",
-    "EmulatorProcess",
-    "LiveRequest",
     "LiveRunFigures",
-    "LiveSettings",
-    "check_mode",
-    "emulator_process",
     "live_bench",
     "live_latency",
-    "live_request",
     "live_soak",
-    "resident_mb",
-    "rss_growth_pct",
     "run_against_emulator",
 ]
 
