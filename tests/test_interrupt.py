@@ -182,6 +182,27 @@ def test_a_ctrl_c_once_the_command_is_done_exits_at_once_with_its_code() -> None
     assert "Traceback" not in done.stderr
 
 
+def test_a_ctrl_c_just_after_the_command_exits_as_interrupted() -> None:
+    """A Ctrl-C that lands after the command's own handling has ended, before the
+    shutdown's (``exit_on_sigint`` with the command's code), exits with 130: it does
+    not raise ``KeyboardInterrupt`` out of ``main`` and die of the signal."""
+    script = (
+        "import os, signal, sys\n"
+        "import dronetrack.cli.main as cli\n"
+        "def done(argv):\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    return 0\n"
+        "cli.run = done\n"
+        "sys.argv = ['dronetrack']\n"
+        "cli.main()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 130, done.stderr
+    assert "Traceback" not in done.stderr
+
+
 @pytest.mark.slow
 def test_ctrl_c_from_a_terminal_stops_simulate(tmp_path: Path) -> None:
     out = tmp_path / "run"

@@ -12,6 +12,9 @@ After the command, while the interpreter shuts down (threads joined, devices and
 participants closed), a Ctrl-C exits at once with the command's code
 (``exit_on_sigint``): the work is done and written, and Python's default handling
 would raise ``KeyboardInterrupt`` in the middle of the shutdown and die of the signal.
+Before the command's own handling, and between its end and that, one exits with 130
+(``cli.main``), so no moment is left in which a Ctrl-C kills the process by the signal
+(under load, the slow tier's Ctrl-C to an emulator ending by itself did, once).
 
 ``handling_sigterm`` makes SIGTERM (a service manager's stop, ``kill``) do what
 Ctrl-C does, for a command that must stop a device cleanly (``dronetrack live``).

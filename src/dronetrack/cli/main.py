@@ -89,6 +89,9 @@ def main() -> None:
     from dronetrack.interrupt import exit_on_sigint
 
     tune_allocator()
+    # A Ctrl-C outside the command's own handling (before it, or after it ends and
+    # before the line below) exits as interrupted, rather than dying of the signal
+    exit_on_sigint(INTERRUPTED)
     code = run(sys.argv[1:])
     exit_on_sigint(code)  # a Ctrl-C while the interpreter shuts down ends it at once
     sys.exit(code)
