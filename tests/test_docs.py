@@ -419,6 +419,7 @@ class Background:
                 self.proc.kill()
                 self.proc.wait(timeout=10)
         if self.proc.stdout is not None:
+            self.out += self.proc.stdout.read()  # what it said after it was ready
             self.proc.stdout.close()
         assert self.proc.returncode in (0, 130), (self.proc.returncode, self.out.decode())
 

@@ -182,6 +182,26 @@ def test_a_ctrl_c_once_the_command_is_done_exits_at_once_with_its_code() -> None
     assert "Traceback" not in done.stderr
 
 
+def test_a_ctrl_c_during_the_interpreters_finalization_is_ignored() -> None:
+    """From the exit handlers on SIGINT is ignored: the finalization after them puts a
+    Python handler back to the default, under which a Ctrl-C while the C libraries'
+    exit handlers run kills the process by the signal.  An exit handler registered
+    before ``exit_on_sigint`` runs after its own (last in, first out) and sees it."""
+    script = (
+        "import atexit, signal, sys\n"
+        "atexit.register(lambda: sys.stdout.write("
+        "str(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)))\n"
+        "from dronetrack.interrupt import exit_on_sigint\n"
+        "exit_on_sigint(3)\n"
+        "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN, end=' ')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "False True"  # the command's handler, then ignored at exit
+
+
 def test_a_ctrl_c_just_after_the_command_exits_as_interrupted() -> None:
     """A Ctrl-C that lands after the command's own handling has ended, before the
     shutdown's (``exit_on_sigint`` with the command's code), exits with 130: it does

@@ -13,8 +13,12 @@ participants closed), a Ctrl-C exits at once with the command's code
 (``exit_on_sigint``): the work is done and written, and Python's default handling
 would raise ``KeyboardInterrupt`` in the middle of the shutdown and die of the signal.
 Before the command's own handling, and between its end and that, one exits with 130
-(``cli.main``), so no moment is left in which a Ctrl-C kills the process by the signal
-(under load, the slow tier's Ctrl-C to an emulator ending by itself did, once).
+(``cli.main``).  From the interpreter's exit handlers on a Ctrl-C is ignored: the
+finalization after them puts a Python handler back to the default, and a Ctrl-C there,
+while the C libraries' own exit handlers ran (DDS's), killed the process by the signal
+(the slow tier stopping ``emulate --ros2`` as it ended by itself, under load: exit
+status −2 in two runs of three).  So no moment is left in which a Ctrl-C kills a
+command by the signal.
 
 ``handling_sigterm`` makes SIGTERM (a service manager's stop, ``kill``) do what
 Ctrl-C does, for a command that must stop a device cleanly (``dronetrack live``).
@@ -25,6 +29,7 @@ Library code never installs the handlers: without them Ctrl-C raises
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import signal
@@ -43,6 +48,7 @@ class _State:
     installed: bool = False
     loops: int = 0  # stoppable() blocks open
     requested: bool = False
+    ignore_at_exit: bool = False  # exit_on_sigint's exit handler registered
 
 
 # Process-wide by nature: there is one SIGINT per process.
@@ -106,7 +112,8 @@ def stop_requested() -> bool:
 
 def exit_on_sigint(code: int) -> None:
     """From now on a Ctrl-C flushes the standard streams and exits the process at once
-    with ``code`` (see the module docstring; main thread only, elsewhere nothing)."""
+    with ``code``, and once the interpreter's exit handlers run it is ignored (see the
+    module docstring; main thread only, elsewhere nothing)."""
     if threading.current_thread() is not threading.main_thread():
         return
 
@@ -117,3 +124,14 @@ def exit_on_sigint(code: int) -> None:
         os._exit(code)
 
     signal.signal(signal.SIGINT, now)
+    if not _state.ignore_at_exit:
+        _state.ignore_at_exit = True
+        atexit.register(_ignore_sigint)
+
+
+def _ignore_sigint() -> None:
+    """SIGINT ignored from here to the process's end.  The interpreter's finalization,
+    after the exit handlers, puts a signal with a Python handler back to the default,
+    which kills the process (exit status −2) while the C libraries' exit handlers run
+    (DDS's own, under load for a second); an ignored one it leaves ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
