@@ -162,6 +162,14 @@ def _dronetrack(*args: str) -> subprocess.Popen[str]:
     )
 
 
+def _python(script: str) -> subprocess.CompletedProcess[str]:
+    """``script`` run by a Python of its own (its signal handlers and exit handlers are
+    its own), its output captured."""
+    return subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+
+
 def test_a_ctrl_c_once_the_command_is_done_exits_at_once_with_its_code() -> None:
     """While the interpreter shuts down after a command (its threads joined, its DDS
     participants closed), a Ctrl-C exits at once with the command's code, the output
@@ -174,9 +182,7 @@ def test_a_ctrl_c_once_the_command_is_done_exits_at_once_with_its_code() -> None
         "os.kill(os.getpid(), signal.SIGINT)\n"
         "time.sleep(30)\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
-    )
+    done = _python(script)
     assert done.returncode == 3, done.stderr
     assert done.stdout == "done"
     assert "Traceback" not in done.stderr
@@ -195,9 +201,7 @@ def test_a_ctrl_c_during_the_interpreters_finalization_is_ignored() -> None:
         "exit_on_sigint(3)\n"
         "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN, end=' ')\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
-    )
+    done = _python(script)
     assert done.returncode == 0, done.stderr
     assert done.stdout == "False True"  # the command's handler, then ignored at exit
 
@@ -216,9 +220,7 @@ def test_a_ctrl_c_just_after_the_command_exits_as_interrupted() -> None:
         "sys.argv = ['dronetrack']\n"
         "cli.main()\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
-    )
+    done = _python(script)
     assert done.returncode == 130, done.stderr
     assert "Traceback" not in done.stderr
 
