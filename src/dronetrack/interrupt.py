@@ -133,5 +133,6 @@ def _ignore_sigint() -> None:
     """SIGINT ignored from here to the process's end.  The interpreter's finalization,
     after the exit handlers, puts a signal with a Python handler back to the default,
     which kills the process (exit status −2) while the C libraries' exit handlers run
-    (DDS's own, under load for a second); an ignored one it leaves ignored."""
+    (DDS's own, under load for a second); an ignored one it leaves ignored.  A
+    shutdown that hangs there still ends by SIGTERM (``kill``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
