@@ -14,7 +14,8 @@ from dronetrack.config.scenarios import SCENARIOS
 from dronetrack.errors import ConfigError
 from dronetrack.experiments.compare.ranking import ranking_differences
 from dronetrack.experiments.compare.runner import RunMetrics, case_config, run_suite
-from dronetrack.experiments.compare.suites import SUITES, Case, Suite, get_suite
+from dronetrack.experiments.compare.suite import Case, Suite
+from dronetrack.experiments.compare.suites import SUITES, get_suite
 from dronetrack.experiments.compare.tables import TABLE_COLUMNS, aggregate
 from dronetrack.jobs.simulate import run_lockstep, run_simulation
 from dronetrack.pipeline.trackers import TRACKER_NAMES

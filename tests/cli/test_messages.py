@@ -17,7 +17,8 @@ from dronetrack.cli.main import run
 from dronetrack.config.run import ScenarioConfig, dump_scenario, load_scenario_file
 from dronetrack.config.scenarios import SCENARIOS, get_scenario
 from dronetrack.experiments.compare.runner import RunMetrics
-from dronetrack.experiments.compare.suites import SUITES, Suite
+from dronetrack.experiments.compare.suite import Suite
+from dronetrack.experiments.compare.suites import SUITES
 from dronetrack.jobs.simulate import resolve_run
 
 WIDTH = "80"  # a terminal's width; the tables' rows are longer

@@ -27,22 +27,12 @@ from pydantic import Field, ValidationError, model_validator
 
 from dronetrack.config.movers import VehicleConfig, WalkerConfig
 from dronetrack.config.pipeline import PipelineConfig, StrictModel
-from dronetrack.config.reach import (
-    REACH_M,
-    RETURN_LIMIT_M,
-    RETURN_SHARE,
-    changes_rig,
-    rig_evaluation,
-    sensor_reach,
-)
+from dronetrack.config.reach import changes_rig, rig_evaluation
 from dronetrack.config.site import SapientConfig, SiteConfig, ZoneConfig
 from dronetrack.config.tomlfile import format_validation_error, read_toml
 from dronetrack.errors import ScenarioError
 
 __all__ = [
-    "REACH_M",
-    "RETURN_LIMIT_M",
-    "RETURN_SHARE",
     "ClutterConfig",
     "DroneConfig",
     "FlightSource",
@@ -57,10 +47,8 @@ __all__ = [
     "absolute_path",
     "apply_overrides",
     "dump_scenario",
-    "format_validation_error",
     "load_scenario_file",
     "map_paths",
-    "sensor_reach",
     "with_rig_reach",
 ]
 

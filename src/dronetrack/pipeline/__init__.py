@@ -9,7 +9,8 @@
   timed loop.
 """
 
-from dronetrack.pipeline.core import Acquisition, OutlierSettings, Pipeline
+from dronetrack.pipeline.acquisition import Acquisition
+from dronetrack.pipeline.core import OutlierSettings, Pipeline
 from dronetrack.pipeline.loop import RunStats, Stage, run
 from dronetrack.types import StepResult
 

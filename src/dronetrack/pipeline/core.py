@@ -65,7 +65,7 @@ from dronetrack.types import (
     TurretCommand,
 )
 
-__all__ = ["Acquisition", "OutlierSettings", "Pipeline", "StepResult"]
+__all__ = ["OutlierSettings", "Pipeline", "StepResult"]
 
 log = logging.getLogger(__name__)
 

@@ -39,7 +39,8 @@ from dronetrack.detect.candidates import CandidateDetector
 from dronetrack.detect.tentative import ConfirmationSettings, TentativeTracks
 from dronetrack.errors import ConfigError
 from dronetrack.geometry.mount import MountGeometry
-from dronetrack.pipeline.core import Acquisition, OutlierSettings, Pipeline
+from dronetrack.pipeline.acquisition import Acquisition
+from dronetrack.pipeline.core import OutlierSettings, Pipeline
 from dronetrack.pipeline.trackers import DEFAULT_S_DIAG, build_tracker, check_registry
 from dronetrack.preprocess.background import VoxelBackground
 from dronetrack.preprocess.crop import HullCrop

@@ -66,7 +66,7 @@ from dronetrack.geometry.mount import MountGeometry
 from dronetrack.sources.assembly import NS, FrameAssembler, PointBatch, PoseHistory, StreamFrame
 from dronetrack.sources.frame_queue import POLL_S, FrameQueue
 from dronetrack.sources.truth import GroundTruth, RecordedTruth
-from dronetrack.sources.truth_csv import RunTruth, TruthFile, read_truth_csv
+from dronetrack.sources.truth_csv import RunTruth, TruthFile
 from dronetrack.types import Sample, TurretState
 
 __all__ = [
@@ -76,11 +76,8 @@ __all__ = [
     "LiveSource",
     "PointStream",
     "PolledTurret",
-    "RunTruth",
-    "TruthFile",
     "TurretPoses",
     "TurretReader",
-    "read_truth_csv",
 ]
 
 OPEN_TIMEOUT_S = 5.0  # how long a LiDAR has to answer the connection and start sampling

@@ -14,6 +14,7 @@ import pytest
 from dronetrack.cli.main import run
 from dronetrack.config.run import dump_scenario
 from dronetrack.config.scenarios import get_scenario
+from dronetrack.experiments.compare.multi_suite import MULTI_METRICS
 from dronetrack.experiments.compare.run_files import confusion_markdown, summed_confusion
 from dronetrack.experiments.compare.runner import (
     RunMetrics,
@@ -21,7 +22,7 @@ from dronetrack.experiments.compare.runner import (
     object_run_metrics,
     run_suite,
 )
-from dronetrack.experiments.compare.suites import MULTI_METRICS, get_suite
+from dronetrack.experiments.compare.suites import get_suite
 from dronetrack.experiments.compare.tables import aggregate, table_markdown
 from dronetrack.jobs.simulate import run_simulation
 

@@ -19,7 +19,7 @@ from dronetrack.config.run import dump_scenario
 from dronetrack.eval.classes import row_percentages
 from dronetrack.experiments.compare.ranking import format_number
 from dronetrack.experiments.compare.runner import RunMetrics
-from dronetrack.experiments.compare.suites import Suite
+from dronetrack.experiments.compare.suite import Suite
 from dronetrack.experiments.compare.tables import options_lines
 from dronetrack.sinks.run_folder import json_safe, write_metrics
 from dronetrack.types import TRACK_CLASSES

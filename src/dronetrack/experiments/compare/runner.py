@@ -27,7 +27,8 @@ from dronetrack.eval.metrics import (
     scored_tracking,
 )
 from dronetrack.eval.objects import drone_summary
-from dronetrack.experiments.compare.suites import MULTI_METRICS, Case, Suite
+from dronetrack.experiments.compare.multi_suite import MULTI_METRICS
+from dronetrack.experiments.compare.suite import Case, Suite
 from dronetrack.geometry.transforms import FloatArray
 from dronetrack.jobs.run import RunResult, detection_area
 from dronetrack.jobs.simulate import run_lockstep, run_simulation

@@ -13,10 +13,10 @@ from typing import get_args
 
 from dronetrack.config.pipeline import TrackerKind
 from dronetrack.errors import ConfigError
-from dronetrack.experiments.compare.multi_suite import MULTI_METRICS, MULTI_SUITE
-from dronetrack.experiments.compare.suite import Case, MetricGroup, Suite
+from dronetrack.experiments.compare.multi_suite import MULTI_SUITE
+from dronetrack.experiments.compare.suite import Case, Suite
 
-__all__ = ["MULTI_METRICS", "SUITES", "Case", "MetricGroup", "Suite", "get_suite"]
+__all__ = ["SUITES", "get_suite"]
 
 
 def _grid(

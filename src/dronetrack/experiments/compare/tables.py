@@ -22,7 +22,7 @@ from dronetrack.experiments.compare.ranking import (
     ranking_lines,
 )
 from dronetrack.experiments.compare.runner import RunMetrics
-from dronetrack.experiments.compare.suites import Suite
+from dronetrack.experiments.compare.suite import Suite
 
 __all__ = [
     "TABLE_COLUMNS",

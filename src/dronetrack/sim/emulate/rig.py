@@ -84,7 +84,6 @@ __all__ = [
     "LivoxModel",
     "RigDevice",
     "SimJoint",
-    "TurretTimeline",
     "lidar_device",
     "livox_device",
 ]
