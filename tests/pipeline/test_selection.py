@@ -71,12 +71,29 @@ def _locked_on(position: list[float], t: float, since: float = 0.0) -> LockBook:
     return lock
 
 
-def test_rank_is_each_candidates_track_p_drone_and_even_without_one() -> None:
+def test_rank_is_each_candidates_threat_with_its_tracks_p_drone_and_even_without_one() -> None:
     found, offered, tracks = _frame([[50, 0, 10], [80, 5, 20]], [DRONE, UNKNOWN], [0.98, 0.3])
-    assert rank(offered, found, tracks) == pytest.approx([0.98, 0.3])
+    settings = ChooseSettings()  # protected at the origin, d_ref 100 m; both candidates still
+    # threat = p · d_ref / (d_ref + |c − q|): |c| = √2600 and √6825 m
+    near, far = 100 / (100 + np.sqrt(2600)), 100 / (100 + np.sqrt(6825))
+    assert rank(offered, found, tracks, settings) == pytest.approx([0.98 * near, 0.3 * far])
     lone = replace(tracks, clusters=np.array([0, -1]))  # the second cluster has no track
-    assert rank(offered, found, lone) == pytest.approx([0.98, 0.5])
-    assert rank(offered, found, None) is None
+    assert rank(offered, found, lone, settings) == pytest.approx([0.98 * near, 0.5 * far])
+    assert rank(offered, found, None, settings) is None
+
+
+def test_of_two_candidates_alike_but_for_range_the_nearer_ranks_first() -> None:
+    # a fresh fragment of a far structure and a drone whose steady flight took its
+    # p_drone a little under the even 0.5: the drone, 70 m out, ranks over the 150 m one
+    found, offered, tracks = _frame([[150, 0, 5], [60, 30, 12]], [UNKNOWN, UNKNOWN], [0.5, 0.45])
+    score = rank(offered, found, tracks, ChooseSettings())
+    assert score is not None
+    assert score[1] > score[0]
+    # and of two at one range, the one closing on the protected point
+    closing = replace(offered, velocities=np.array([[0.0, 0, 0], [-5.0, -2.5, 0]]))
+    score = rank(closing, found, replace(tracks, p_drone=np.array([0.5, 0.5])), ChooseSettings())
+    assert score is not None
+    assert score[1] > 0.5 * 100 / (100 + np.linalg.norm([60, 30, 12]))
 
 
 def test_a_lock_on_no_drone_restarts_on_the_drone_track() -> None:
@@ -109,6 +126,39 @@ def test_a_lock_on_what_never_hovered_restarts_on_a_candidate_that_did() -> None
     assert tracker.resets == 1
     assert not lock.locked
     np.testing.assert_allclose(tracker.starts[0].positions, [[70, -30, 20]])
+
+
+@pytest.mark.parametrize(
+    ("other_class", "other_p", "restarts"),
+    [(STATIC, 0.02, 0), (UNKNOWN, 0.1, 0), (UNKNOWN, 0.5, 1), (DRONE, 0.98, 1)],
+)
+def test_a_lock_restarts_only_on_a_candidate_that_hovered_whose_track_is_worth_a_look(
+    other_class: int, other_p: float, restarts: int
+) -> None:
+    # what stands still hovers as a drone does: a fragment of an unmapped structure
+    # classed static, or a track with evidence against a drone, is no target to restart on
+    positions = [[50, 0, 10], [70, -30, 20]]
+    found, offered, tracks = _frame(
+        positions, [UNKNOWN, other_class], [0.5, other_p], [False, True]
+    )
+    lock, tracker = _locked_on([50, 0, 10], t=3.0), _Tracker()
+    TargetSelection().step(3.0, found, tracks, offered, lock, tracker)
+    assert tracker.resets == restarts
+    assert lock.locked == (restarts == 0)
+    assert len(tracker.starts) == restarts
+
+
+def test_a_candidate_that_hovered_is_restarted_on_without_a_track_only_when_none_are_kept() -> None:
+    # with the track layer on, a confirmed candidate no track took has no class to
+    # check: it is not restarted on; without the layer (tracks None) rule 3 acts alone
+    positions = [[50, 0, 10], [70, -30, 20]]
+    found, offered, tracks = _frame(positions, [UNKNOWN, UNKNOWN], [0.5, 0.5], [False, True])
+    lone = replace(tracks, clusters=np.array([0, -1]))  # the second cluster has no track
+    for kept, restarts in ((lone, 0), (None, 1)):
+        lock, tracker = _locked_on([50, 0, 10], t=3.0), _Tracker()
+        TargetSelection().step(3.0, found, kept, offered, lock, tracker)
+        assert tracker.resets == restarts
+        assert len(tracker.starts) == restarts
 
 
 def test_the_chooser_turns_the_turret_to_a_drone_never_served() -> None:
@@ -247,16 +297,28 @@ def test_a_trial_tried_again_on_the_same_track_starts_the_tracker_afresh() -> No
     assert tracker.resets == 1
 
 
-@pytest.mark.parametrize(("held_class", "resets"), [(STATIC, 1), (UNKNOWN, 0)])
+@pytest.mark.parametrize(
+    ("held_class", "held_p", "still", "resets"),
+    [
+        (STATIC, 0.05, False, 1),
+        (UNKNOWN, 0.5, False, 0),
+        (UNKNOWN, 0.1, True, 1),  # held still and counted out: the world's evidence
+        (UNKNOWN, 0.1, False, 0),  # a steady flight's evidence: a drone may fly so
+    ],
+)
 def test_a_first_trial_after_losing_a_lock_on_no_drone_starts_the_tracker_afresh(
-    held_class: int, resets: int
+    held_class: int, held_p: float, still: bool, resets: int
 ) -> None:
     """The lock holds a track (at (50, 0, 5)) in one frame, then loses it by itself.
     The first trial after the loss, on another track within reach, keeps the cloud
-    where the lost target was when that could be a drone (unknown), and resets it when
-    the lock held what it may not (classed static): no drone reappears there."""
+    where the lost target was when that could be a drone (unknown, or counted out by
+    its steady flight only), and resets it when the lock held what it may not (classed
+    static) or what held still with evidence against a drone: no drone reappears
+    there.  By the trial the lost track is worth a look again (p_drone 0.3), so only
+    what the lock held decides."""
     held, other = [50.0, 0.0, 5.0], [56.0, 2.0, 10.0]
-    found, offered, tracks = _frame([held], [held_class], [0.05 if held_class == STATIC else 0.5])
+    found, offered, tracks = _frame([held], [held_class], [held_p])
+    tracks = replace(tracks, hovered=np.array([still]))
     selection, tracker = TargetSelection(), _Tracker()
     lock = _locked_on(held, t=2.0)
     selection.step(2.0, found, tracks, offered, lock, tracker)
@@ -268,6 +330,36 @@ def test_a_first_trial_after_losing_a_lock_on_no_drone_starts_the_tracker_afresh
     found, offered, tracks = _frame([held, other], [held_class, UNKNOWN], p)
     offered = not_static(offered, found, tracks)  # as the pipeline offers them
     selection.step(3.0, found, tracks, offered, lock, tracker)  # other within reach
+    assert [s.positions[0].tolist() for s in tracker.starts] == [other]
+    assert tracker.resets == resets
+
+
+@pytest.mark.parametrize(
+    ("later_class", "later_p", "still", "resets"),
+    [
+        (UNKNOWN, 0.3, True, 0),  # held still, worth a look: a drone may hover there
+        (UNKNOWN, 0.1, False, 0),  # a steady flight's evidence: a drone may fly so
+        (UNKNOWN, 0.1, True, 1),  # held still and counted out: the world's evidence
+        (STATIC, 0.05, False, 1),
+    ],
+)
+def test_a_first_trial_resets_the_tracker_whose_estimate_lies_on_what_is_no_drone(
+    later_class: int, later_p: float, still: bool, resets: int
+) -> None:
+    """The lock held an unknown track and lost it by itself; by the first trial after,
+    that track is classed static, or held still with evidence against a drone: the
+    cloud waits where no drone reappears, and the trial starts afresh."""
+    held, other = [50.0, 0.0, 5.0], [56.0, 2.0, 10.0]
+    found, offered, tracks = _frame([held], [UNKNOWN], [0.5])
+    selection, tracker = TargetSelection(), _Tracker()
+    lock = _locked_on(held, t=2.0)
+    selection.step(2.0, found, tracks, offered, lock, tracker)
+    lock.update(TrackEstimate(2.1, np.array(held), np.zeros(3), False, 5.0), None)
+    assert not lock.locked
+    found, offered, tracks = _frame([held, other], [later_class, UNKNOWN], [later_p, 0.5])
+    tracks = replace(tracks, hovered=np.array([still, False]))
+    offered = offered.take(np.array([1]))  # only the other is offered
+    selection.step(3.0, found, tracks, offered, lock, tracker)
     assert [s.positions[0].tolist() for s in tracker.starts] == [other]
     assert tracker.resets == resets
 

@@ -317,7 +317,8 @@ class Pipeline:
         drones first (``found`` and ``tracks``: the frame's clusters and tracks)."""
         if self.acquisition is None or candidates is None:
             return candidates
-        return self.acquisition.lock.reachable(t, candidates, rank(candidates, found, tracks))
+        score = rank(candidates, found, tracks, self.selection.settings)
+        return self.acquisition.lock.reachable(t, candidates, score)
 
     def _cues(self, t: float, found: Detections | None, tracks: Tracks | None) -> Candidates | None:
         """Tentative tracks worth a look while the tracker is not locked, within reach of

@@ -11,33 +11,39 @@ The tracker follows one target; the track layer follows every object and classes
    takes only that track's candidates, and when it is not the one held the tracker
    lets go and the turret looks where the track is predicted (``look``) until it has;
 3. while locked on what never hovered, the tracker restarts on a candidate that did
-   (``LockBook.switch``);
+   (``LockBook.switch``) whose track is worth a look (``control.choose.worth_a_look``):
+   the world holds still too, and the classes say which still object is no drone.
+   Restarted on any that hovered, the lock went, now and then, from the drone's own
+   track to a structure's fragment classed static or counted out (``outdoor-unscanned``
+   seed 3: three times in 2.4 s, the estimate dragged back across 70 m each time);
 4. otherwise, while locked on what no drone-class track follows, it restarts on the
    most threatening candidate whose track is classed drone
    (``control.choose.drone_instead``), unless the chooser is turning the turret to a
    track (``look``);
 5. otherwise, while not locked, it starts on the candidates within the lost target's
-   reach, the likeliest drones first (``LockBook.reachable``), and of those on one
-   track's for a while (``StartTrial``): the trial's track is tried for ``look_s``
-   (1.5 s) before the next, and the turret aims at it, where it is predicted while it
-   has no candidate.  Restarted each frame on whichever candidate ranked first, the
-   tracker settled on none among the fragments of an unmapped tree line
-   (``outdoor-unscanned``, seeds 0-9: the drone acquired 4.6 s after it came into
-   view, 2.6 s with the trials).  When a trial fails the tracker is reset, so the
+   reach, the most threatening first (``rank``, ``LockBook.reachable``), and of those
+   on one track's for a while (``StartTrial``): the trial's track is tried for
+   ``look_s`` (1.5 s) before the next, and the turret aims at it, where it is
+   predicted while it has no candidate.  Restarted each frame on whichever candidate
+   ranked first, the tracker settled on none among the fragments of an unmapped tree
+   line (``outdoor-unscanned``, seeds 0-9: the drone acquired 4.6 s after it came
+   into view, 2.6 s with the trials).  When a trial fails the tracker is reset, so the
    next one's candidate takes the whole cloud (``birth_share`` keeps half of it where
    it was: on the failed trial's object, which goes on returning points), and so it
    is when the next trial is on the same track (a drone-class track is tried again at
    once), whose filter drifted without a lock; a first trial after a loss keeps the
    cloud, which may wait where the lost drone reappears
    (with the reset there too, ``outdoor-clutter``'s lock-on while visible fell from
-   98.4 to 95.2 %), unless the lock held, in its last frame, what rule 1 bars (a
-   track classed static or out of the open air, an oversized cluster): no drone
-   reappears there.  A fragment of an unmapped structure classed static was lost
-   just before rule 1 gave it up, and the cloud left on it dragged the trial's
-   estimate 85 m across to the drone over 0.6 s (``outdoor-unscanned`` seed 5: the
-   drone acquired 1.9 s after it came into view within reach, 1.2 s with the reset;
-   over seeds 0-9 1.12 → 1.05 s, over seeds 10-29 1.33 → 1.28 s, the drone's lock-on
-   while visible 96.3 → 96.3 % and 96.1 → 96.0 %).
+   98.4 to 95.2 %), unless the cloud waits on what is no drone: the lock held, in its
+   last frame, what rule 1 bars (a track classed static or out of the open air, an
+   oversized cluster) or a track that held still and is not worth a look
+   (``_still_no_drone``), or, as the trial begins, the tracker's estimate lies on such
+   a track.  No drone reappears there.  A fragment of an unmapped structure classed
+   static was lost just before rule 1 gave it up, and the cloud left on it dragged
+   the trial's estimate 85 m across to the drone over 0.6 s (``outdoor-unscanned``
+   seed 5: the drone acquired 1.9 s after it came into view within reach, 1.2 s with
+   the reset).  A steady flight's evidence against a drone, which a drone may show
+   too, resets nothing: with it, ``default``'s IDF1 went from 0.862 to 0.848.
 
 Rule 5 holds for a drone-class track too.  Rule 4 applied while not locked (a
 drone-class track taken at once, wherever it is) was measured on ``outdoor-unscanned``
@@ -63,6 +69,7 @@ from dronetrack.control.choose import (
     drone_instead,
     held_track,
     servable,
+    threat,
     worth_a_look,
 )
 from dronetrack.detect.candidates import engulfed
@@ -109,16 +116,28 @@ def held(tracks: Tracks, lock: LockBook, within: float) -> int:
 
 
 def rank(
-    candidates: Candidates, found: Detections | None, tracks: Tracks | None
+    candidates: Candidates,
+    found: Detections | None,
+    tracks: Tracks | None,
+    settings: ChooseSettings,
 ) -> FloatArray | None:
-    """Each candidate's track's p_drone (0.5 without one): the turret starts on the
-    likeliest drone, not on whatever the clustering listed first (None: no tracks)."""
+    """Each candidate's threat (``control.choose.threat``: its track's p_drone, 0.5
+    without one, times its closeness to the protected point and its closing speed): the
+    turret starts on the likeliest drone nearest the site, not on whatever the
+    clustering listed first (None: no tracks).  By p_drone alone, the fragments of an
+    unmapped tree line 125-190 m out, fresh and unknown (0.5), ranked over the drone
+    70 m out, whose steady flight had taken its p_drone just under 0.5, and the trials
+    went to them first (``outdoor-unscanned``, seeds 0-9: the drone acquired 1.47 s
+    after it came into view within reach, 0.85 s by threat)."""
     if found is None or tracks is None or len(candidates) == 0:
         return None
     owner = candidate_tracks(candidates, found, tracks)
-    out = np.full(len(candidates), 0.5)
-    out[owner >= 0] = tracks.p_drone[owner[owner >= 0]]
-    return out
+    p = np.full(len(candidates), 0.5)
+    p[owner >= 0] = tracks.p_drone[owner[owner >= 0]]
+    protected = np.asarray(settings.protected, dtype=float)
+    return threat(
+        candidates.positions, candidates.velocities, p, protected, settings.d_ref, settings.v_ref
+    )
 
 
 class TargetSelection:
@@ -134,15 +153,16 @@ class TargetSelection:
         self.trial = StartTrial(self.settings)
         # (the lock's net time barred [s], barred in the last frame, that frame's t)
         self._barred: tuple[float, bool, float] | None = None
-        # whether the lock, in the last frame it was locked, held what rule 1 bars
-        self._lost_barred = False
+        # whether the lock, in the last frame it was locked, held what rule 1 bars or a
+        # track not worth a look (``control.choose.worth_a_look``)
+        self._lost_on_no_drone = False
 
     def _let_go(self, tracker: Restartable, lock: LockBook) -> None:
         """Reset the tracker and the lock, and the lock's time barred with them."""
         tracker.reset()
         lock.reset()
         self._barred = None
-        self._lost_barred = False
+        self._lost_on_no_drone = False
 
     @property
     def settings(self) -> ChooseSettings:
@@ -163,7 +183,7 @@ class TargetSelection:
             log.info("frame ending %.3f s: the locked target is no drone's; lock given up", t)
             self._let_go(tracker, lock)
         offered = self._serve(t, found, tracks, offered, lock, tracker)
-        other = lock.switch(offered)
+        other = self.hovered_instead(found, tracks, offered, lock)
         if other is not None:
             log.info("frame ending %.3f s: lock moved to a target that hovered", t)
             self._let_go(tracker, lock)
@@ -192,22 +212,27 @@ class TargetSelection:
         """Rule 5: start the tracker on the candidates within the lost target's reach,
         the trial's first (``StartTrial``), and aim at them (``aim``); while the trial's
         track has no candidate, start on none and aim where the track is predicted."""
-        start = lock.reachable(t, offered, rank(offered, found, tracks))
+        start = lock.reachable(t, offered, rank(offered, found, tracks, self.settings))
         if start is None:
             return
         if tracks is not None:
             before = (self.trial.ident, self.trial.since)
             owner = candidate_tracks(start, found, tracks)
             k = self.trial.step(t, tracks, owner)
-            moved = before[0] is not None and (self.trial.ident, self.trial.since) != before
-            if k >= 0 and (moved or self._lost_barred):
+            begun = (self.trial.ident, self.trial.since) != before
+            moved = before[0] is not None and begun
+            waits_on_no_drone = self._lost_on_no_drone or (
+                begun and _on_no_drone(tracks, lock, self.settings.min_p)
+            )
+            if k >= 0 and (moved or waits_on_no_drone):
                 # a trial that failed left part of the cloud on what was not the target;
                 # so did one tried again on the same track (a drone-class track always
-                # is): the filter drifted there; and a lock lost on what rule 1 bars left
-                # it on no drone: it starts afresh
+                # is): the filter drifted there; and a cloud left by a lock on no drone,
+                # or lying on a track not worth a look, waits where no drone reappears:
+                # it starts afresh
                 log.debug("frame ending %.3f s: trial moves to track %d", t, self.trial.ident)
                 tracker.reset()
-                self._lost_barred = False
+                self._lost_on_no_drone = False
             if k >= 0:
                 mine = owner == k
                 if not mine.any():
@@ -217,6 +242,20 @@ class TargetSelection:
         if len(start) > 0:
             tracker.acquire(start)
             self.aim = start
+
+    def hovered_instead(
+        self, found: Detections, tracks: Tracks | None, offered: Candidates, lock: LockBook
+    ) -> Candidates | None:
+        """Rule 3: while locked on what never hovered, the offered candidates elsewhere
+        that did (``LockBook.switch``), of those whose track is worth a look
+        (``control.choose.worth_a_look``) or who have none; else None."""
+        other = lock.switch(offered)
+        if other is None or tracks is None:
+            return other
+        owner = candidate_tracks(other, found, tracks)
+        keep = owner >= 0
+        keep[keep] = worth_a_look(tracks, self.settings.min_p)[owner[keep]]
+        return other.take(np.flatnonzero(keep)) if keep.any() else None
 
     def drone_instead(
         self, found: Detections, tracks: Tracks | None, offered: Candidates, lock: LockBook
@@ -305,16 +344,17 @@ class TargetSelection:
         the structure, lost and retook it every four or five frames.  A frame on no
         track or without a lock counts as not barred; only letting go of the lock here
         (``_let_go``) restarts the count."""
-        barred = False
+        barred = unlikely = False
         if lock.locked and lock.estimate is not None:
             k = -1 if tracks is None else held(tracks, lock, SAME_TARGET_M)
             if k >= 0 and tracks is not None:
                 barred = not bool(servable(tracks)[k])
+                unlikely = bool(_still_no_drone(tracks, self.settings.min_p)[k])
             else:
                 position = lock.estimate.position[None, :]
                 barred = bool(engulfed(found, position, SAME_TARGET_M)[0])
         if lock.locked:
-            self._lost_barred = barred
+            self._lost_on_no_drone = barred or unlikely
         net = 0.0
         if self._barred is not None:
             net, was, t_prev = self._barred
@@ -328,6 +368,25 @@ def barred_time(net: float, barred: bool, dt: float) -> float:
     state ``barred``: a leaky count, n ← max(0, n ± Δt), up while barred, down while
     not; a track barred from one frame on reaches t after t."""
     return max(0.0, net + (dt if barred else -dt))
+
+
+def _still_no_drone(tracks: Tracks, min_p: float) -> NDArray[np.bool_]:
+    """(K,) the tracks that held still and are not worth a look
+    (``control.choose.worth_a_look``): a hover in free air is a drone's evidence (+4),
+    so what holds such a track under ``min_p`` is the world's (grounded, joined,
+    propped, crowded), not a steady flight's, which a drone may show too."""
+    out: NDArray[np.bool_] = tracks.hovered & ~worth_a_look(tracks, min_p)
+    return out
+
+
+def _on_no_drone(tracks: Tracks, lock: LockBook, min_p: float) -> bool:
+    """Whether the tracker's estimate lies on a track that is no drone's: classed
+    static or out of the open air (``control.choose.servable``), or held still and not
+    worth a look (``_still_no_drone``)."""
+    if lock.estimate is None:
+        return False
+    k = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
+    return k >= 0 and bool((~servable(tracks) | _still_no_drone(tracks, min_p))[k])
 
 
 def _at_track(tracks: Tracks, k: int) -> Candidates:
