@@ -15,7 +15,7 @@ The tracker follows one target; the track layer follows every object and classes
    the world holds still too, and the classes say which still object is no drone.
    Restarted on any that hovered, the lock went, now and then, from the drone's own
    track to a structure's fragment classed static or counted out (``outdoor-unscanned``
-   seed 3: three times in 2.4 s, the estimate dragged back across 70 m each time);
+   seed 3: three times in 2.4 s, the estimate sent 110 m off each time);
 4. otherwise, while locked on what no drone-class track follows, it restarts on the
    most threatening candidate whose track is classed drone
    (``control.choose.drone_instead``), unless the chooser is turning the turret to a
@@ -127,8 +127,9 @@ def rank(
     clustering listed first (None: no tracks).  By p_drone alone, the fragments of an
     unmapped tree line 125-190 m out, fresh and unknown (0.5), ranked over the drone
     70 m out, whose steady flight had taken its p_drone just under 0.5, and the trials
-    went to them first (``outdoor-unscanned``, seeds 0-9: the drone acquired 1.47 s
-    after it came into view within reach, 0.85 s by threat)."""
+    went to them first (``outdoor-unscanned``, seeds 0-9, with rules 3 and 5 as they
+    are: the drone acquired 1.47 s after it came into view within reach, 0.85 s by
+    threat)."""
     if found is None or tracks is None or len(candidates) == 0:
         return None
     owner = candidate_tracks(candidates, found, tracks)
@@ -154,7 +155,7 @@ class TargetSelection:
         # (the lock's net time barred [s], barred in the last frame, that frame's t)
         self._barred: tuple[float, bool, float] | None = None
         # whether the lock, in the last frame it was locked, held what rule 1 bars or a
-        # track not worth a look (``control.choose.worth_a_look``)
+        # track that held still and is not worth a look (``_still_no_drone``)
         self._lost_on_no_drone = False
 
     def _let_go(self, tracker: Restartable, lock: LockBook) -> None:
@@ -228,8 +229,8 @@ class TargetSelection:
                 # a trial that failed left part of the cloud on what was not the target;
                 # so did one tried again on the same track (a drone-class track always
                 # is): the filter drifted there; and a cloud left by a lock on no drone,
-                # or lying on a track not worth a look, waits where no drone reappears:
-                # it starts afresh
+                # or lying on a track that is no drone's, waits where no drone
+                # reappears: it starts afresh
                 log.debug("frame ending %.3f s: trial moves to track %d", t, self.trial.ident)
                 tracker.reset()
                 self._lost_on_no_drone = False
@@ -248,7 +249,8 @@ class TargetSelection:
     ) -> Candidates | None:
         """Rule 3: while locked on what never hovered, the offered candidates elsewhere
         that did (``LockBook.switch``), of those whose track is worth a look
-        (``control.choose.worth_a_look``) or who have none; else None."""
+        (``control.choose.worth_a_look``); else None.  A candidate no track follows
+        has no class to say it is no drone's, and is not taken."""
         other = lock.switch(offered)
         if other is None or tracks is None:
             return other
