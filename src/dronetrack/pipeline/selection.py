@@ -37,7 +37,7 @@ The tracker follows one target; the track layer follows every object and classes
    98.4 to 95.2 %), unless the cloud waits on what is no drone: the lock held, in its
    last frame, what rule 1 bars (a track classed static or out of the open air, an
    oversized cluster) or a track that held still and is not worth a look
-   (``_still_no_drone``), or, as the trial begins, the tracker's estimate lies on such
+   (``no_drone``), or, as the trial begins, the tracker's estimate lies on such
    a track.  No drone reappears there.  A fragment of an unmapped structure classed
    static was lost just before rule 1 gave it up, and the cloud left on it dragged
    the trial's estimate 85 m across to the drone over 0.6 s (``outdoor-unscanned``
@@ -75,13 +75,12 @@ from dronetrack.control.choose import (
 from dronetrack.detect.candidates import engulfed
 from dronetrack.detect.lock import SAME_TARGET_M, LockBook
 from dronetrack.geometry.transforms import FloatArray
+from dronetrack.pipeline.trial import StartTrial
 from dronetrack.types import Candidates, Detections, Tracks
 
 __all__ = [
     "STATIC_HOLD_S",
-    "TRIAL_MISSED_S",
     "Restartable",
-    "StartTrial",
     "TargetSelection",
     "barred_time",
     "held",
@@ -89,12 +88,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-# A trial gives way once its track has been missed (in the sensor's view, no cluster)
-# this long [s]: three frames at 10 Hz, the detect stage's N − M + 1, after which its
-# candidate cannot be confirmed again.  A single false return's track otherwise held
-# the trial, and the turret's aim, for look_s while the drone's candidate came back
-# elsewhere (``outdoor-escape`` seed 1: re-acquired 1.5 s after its return).
-TRIAL_MISSED_S = 0.3
 # A lock on a track classed static this long [s] is given up: the turret holds a static
 # object at most this long after its class, within the second the issue allows.
 STATIC_HOLD_S = 0.5
@@ -155,7 +148,7 @@ class TargetSelection:
         # (the lock's net time barred [s], barred in the last frame, that frame's t)
         self._barred: tuple[float, bool, float] | None = None
         # whether the lock, in the last frame it was locked, held what rule 1 bars or a
-        # track that held still and is not worth a look (``_still_no_drone``)
+        # track that held still and is not worth a look (``no_drone``)
         self._lost_on_no_drone = False
 
     def _let_go(self, tracker: Restartable, lock: LockBook) -> None:
@@ -351,7 +344,7 @@ class TargetSelection:
             k = -1 if tracks is None else held(tracks, lock, SAME_TARGET_M)
             if k >= 0 and tracks is not None:
                 barred = not bool(servable(tracks)[k])
-                unlikely = bool(_still_no_drone(tracks, self.settings.min_p)[k])
+                unlikely = bool(no_drone(tracks, self.settings.min_p)[k])
             else:
                 position = lock.estimate.position[None, :]
                 barred = bool(engulfed(found, position, SAME_TARGET_M)[0])
@@ -372,23 +365,23 @@ def barred_time(net: float, barred: bool, dt: float) -> float:
     return max(0.0, net + (dt if barred else -dt))
 
 
-def _still_no_drone(tracks: Tracks, min_p: float) -> NDArray[np.bool_]:
-    """(K,) the tracks that held still and are not worth a look
-    (``control.choose.worth_a_look``): a hover in free air is a drone's evidence (+4),
-    so what holds such a track under ``min_p`` is the world's (grounded, joined,
-    propped, crowded), not a steady flight's, which a drone may show too."""
-    out: NDArray[np.bool_] = tracks.hovered & ~worth_a_look(tracks, min_p)
+def no_drone(tracks: Tracks, min_p: float) -> NDArray[np.bool_]:
+    """(K,) the tracks that are no drone's: classed static or out of the open air
+    (``control.choose.servable``), or held still and not worth a look
+    (``control.choose.worth_a_look``).  A hover in free air is a drone's evidence
+    (+4), so what holds a still track under ``min_p`` is the world's (grounded,
+    joined, propped, crowded), not a steady flight's, which a drone may show too."""
+    out: NDArray[np.bool_] = ~servable(tracks) | (tracks.hovered & ~worth_a_look(tracks, min_p))
     return out
 
 
 def _on_no_drone(tracks: Tracks, lock: LockBook, min_p: float) -> bool:
-    """Whether the tracker's estimate lies on a track that is no drone's: classed
-    static or out of the open air (``control.choose.servable``), or held still and not
-    worth a look (``_still_no_drone``)."""
+    """Whether the tracker's estimate lies on a track that is no drone's
+    (``no_drone``)."""
     if lock.estimate is None:
         return False
     k = held_track(tracks, lock.estimate.position, SAME_TARGET_M)
-    return k >= 0 and bool((~servable(tracks) | _still_no_drone(tracks, min_p))[k])
+    return k >= 0 and bool(no_drone(tracks, min_p)[k])
 
 
 def _at_track(tracks: Tracks, k: int) -> Candidates:
@@ -400,80 +393,3 @@ def _at_track(tracks: Tracks, k: int) -> Candidates:
         np.zeros(1),
         tracks.ids[k : k + 1],
     )
-
-
-class StartTrial:
-    """While not locked, the track the tracker is started on, held for a while.
-
-    Among many candidates the ranking changes from frame to frame (a new fragment of a
-    structure is unknown, 0.5, as long as a drone not told yet), and a tracker
-    restarted on whichever comes first each frame never settles on any.  A trial holds
-    one track's candidates first for ``look_s`` (or until the tracker locks); a track
-    whose trial ended without a lock is tried again only after ``revisit_s``, unless
-    every candidate has been.  A trial ends at once when its track ends, when the
-    classes hold it no drone (``worth_a_look``), when it has been missed for
-    ``TRIAL_MISSED_S``, or when another candidate's track is classed drone and its own
-    is not.  That last trial was pre-empted, not tried: its track may be tried again
-    at once.  Marked tried, the drone's own track (unknown, its p_drone a little under
-    the even 0.5 as it flew without hovering) waited ``revisit_s`` behind the fresh
-    fragments of unmapped structures, tried one a frame, after a fragment classed
-    drone for a moment had pre-empted it (``outdoor-unscanned`` seed 3: acquired
-    2.2 s after it came into view within reach, 1.7 s when not marked).
-    """
-
-    def __init__(self, settings: ChooseSettings) -> None:
-        self.settings = settings
-        self.ident: int | None = None  # the track tried
-        self.since = 0.0  # since when [s]
-        self.tried: dict[int, float] = {}  # track → when its trial ended without a lock
-
-    def end(self, t: float | None) -> None:
-        """The trial ends: at ``t`` without a lock (tried), or None: the tracker locked."""
-        if self.ident is not None and t is not None:
-            self.tried[self.ident] = t
-        self.ident = None
-
-    def step(self, t: float, tracks: Tracks, owner: NDArray[np.intp]) -> int:
-        """The index of the track to try after the frame ending at ``t`` (−1: none), of
-        the candidates' tracks ``owner`` (``candidate_tracks``, best candidate first)."""
-        s = self.settings
-        alive = set(tracks.ids.tolist())
-        self.tried = {i: v for i, v in self.tried.items() if i in alive and t - v < s.revisit_s}
-        k = self._current(t, tracks, owner)
-        if k >= 0:
-            return k
-        fresh = [
-            int(j)
-            for j in owner
-            if j >= 0 and (int(tracks.ids[j]) not in self.tried or tracks.classes[j] == DRONE)
-        ]
-        if fresh:
-            k = fresh[0]
-        elif (owner >= 0).any():  # every one tried: the longest ago first
-            k = min((int(j) for j in owner if j >= 0), key=lambda j: self.tried[int(tracks.ids[j])])
-        else:
-            return -1
-        self.ident, self.since = int(tracks.ids[k]), t
-        return k
-
-    def _current(self, t: float, tracks: Tracks, owner: NDArray[np.intp]) -> int:
-        """The index of the trial's track while its trial goes on, else −1 (ending it)."""
-        if self.ident is None:
-            return -1
-        at = np.flatnonzero(tracks.ids == self.ident)
-        if len(at) == 0:
-            self.ident = None
-            return -1
-        k = int(at[0])
-        others = owner[(owner >= 0) & (owner != k)]
-        drone = tracks.classes == DRONE
-        outranked = not drone[k] and bool(drone[others].any())
-        unlikely = not worth_a_look(tracks, self.settings.min_p)[k]
-        gone = tracks.missed_s[k] > TRIAL_MISSED_S + 1e-9
-        if outranked:  # pre-empted, not tried (``end`` would mark it tried)
-            self.ident = None
-            return -1
-        if unlikely or gone or t - self.since >= self.settings.look_s - 1e-9:
-            self.end(t)
-            return -1
-        return k
