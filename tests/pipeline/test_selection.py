@@ -108,6 +108,32 @@ def test_a_lock_on_no_drone_restarts_on_the_drone_track() -> None:
     np.testing.assert_allclose(tracker.starts[0].positions, [[60, 20, 15]])
 
 
+@pytest.mark.parametrize(
+    ("held_p", "held_still", "other_p", "restarts"),
+    [
+        (0.05, True, 0.45, 1),  # held still and counted out: the world's evidence
+        (0.05, True, 0.1, 0),  # the other is counted out too
+        (0.1, False, 0.45, 0),  # a steady flight's evidence: a drone may fly so
+        (0.5, True, 0.45, 0),  # a hover in free air: a drone may hover there
+    ],
+)
+def test_a_lock_on_a_track_that_is_no_drones_restarts_on_one_worth_a_look(
+    held_p: float, held_still: bool, other_p: float, restarts: int
+) -> None:
+    """Neither track is classed drone: the lock holds an unknown track; another, of no
+    class either, is offered away from it.  The lock moves when the held track held
+    still with evidence against a drone (``no_drone``) and the other is worth a look:
+    p_drone 0.45 against 0.05 is well over the hysteresis at these ranges."""
+    positions = [[50, 0, 10], [70, -30, 20]]
+    found, offered, tracks = _frame(positions, [UNKNOWN, UNKNOWN], [held_p, other_p])
+    tracks = replace(tracks, hovered=np.array([held_still, False]))
+    lock, tracker = _locked_on([50, 0, 10], t=3.0), _Tracker()
+    TargetSelection().step(3.0, found, tracks, offered, lock, tracker)
+    assert tracker.resets == restarts
+    assert lock.locked == (restarts == 0)
+    assert [s.positions[0].tolist() for s in tracker.starts] == [[70, -30, 20]] * restarts
+
+
 def test_a_drone_track_within_apart_m_of_the_lock_is_the_held_object() -> None:
     # the lock's estimate lags: the drone's track 3 m from it, an unknown track on it
     found, offered, tracks = _frame([[50, 0, 10], [53, 0, 10]], [UNKNOWN, DRONE], [0.5, 0.98])

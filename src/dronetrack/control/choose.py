@@ -28,6 +28,7 @@ __all__ = [
     "candidate_tracks",
     "drone_instead",
     "held_track",
+    "more_threatening",
     "not_static",
     "servable",
     "threat",
@@ -150,8 +151,25 @@ def drone_instead(
     """
     if held >= 0 and tracks.classes[held] == DRONE:
         return -1
+    return more_threatening(owner, tracks, held, settings, tracks.classes == DRONE)
+
+
+def more_threatening(
+    owner: NDArray[np.intp],
+    tracks: Tracks,
+    held: int,
+    settings: ChooseSettings,
+    eligible: NDArray[np.bool_],
+) -> int:
+    """The candidate whose track (``owner``) is ``eligible`` (K,), not the ``held`` one,
+    and the most threatening (``threat``), if it is ``hysteresis`` times as threatening
+    as the held track (0 without one, ``held`` −1); −1 if none.
+
+        pick = argmax_k threat_k over eligible owner_k ≠ held
+        turn if threat_pick > hysteresis · threat_held
+    """
     ok = owner >= 0
-    ok[ok] = (tracks.classes[owner[ok]] == DRONE) & (owner[ok] != held)
+    ok[ok] = eligible[owner[ok]] & (owner[ok] != held)
     if not ok.any():
         return -1
     score = track_threats(tracks, settings)
