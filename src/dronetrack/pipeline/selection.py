@@ -146,6 +146,8 @@ class TargetSelection:
 
     def __init__(self, chooser: TargetChooser | None = None) -> None:
         self.chooser = chooser
+        # the chooser's settings, or the defaults' (the threat's and ``min_p``) without one
+        self.settings = chooser.settings if chooser is not None else ChooseSettings()
         self.look: Candidates | None = None  # where the served track is, out of view
         # what rule 5 started the tracker on, the trial's candidate first, or where the
         # trial's track is predicted while it has none: the turret aims there while not
@@ -164,10 +166,6 @@ class TargetSelection:
         lock.reset()
         self._barred = None
         self._lost_on_no_drone = False
-
-    @property
-    def settings(self) -> ChooseSettings:
-        return self.chooser.settings if self.chooser is not None else ChooseSettings()
 
     def step(
         self,
@@ -194,11 +192,11 @@ class TargetSelection:
             self._start(t, found, tracks, offered, lock, tracker)
             return offered
         self.trial.end(None)
-        drone = self.drone_instead(found, tracks, offered, lock) if self.look is None else None
-        if drone is not None:
+        other = self.likelier_instead(found, tracks, offered, lock) if self.look is None else None
+        if other is not None:
             log.info("frame ending %.3f s: lock moved to a likelier track (rule 4)", t)
             self._let_go(tracker, lock)
-            tracker.acquire(drone)
+            tracker.acquire(other)
         return offered
 
     def _start(
@@ -259,7 +257,7 @@ class TargetSelection:
         keep[keep] = worth_a_look(tracks, self.settings.min_p)[owner[keep]]
         return other.take(np.flatnonzero(keep)) if keep.any() else None
 
-    def drone_instead(
+    def likelier_instead(
         self, found: Detections, tracks: Tracks | None, offered: Candidates, lock: LockBook
     ) -> Candidates | None:
         """Rule 4: while locked on what no drone-class track follows, an offered
